@@ -1,0 +1,22 @@
+//! Regenerates the repository's generated images: the built-in default exemplar and the test
+//! fixtures. Run: `cargo run --example generate_fixtures`.
+
+use solidsynth::exemplar::procedural;
+
+fn main() {
+    let save = |img: solidsynth::exemplar::Image, path: &str| {
+        img.to_dynamic().save(path).expect(path);
+        println!("wrote {path}");
+    };
+    save(
+        procedural::cobblestone(128, 20, 7),
+        "assets/default-exemplar.png",
+    );
+    std::fs::create_dir_all("tests/fixtures").unwrap();
+    save(
+        procedural::cobblestone(32, 6, 3),
+        "tests/fixtures/cells32.png",
+    );
+    save(procedural::marble(32, 11), "tests/fixtures/marble32.png");
+    save(procedural::stripes(32, 8), "tests/fixtures/stripes32.png");
+}

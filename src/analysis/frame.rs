@@ -1,0 +1,62 @@
+//! The axis frame tying exemplars to the volume, and packed 2D coordinates.
+//!
+//! Exemplar E_a (a = 0, 1, 2 for x, y, z) lies in the plane orthogonal to volume axis a. Its image
+//! column u runs along volume axis (a+1) mod 3 and its row v along (a+2) mod 3:
+//!
+//! | exemplar | u (column) | v (row) |
+//! |----------|------------|---------|
+//! | Ex       | y          | z       |
+//! | Ey       | z          | x       |
+//! | Ez       | x          | y       |
+//!
+//! Why this cyclic orientation (our reading of the paper's Fig. 3): it is the only one in which a
+//! single image can serve all three axes with one shared candidate set, which the paper reports
+//! doing (6.1). In it, the line along volume axis t is the *V strip* (column through the pixel)
+//! of E_{t+1} and the *H strip* (row) of E_{t+2}, so the crossbar error of a triple (p0, p1, p2) is
+//!
+//!   CB = |V0(p0) - H1(p1)|^2 + |V1(p1) - H2(p2)|^2 + |V2(p2) - H0(p0)|^2,
+//!
+//! invariant under the cyclic rotation (p0, p1, p2) -> (p1, p2, p0). So when E0 = E1 = E2 the
+//! candidates of E1 and E2 are rotations of those of E0 and are computed once.
+//! Consequence for synthesis (next issue): coordinate inheritance reads
+//! child_a = 2 parent_a + (offset along axis a+1, offset along axis a+2).
+
+/// Side of the square 2D neighbourhoods (the paper's N).
+pub const NEIGHBOURHOOD: i32 = 5;
+/// Half side: offsets run over -HALF..=HALF.
+pub const HALF: i32 = NEIGHBOURHOOD / 2;
+/// Pixels in one 2D neighbourhood.
+pub const NEIGHBOURHOOD_PIXELS: usize = (NEIGHBOURHOOD * NEIGHBOURHOOD) as usize;
+
+/// "No coordinate": unused candidate slots.
+pub const NO_COORD: u32 = u32::MAX;
+
+/// Pack an exemplar pixel coordinate (x < 65536, y < 65536).
+#[inline]
+pub fn pack(x: u32, y: u32) -> u32 {
+    x | (y << 16)
+}
+
+/// Unpack a coordinate made by [`pack`].
+#[inline]
+pub fn unpack(c: u32) -> (u32, u32) {
+    (c & 0xFFFF, c >> 16)
+}
+
+/// The exemplar that follows `a` cyclically.
+#[inline]
+pub fn next(a: usize) -> usize {
+    (a + 1) % 3
+}
+
+/// Rotate a triple stored for exemplar 0 of a shared analysis into the triple of the same
+/// 3-neighbourhood seen from exemplar `a` (see the module comment): set_a[p] = rot^a(set_0[p]).
+#[inline]
+pub fn rotate_from_shared(t: [u32; 3], a: usize) -> [u32; 3] {
+    match a {
+        0 => t,
+        // (p, b, c) in set 0 at p  ->  (c, p, b) in set 1 at p
+        1 => [t[2], t[0], t[1]],
+        _ => [t[1], t[2], t[0]],
+    }
+}

@@ -1,0 +1,128 @@
+//! `solidsynth bench ...`: benchmark tables (the numbers recorded in BENCHMARKS.md).
+
+use clap::{Args, Subcommand};
+use solidsynth::exemplar::{self, procedural, Image};
+use std::path::PathBuf;
+use std::process::Command;
+use std::time::Instant;
+
+#[derive(Subcommand, Debug)]
+pub enum BenchCommand {
+    /// Analysis wall time and peak memory per exemplar size (each size in a fresh process).
+    Analyze(BenchAnalyzeArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct BenchAnalyzeArgs {
+    /// Exemplar sizes (square), comma-separated.
+    #[arg(long, value_delimiter = ',', default_values_t = vec![64u32, 128, 256, 512])]
+    pub sizes: Vec<u32>,
+    /// Crop the exemplars from this image (top-left corner; it must be at least as large as the
+    /// biggest size). Default: procedural cobblestones generated at each size.
+    #[arg(long)]
+    pub exemplar: Option<PathBuf>,
+    /// Runs per size; the median is reported.
+    #[arg(long, default_value_t = 3)]
+    pub runs: u32,
+    /// Print JSON lines instead of a table.
+    #[arg(long)]
+    pub json: bool,
+    #[command(flatten)]
+    pub backend: super::BackendArgs,
+}
+
+fn crop(img: &Image, size: u32) -> Image {
+    let mut out = Image::new(size, size, img.channels);
+    for y in 0..size {
+        let src = &img.pixels[((y * img.width) * img.channels) as usize..]
+            [..(size * img.channels) as usize];
+        out.pixels[(y * size * img.channels) as usize..][..src.len()].copy_from_slice(src);
+    }
+    out
+}
+
+pub fn run(cmd: BenchCommand) -> anyhow::Result<()> {
+    let BenchCommand::Analyze(args) = cmd;
+    let source = match &args.exemplar {
+        Some(p) => Some(exemplar::load_image(p, "--exemplar")?),
+        None => None,
+    };
+    if let Some(src) = &source {
+        let biggest = args.sizes.iter().copied().max().unwrap_or(0);
+        if src.width < biggest || src.height < biggest {
+            anyhow::bail!(solidsynth::Error::invalid(
+                "--exemplar",
+                format!(
+                    "is {}x{}, smaller than --sizes {biggest}",
+                    src.width, src.height
+                )
+            ));
+        }
+    }
+    let dir = tempfile::tempdir()?;
+    let exe = std::env::current_exe()?;
+    if !args.json {
+        println!(
+            "analysis benchmark: backend {:?}, {} run(s) per size, median reported",
+            args.backend.backend, args.runs
+        );
+        println!(
+            "{:>6}  {:>10}  {:>10}  {:>12}  {:>10}",
+            "size", "median s", "min s", "peak RSS MiB", "file MiB"
+        );
+    }
+    for &size in &args.sizes {
+        let img = match &source {
+            Some(src) => crop(src, size),
+            None => procedural::cobblestone(size, (size / 8).max(8), 7),
+        };
+        let input = dir.path().join(format!("ex{size}.png"));
+        img.to_dynamic().save(&input)?;
+        let output = dir.path().join(format!("ex{size}.ssa"));
+        let mut times = Vec::new();
+        let mut peak = 0u64;
+        for _ in 0..args.runs.max(1) {
+            let start = Instant::now();
+            let mut cmd = Command::new(&exe);
+            cmd.args(["--quiet", "analyze", "--json", "--backend"])
+                .arg(format!("{:?}", args.backend.backend).to_lowercase())
+                .arg(&input)
+                .arg("-o")
+                .arg(&output);
+            if let Some(a) = &args.backend.adapter {
+                cmd.args(["--adapter", a]);
+            }
+            let out = cmd.output()?;
+            let secs = start.elapsed().as_secs_f64();
+            if !out.status.success() {
+                anyhow::bail!(
+                    "analyze failed at size {size}: {}",
+                    String::from_utf8_lossy(&out.stderr)
+                );
+            }
+            let summary: serde_json::Value = serde_json::from_slice(&out.stdout)?;
+            peak = peak.max(summary["peak_rss_bytes"].as_u64().unwrap_or(0));
+            times.push(secs);
+        }
+        times.sort_by(f64::total_cmp);
+        let median = times[times.len() / 2];
+        let file_mib = std::fs::metadata(&output)?.len() as f64 / (1 << 20) as f64;
+        if args.json {
+            println!(
+                "{}",
+                serde_json::json!({"size": size, "median_s": median, "min_s": times[0],
+                    "peak_rss_bytes": peak, "file_bytes": std::fs::metadata(&output)?.len()})
+            );
+        } else {
+            println!(
+                "{:>6}  {:>10.3}  {:>10.3}  {:>12.1}  {:>10.1}",
+                size,
+                median,
+                times[0],
+                peak as f64 / (1 << 20) as f64,
+                file_mib
+            );
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,99 @@
+//! `solidsynth inspect`.
+
+use clap::Args;
+use solidsynth::analysis::{candidate_stats, slab};
+use solidsynth::io::{atomic, ssa};
+use std::path::PathBuf;
+
+#[derive(Args, Debug)]
+pub struct InspectArgs {
+    /// The .ssa file.
+    pub file: PathBuf,
+    /// Where to write the candidate slab sheet (default: FILE with extension .slab.png).
+    #[arg(long)]
+    pub slab: Option<PathBuf>,
+    /// Print JSON instead of a table.
+    #[arg(long)]
+    pub json: bool,
+}
+
+pub fn run(args: InspectArgs) -> anyhow::Result<()> {
+    let a = ssa::load(&args.file)?;
+    let slab_path = args
+        .slab
+        .clone()
+        .unwrap_or_else(|| args.file.with_extension("slab.png"));
+    atomic::check_output_path(&slab_path, "--slab")?;
+    let axes = if a.shared { 1 } else { 3 };
+    let mut levels_json = Vec::new();
+    let mut table = String::new();
+    table.push_str(&format!(
+        "{}: {} colour channel(s){}, {} border, {}\n",
+        args.file.display(),
+        a.color_channels,
+        if a.has_feature {
+            " + feature distance"
+        } else {
+            ""
+        },
+        match a.border {
+            solidsynth::exemplar::Border::Wrap => "periodic",
+            solidsynth::exemplar::Border::Mirror => "mirrored",
+        },
+        if a.shared {
+            "one exemplar shared by x, y, z"
+        } else {
+            "three exemplars"
+        },
+    ));
+    table.push_str("level  size       exemplar  PCA dims  energy  3D cand. mean  min  max  none   best CB  rounds\n");
+    for level in 0..a.level_count() {
+        for ax in 0..axes {
+            let l = &a.exemplar(ax).levels[level];
+            let s = candidate_stats(&a, ax, level);
+            table.push_str(&format!(
+                "{:<6} {:<10} {:<9} {:>8}  {:>5.1}%  {:>13.2}  {:>3}  {:>3}  {:>4}  {:>8.0}  {:>6}\n",
+                level,
+                format!("{}x{}", l.image.width, l.image.height),
+                ["x", "y", "z"][ax],
+                l.pca.output_dims,
+                100.0 * l.pca.energy_kept(),
+                s.mean,
+                s.min,
+                s.max,
+                s.pixels_without,
+                l.stats.mean_best_cb,
+                l.stats.filter_rounds,
+            ));
+            let axis = ["x", "y", "z"][ax];
+            levels_json.push(serde_json::json!({
+                "level": level, "exemplar": axis,
+                "width": l.image.width, "height": l.image.height,
+                "pca_dims": l.pca.output_dims, "pca_energy_kept": l.pca.energy_kept(),
+                "candidates_3d": s, "k2d": a.params.k2d[level],
+                "mean_best_crossbar_error": l.stats.mean_best_cb,
+                "filter_rounds": l.stats.filter_rounds,
+            }));
+        }
+    }
+    atomic::save_png(&slab_path, &slab::slab_sheet(&a, 0))?;
+    if args.json {
+        println!(
+            "{}",
+            serde_json::json!({
+                "file": args.file, "shared": a.shared, "color_channels": a.color_channels,
+                "feature_channel": a.has_feature, "levels": levels_json, "slab_png": slab_path,
+            })
+        );
+    } else {
+        print!("{table}");
+        println!(
+            "level 0 is the finest; 'none' = pixels left without 3D candidates (cf. paper Fig. 13)"
+        );
+        println!(
+            "candidate slab of Ex (rows: levels, columns: depth -2..2) -> {}",
+            slab_path.display()
+        );
+    }
+    Ok(())
+}

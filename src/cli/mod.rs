@@ -1,0 +1,94 @@
+//! The `solidsynth` command line: argument parsing and the commands.
+
+pub mod analyze;
+pub mod bench;
+pub mod inspect;
+
+use clap::{Args, Parser, Subcommand};
+use solidsynth::backend::{BackendChoice, Compute};
+use solidsynth::gpu::GpuOptions;
+
+#[derive(Parser, Debug)]
+#[command(
+    name = "solidsynth",
+    version,
+    about = "Solid texture synthesis from 2D exemplars, on the GPU"
+)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+    /// Less output: warnings and errors only.
+    #[arg(long, short, global = true)]
+    pub quiet: bool,
+}
+
+#[derive(Subcommand, Debug)]
+pub enum Command {
+    /// Analyse exemplar(s): pyramids, PCA, 3D candidates; writes a .ssa file.
+    Analyze(analyze::AnalyzeArgs),
+    /// Describe a .ssa file and write its candidate slab as a PNG.
+    Inspect(inspect::InspectArgs),
+    /// Benchmarks printed as tables.
+    #[command(subcommand)]
+    Bench(bench::BenchCommand),
+    /// List the GPU adapters wgpu can see.
+    Adapters,
+}
+
+/// Backend flags shared by the commands that run kernels.
+#[derive(Args, Debug, Clone)]
+pub struct BackendArgs {
+    /// Where kernels run: gpu (any Vulkan adapter, lavapipe included), cpu, or auto.
+    #[arg(long, value_enum, default_value = "auto")]
+    pub backend: BackendChoice,
+    /// Use the adapter whose name contains this (case-insensitive).
+    #[arg(long, env = "SOLIDSYNTH_ADAPTER")]
+    pub adapter: Option<String>,
+}
+
+impl BackendArgs {
+    pub fn open(&self) -> solidsynth::Result<Compute> {
+        let mut opts = GpuOptions::from_env();
+        if self.adapter.is_some() {
+            opts.adapter_filter = self.adapter.clone();
+        }
+        let compute = Compute::open(self.backend, &opts)?;
+        tracing::info!("backend: {}", compute.describe());
+        Ok(compute)
+    }
+}
+
+pub fn run(cli: Cli) -> anyhow::Result<()> {
+    match cli.command {
+        Command::Analyze(a) => analyze::run(a, cli.quiet),
+        Command::Inspect(a) => inspect::run(a),
+        Command::Bench(b) => bench::run(b),
+        Command::Adapters => {
+            let list = solidsynth::gpu::context::list_adapters();
+            if list.is_empty() {
+                println!("no Vulkan adapters (install mesa-vulkan-drivers for lavapipe)");
+            }
+            for a in list {
+                println!(
+                    "{} ({:?}, {:?}, driver {} {})",
+                    a.name, a.device_type, a.backend, a.driver, a.driver_info
+                );
+            }
+            Ok(())
+        }
+    }
+}
+
+/// A progress bar on stderr (hidden when stderr is not a terminal or with --quiet).
+pub fn progress_bar(quiet: bool) -> indicatif::ProgressBar {
+    if quiet {
+        return indicatif::ProgressBar::hidden();
+    }
+    let bar = indicatif::ProgressBar::new(1000);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("{elapsed:>4} [{bar:30}] {msg}")
+            .unwrap()
+            .progress_chars("=> "),
+    );
+    bar
+}

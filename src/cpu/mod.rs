@@ -1,0 +1,5 @@
+//! CPU references of the WGSL kernels: one module per kernel, same name as its `wgsl/*.wgsl`.
+//! Each mirrors its shader's loops and integer arithmetic, and is also the real, rayon-parallel
+//! CPU backend.
+
+pub mod project;

@@ -1,0 +1,201 @@
+//! Exemplar images: loading, the working 8-bit pixel grid, Gaussian pyramids and the optional
+//! feature-distance channel.
+
+pub mod feature;
+pub mod procedural;
+pub mod pyramid;
+
+use crate::error::{Error, Result};
+use std::path::Path;
+
+/// Smallest exemplar side accepted: the 5x5 neighbourhoods of four pyramid levels need it.
+pub const MIN_EXEMPLAR_SIDE: u32 = 16;
+/// Largest exemplar side accepted (analysis memory grows with the pixel count).
+pub const MAX_EXEMPLAR_SIDE: u32 = 2048;
+
+/// How neighbourhoods read pixels outside the image.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Border {
+    /// The exemplar tiles: coordinates wrap around.
+    Wrap,
+    /// The exemplar does not tile: reads are mirrored at the edge (reflect-101), so no
+    /// neighbourhood ever straddles the opposite edges (which would be a seam).
+    Mirror,
+}
+
+impl Border {
+    /// Map an integer coordinate into `0..len`.
+    pub fn resolve(self, c: i32, len: u32) -> u32 {
+        let n = len as i32;
+        match self {
+            Border::Wrap => c.rem_euclid(n) as u32,
+            Border::Mirror => {
+                if n == 1 {
+                    return 0;
+                }
+                let period = 2 * (n - 1);
+                let m = c.rem_euclid(period);
+                (if m >= n { period - m } else { m }) as u32
+            }
+        }
+    }
+    pub fn code(self) -> u32 {
+        match self {
+            Border::Wrap => 0,
+            Border::Mirror => 1,
+        }
+    }
+    pub fn from_code(c: u32) -> Option<Self> {
+        match c {
+            0 => Some(Border::Wrap),
+            1 => Some(Border::Mirror),
+            _ => None,
+        }
+    }
+}
+
+/// An 8-bit image with interleaved channels, row-major, x fastest.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Image {
+    pub width: u32,
+    pub height: u32,
+    pub channels: u32,
+    pub pixels: Vec<u8>,
+}
+
+impl Image {
+    pub fn new(width: u32, height: u32, channels: u32) -> Self {
+        Image {
+            width,
+            height,
+            channels,
+            pixels: vec![0; (width * height * channels) as usize],
+        }
+    }
+    pub fn pixel_count(&self) -> usize {
+        (self.width * self.height) as usize
+    }
+    /// The channels of pixel (x, y).
+    pub fn at(&self, x: u32, y: u32) -> &[u8] {
+        let i = ((y * self.width + x) * self.channels) as usize;
+        &self.pixels[i..i + self.channels as usize]
+    }
+    /// The channels of pixel (x, y) after resolving out-of-range coordinates with `border`.
+    pub fn at_border(&self, x: i32, y: i32, border: Border) -> &[u8] {
+        self.at(
+            border.resolve(x, self.width),
+            border.resolve(y, self.height),
+        )
+    }
+    /// A copy with the channels `range` only.
+    pub fn select_channels(&self, range: std::ops::Range<u32>) -> Image {
+        let c = range.len() as u32;
+        let mut out = Image::new(self.width, self.height, c);
+        for (dst, src) in out
+            .pixels
+            .chunks_exact_mut(c as usize)
+            .zip(self.pixels.chunks_exact(self.channels as usize))
+        {
+            dst.copy_from_slice(&src[range.start as usize..range.end as usize]);
+        }
+        out
+    }
+    /// Append the channels of `other` (same size) after ours.
+    pub fn with_extra_channels(&self, other: &Image) -> Image {
+        assert_eq!((self.width, self.height), (other.width, other.height));
+        let c = self.channels + other.channels;
+        let mut out = Image::new(self.width, self.height, c);
+        for ((dst, a), b) in out
+            .pixels
+            .chunks_exact_mut(c as usize)
+            .zip(self.pixels.chunks_exact(self.channels as usize))
+            .zip(other.pixels.chunks_exact(other.channels as usize))
+        {
+            dst[..a.len()].copy_from_slice(a);
+            dst[a.len()..].copy_from_slice(b);
+        }
+        out
+    }
+    /// As an `image` buffer keeping the channel count (gray, RGB or RGBA), for saving.
+    pub fn to_dynamic(&self) -> image::DynamicImage {
+        let (w, h, px) = (self.width, self.height, self.pixels.clone());
+        match self.channels {
+            1 => image::DynamicImage::ImageLuma8(image::GrayImage::from_raw(w, h, px).unwrap()),
+            3 => image::DynamicImage::ImageRgb8(image::RgbImage::from_raw(w, h, px).unwrap()),
+            4 => image::DynamicImage::ImageRgba8(image::RgbaImage::from_raw(w, h, px).unwrap()),
+            _ => image::DynamicImage::ImageRgba8(self.to_rgba8()),
+        }
+    }
+
+    /// Convert to an RGB(A) `image` buffer for saving; gray is replicated.
+    pub fn to_rgba8(&self) -> image::RgbaImage {
+        image::RgbaImage::from_fn(self.width, self.height, |x, y| {
+            let p = self.at(x, y);
+            match p.len() {
+                1 | 2 => image::Rgba([p[0], p[0], p[0], 255]),
+                3 => image::Rgba([p[0], p[1], p[2], 255]),
+                _ => image::Rgba([p[0], p[1], p[2], p[3]]),
+            }
+        })
+    }
+}
+
+/// Decode an image file to 8 bits per channel, keeping 1 (gray), 3 (RGB) or 4 (RGBA) channels.
+/// 16-bit and float inputs are rounded to 8 bits (the synthesis works on 8-bit colours).
+/// `what` names the input in errors (a flag or "exemplar").
+pub fn load_image(path: &Path, what: &str) -> Result<Image> {
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    decode_image(&bytes, &format!("{what} {}", path.display()))
+}
+
+/// Decode image bytes (see [`load_image`]).
+pub fn decode_image(bytes: &[u8], what: &str) -> Result<Image> {
+    let decoded = image::load_from_memory(bytes)
+        .map_err(|e| Error::invalid(what, format!("cannot decode image: {e}")))?;
+    let (w, h) = (decoded.width(), decoded.height());
+    if w == 0 || h == 0 {
+        return Err(Error::invalid(what, format!("image is {w}x{h}")));
+    }
+    let color = decoded.color();
+    let (channels, pixels) = match (color.has_color(), color.has_alpha()) {
+        (false, false) => (1, decoded.into_luma8().into_raw()),
+        (false, true) => {
+            // Gray+alpha: keep as RGBA so alpha survives, with the gray replicated.
+            (4, decoded.into_rgba8().into_raw())
+        }
+        (true, false) => (3, decoded.into_rgb8().into_raw()),
+        (true, true) => (4, decoded.into_rgba8().into_raw()),
+    };
+    Ok(Image {
+        width: w,
+        height: h,
+        channels,
+        pixels,
+    })
+}
+
+/// Check an exemplar's size against the accepted range.
+pub fn check_exemplar_size(img: &Image, what: &str) -> Result<()> {
+    let (w, h) = (img.width, img.height);
+    if w < MIN_EXEMPLAR_SIDE || h < MIN_EXEMPLAR_SIDE {
+        return Err(Error::invalid(
+            what,
+            format!("exemplar is {w}x{h}; each side must be at least {MIN_EXEMPLAR_SIDE} pixels"),
+        ));
+    }
+    if w > MAX_EXEMPLAR_SIDE || h > MAX_EXEMPLAR_SIDE {
+        return Err(Error::invalid(
+            what,
+            format!("exemplar is {w}x{h}; each side must be at most {MAX_EXEMPLAR_SIDE} pixels"),
+        ));
+    }
+    Ok(())
+}
+
+/// The exemplar built into the binary (generated by [`procedural::cobblestone`], saved as PNG).
+pub const DEFAULT_EXEMPLAR_PNG: &[u8] = include_bytes!("../../assets/default-exemplar.png");
+
+/// Decode the built-in default exemplar.
+pub fn default_exemplar() -> Image {
+    decode_image(DEFAULT_EXEMPLAR_PNG, "built-in exemplar").expect("built-in exemplar decodes")
+}

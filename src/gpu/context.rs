@@ -1,0 +1,348 @@
+//! `GpuContext`: one wgpu device chosen by name filter, with bounded waits and helpers to split
+//! work that exceeds the adapter's storage-binding limit.
+
+use crate::error::{Error, Result};
+use std::collections::HashMap;
+use std::ops::Range;
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+use wgpu::util::DeviceExt;
+
+/// Environment variable naming a substring of the adapter to use (like `--adapter`).
+pub const ADAPTER_ENV: &str = "SOLIDSYNTH_ADAPTER";
+/// Environment variable overriding the bound on any single wait for the GPU, in seconds.
+pub const TIMEOUT_ENV: &str = "SOLIDSYNTH_GPU_TIMEOUT_S";
+/// Threads per workgroup of the 1D kernels.
+pub const WORKGROUP_SIZE: u32 = 64;
+
+/// How to pick and drive the adapter.
+#[derive(Clone, Debug)]
+pub struct GpuOptions {
+    /// Case-insensitive substring the adapter name must contain.
+    pub adapter_filter: Option<String>,
+    /// Upper bound on any single wait for the device.
+    pub timeout: Duration,
+    /// Use a smaller storage-binding limit than the adapter's (tests exercise chunking with it).
+    pub max_binding_bytes: Option<u64>,
+}
+
+impl Default for GpuOptions {
+    fn default() -> Self {
+        GpuOptions {
+            adapter_filter: None,
+            timeout: Duration::from_secs(120),
+            max_binding_bytes: None,
+        }
+    }
+}
+
+impl GpuOptions {
+    /// Defaults, with the adapter filter and timeout taken from the environment when set.
+    pub fn from_env() -> Self {
+        let mut o = GpuOptions::default();
+        o.adapter_filter = std::env::var(ADAPTER_ENV).ok().filter(|s| !s.is_empty());
+        if let Some(s) = std::env::var(TIMEOUT_ENV)
+            .ok()
+            .and_then(|s| s.parse::<f64>().ok())
+        {
+            if s > 0.0 {
+                o.timeout = Duration::from_secs_f64(s);
+            }
+        }
+        o
+    }
+}
+
+/// A device and queue with the helpers every dispatch module uses.
+pub struct GpuContext {
+    pub device: wgpu::Device,
+    pub queue: wgpu::Queue,
+    pub info: wgpu::AdapterInfo,
+    pub limits: wgpu::Limits,
+    timeout: Duration,
+    max_binding_bytes: u64,
+    pipelines: Mutex<HashMap<&'static str, Arc<wgpu::ComputePipeline>>>,
+}
+
+fn new_instance() -> wgpu::Instance {
+    let mut desc = wgpu::InstanceDescriptor::new_without_display_handle();
+    desc.backends = wgpu::Backends::VULKAN;
+    wgpu::Instance::new(desc)
+}
+
+/// Every adapter wgpu can see (name, type, backend), for `--list-adapters` and error messages.
+pub fn list_adapters() -> Vec<wgpu::AdapterInfo> {
+    let instance = new_instance();
+    pollster::block_on(instance.enumerate_adapters(wgpu::Backends::VULKAN))
+        .iter()
+        .map(|a| a.get_info())
+        .collect()
+}
+
+fn type_rank(t: wgpu::DeviceType) -> u32 {
+    match t {
+        wgpu::DeviceType::DiscreteGpu => 0,
+        wgpu::DeviceType::IntegratedGpu => 1,
+        wgpu::DeviceType::VirtualGpu => 2,
+        wgpu::DeviceType::Other => 3,
+        wgpu::DeviceType::Cpu => 4,
+    }
+}
+
+impl GpuContext {
+    /// Pick the best adapter matching the filter (discrete > integrated > virtual > CPU, e.g.
+    /// lavapipe) and open a device with the adapter's own limits.
+    pub fn new(opts: &GpuOptions) -> Result<Self> {
+        let instance = new_instance();
+        let adapters = pollster::block_on(instance.enumerate_adapters(wgpu::Backends::VULKAN));
+        let names: Vec<String> = adapters
+            .iter()
+            .map(|a| format!("{} ({:?})", a.get_info().name, a.get_info().device_type))
+            .collect();
+        let filter = opts.adapter_filter.as_ref().map(|f| f.to_lowercase());
+        let chosen = adapters
+            .into_iter()
+            .filter(|a| match &filter {
+                Some(f) => a.get_info().name.to_lowercase().contains(f.as_str()),
+                None => true,
+            })
+            .min_by_key(|a| type_rank(a.get_info().device_type));
+        let adapter = chosen.ok_or_else(|| {
+            if names.is_empty() {
+                Error::Gpu(
+                    "no Vulkan adapter found; install a Vulkan driver (e.g. Debian's \
+                     mesa-vulkan-drivers for the lavapipe CPU device) or use --backend cpu"
+                        .into(),
+                )
+            } else {
+                Error::Gpu(format!(
+                    "no adapter matches '{}' (from --adapter or {ADAPTER_ENV}); available: {}",
+                    opts.adapter_filter.as_deref().unwrap_or(""),
+                    names.join(", ")
+                ))
+            }
+        })?;
+        let info = adapter.get_info();
+        let limits = adapter.limits();
+        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("solidsynth"),
+            required_features: wgpu::Features::empty(),
+            required_limits: limits.clone(),
+            ..Default::default()
+        }))
+        .map_err(|e| Error::Gpu(format!("cannot open device on {}: {e}", info.name)))?;
+        let adapter_max = limits.max_storage_buffer_binding_size as u64;
+        let max_binding_bytes = opts
+            .max_binding_bytes
+            .map_or(adapter_max, |m| m.min(adapter_max));
+        tracing::info!(
+            adapter = %info.name,
+            device_type = ?info.device_type,
+            driver = %info.driver,
+            max_storage_binding = adapter_max,
+            "GPU adapter"
+        );
+        Ok(GpuContext {
+            device,
+            queue,
+            info,
+            limits,
+            timeout: opts.timeout,
+            max_binding_bytes,
+            pipelines: Mutex::new(HashMap::new()),
+        })
+    }
+
+    /// A one-line description of the adapter, for logs and benchmark tables.
+    pub fn describe(&self) -> String {
+        format!(
+            "{} ({:?}, {:?}, driver {} {})",
+            self.info.name,
+            self.info.device_type,
+            self.info.backend,
+            self.info.driver,
+            self.info.driver_info
+        )
+    }
+
+    /// The largest buffer one storage binding may cover.
+    pub fn max_binding_bytes(&self) -> u64 {
+        self.max_binding_bytes
+    }
+
+    /// The compute pipeline of kernel `name` (entry point `main`), built once and cached.
+    pub fn pipeline(&self, name: &'static str) -> Result<Arc<wgpu::ComputePipeline>> {
+        if let Some(p) = self.pipelines.lock().unwrap().get(name) {
+            return Ok(p.clone());
+        }
+        let source = super::shaders::source(name);
+        let scope = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let module = self
+            .device
+            .create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some(name),
+                source: wgpu::ShaderSource::Wgsl(source.into()),
+            });
+        let pipeline = self
+            .device
+            .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(name),
+                layout: None,
+                module: &module,
+                entry_point: Some("main"),
+                compilation_options: Default::default(),
+                cache: None,
+            });
+        if let Some(err) = pollster::block_on(scope.pop()) {
+            return Err(Error::Gpu(format!("kernel {name}: {err}")));
+        }
+        let pipeline = Arc::new(pipeline);
+        self.pipelines
+            .lock()
+            .unwrap()
+            .insert(name, pipeline.clone());
+        Ok(pipeline)
+    }
+
+    /// A read-only storage buffer holding `bytes` (padded to 4 bytes, at least 4).
+    pub fn storage_buffer(&self, label: &str, bytes: &[u8]) -> wgpu::Buffer {
+        let mut padded = bytes.to_vec();
+        padded.resize(bytes.len().next_multiple_of(4).max(4), 0);
+        self.device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents: &padded,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+            })
+    }
+
+    /// A uniform buffer holding `value`.
+    pub fn uniform_buffer<T: bytemuck::Pod>(&self, label: &str, value: &T) -> wgpu::Buffer {
+        self.device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents: bytemuck::bytes_of(value),
+                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            })
+    }
+
+    /// A read-write storage buffer of `words` u32, pre-filled with `sentinel` so a value the
+    /// kernel never wrote is distinguishable from one it wrote.
+    pub fn output_buffer(&self, label: &str, words: usize, sentinel: u32) -> wgpu::Buffer {
+        let fill = vec![sentinel; words.max(1)];
+        self.device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents: bytemuck::cast_slice(&fill),
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            })
+    }
+
+    /// Submit `encoder` and wait for it, bounded by the timeout.
+    pub fn submit_and_wait(&self, encoder: wgpu::CommandEncoder) -> Result<()> {
+        let index = self.queue.submit(Some(encoder.finish()));
+        self.wait(Some(index))
+    }
+
+    fn wait(&self, index: Option<wgpu::SubmissionIndex>) -> Result<()> {
+        self.device
+            .poll(wgpu::PollType::Wait {
+                submission_index: index,
+                timeout: Some(self.timeout),
+            })
+            .map(|_| ())
+            .map_err(|e| match e {
+                wgpu::PollError::Timeout => Error::Gpu(format!(
+                    "device did not finish within {:?} (raise {TIMEOUT_ENV} if it is just slow)",
+                    self.timeout
+                )),
+                other => Error::Gpu(format!("device poll failed: {other}")),
+            })
+    }
+
+    /// Copy the first `words` u32 of `buffer` back to the host (bounded wait).
+    pub fn read_words(&self, buffer: &wgpu::Buffer, words: usize) -> Result<Vec<u32>> {
+        let size = (words * 4) as u64;
+        let staging = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("readback"),
+            size: size.max(4),
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut encoder = self
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("readback"),
+            });
+        encoder.copy_buffer_to_buffer(buffer, 0, &staging, 0, Some(size.max(4)));
+        self.submit_and_wait(encoder)?;
+        let (tx, rx) = std::sync::mpsc::channel();
+        staging.map_async(wgpu::MapMode::Read, .., move |r| {
+            let _ = tx.send(r);
+        });
+        self.wait(None)?;
+        rx.recv_timeout(self.timeout)
+            .map_err(|_| Error::Gpu("buffer mapping never completed".into()))?
+            .map_err(|e| Error::Gpu(format!("buffer mapping failed: {e}")))?;
+        let view = staging
+            .get_mapped_range(..)
+            .map_err(|e| Error::Gpu(format!("buffer mapping failed: {e}")))?;
+        let out = bytemuck::cast_slice::<u8, u32>(&view[..size as usize]).to_vec();
+        drop(view);
+        staging.unmap();
+        Ok(out)
+    }
+
+    /// Run `f` inside validation and out-of-memory error scopes; GPU errors become `Error::Gpu`.
+    pub fn checked<T>(&self, what: &str, f: impl FnOnce() -> Result<T>) -> Result<T> {
+        let oom = self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+        let validation = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let result = f();
+        let v = pollster::block_on(validation.pop());
+        let o = pollster::block_on(oom.pop());
+        if let Some(e) = v.or(o) {
+            return Err(Error::Gpu(format!("{what}: {e}")));
+        }
+        result
+    }
+}
+
+/// Split `total` items of `bytes_per_item` bytes into consecutive ranges each at most
+/// `max_bytes` long (at least one item per range).
+pub fn chunk_ranges(total: usize, bytes_per_item: u64, max_bytes: u64) -> Vec<Range<usize>> {
+    let per = (max_bytes / bytes_per_item.max(1)).max(1) as usize;
+    (0..total.div_ceil(per))
+        .map(|i| i * per..((i + 1) * per).min(total))
+        .collect()
+}
+
+/// Workgroup counts (x, y) and the thread stride of a row for `threads` threads of a 1D kernel,
+/// using y when x would pass the 65535-workgroup limit.
+pub fn dispatch_grid(threads: u32) -> (u32, u32, u32) {
+    let groups = threads.div_ceil(WORKGROUP_SIZE).max(1);
+    let x = groups.min(65535);
+    let y = groups.div_ceil(x);
+    (x, y, x * WORKGROUP_SIZE)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn chunks_cover_everything_within_the_limit() {
+        let r = chunk_ranges(10, 8, 24);
+        assert_eq!(r, vec![0..3, 3..6, 6..9, 9..10]);
+        assert_eq!(chunk_ranges(5, 100, 10), vec![0..1, 1..2, 2..3, 3..4, 4..5]);
+        assert!(chunk_ranges(0, 4, 16).is_empty());
+    }
+
+    #[test]
+    fn grid_has_enough_threads() {
+        for t in [1u32, 64, 65, 65535 * 64, 65535 * 64 + 1, 10_000_000] {
+            let (x, y, stride) = dispatch_grid(t);
+            assert!(x <= 65535 && (x * y) as u64 * 64 >= t as u64);
+            assert_eq!(stride, x * 64);
+        }
+    }
+}

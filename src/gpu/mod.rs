@@ -1,0 +1,8 @@
+//! GPU runtime: the context (adapter, device, bounded waits, chunking) and one dispatch module per
+//! kernel, named like its `wgsl/*.wgsl`.
+
+pub mod context;
+pub mod project;
+pub mod shaders;
+
+pub use context::{GpuContext, GpuOptions};

@@ -1,0 +1,77 @@
+//! Dispatch of `wgsl/project.wgsl` (CPU reference: `src/cpu/project.rs`).
+
+use super::context::{chunk_ranges, dispatch_grid, GpuContext};
+use crate::analysis::pca::PcaBasis;
+use crate::error::Result;
+use crate::exemplar::{Border, Image};
+use crate::kernel_types::ProjectParams;
+
+/// Written into the output before the kernel runs; a quantized vector whose bytes are all 0xFF
+/// can occur, so callers that test coverage look at words the kernel must zero-pad instead.
+pub const SENTINEL: u32 = 0xDEAD_BEEF;
+
+/// Project every pixel's neighbourhood on the GPU; same result as [`crate::cpu::project::project`].
+pub fn project(gpu: &GpuContext, img: &Image, border: Border, pca: &PcaBasis) -> Result<Vec<u32>> {
+    let pipeline = gpu.pipeline("project")?;
+    let words = pca.words_per_vector();
+    let total = img.pixel_count();
+    let image = gpu.storage_buffer("exemplar", &img.pixels);
+    let mean = gpu.storage_buffer("mean", bytemuck::cast_slice(&pca.mean));
+    let weights = gpu.storage_buffer("weights", bytemuck::cast_slice(&pca.weights));
+    let mut out = Vec::with_capacity(total * words as usize);
+    for range in chunk_ranges(total, words as u64 * 4, gpu.max_binding_bytes()) {
+        let count = range.len() as u32;
+        let (gx, gy, grid_stride) = dispatch_grid(count);
+        let params = ProjectParams {
+            width: img.width,
+            height: img.height,
+            channels: img.channels,
+            border: border.code(),
+            input_dims: pca.input_dims,
+            output_dims: pca.output_dims,
+            shift: pca.shift,
+            first_pixel: range.start as u32,
+            pixel_count: count,
+            words_per_vector: words,
+            grid_stride,
+            _pad: 0,
+        };
+        let chunk = gpu.checked("project", || {
+            let uniform = gpu.uniform_buffer("project params", &params);
+            let output = gpu.output_buffer("projected", count as usize * words as usize, SENTINEL);
+            let bind = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("project"),
+                layout: &pipeline.get_bind_group_layout(0),
+                entries: &[
+                    entry(0, &uniform),
+                    entry(1, &image),
+                    entry(2, &mean),
+                    entry(3, &weights),
+                    entry(4, &output),
+                ],
+            });
+            let mut encoder = gpu
+                .device
+                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                    label: Some("project"),
+                });
+            {
+                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor::default());
+                pass.set_pipeline(&pipeline);
+                pass.set_bind_group(0, &bind, &[]);
+                pass.dispatch_workgroups(gx, gy, 1);
+            }
+            gpu.submit_and_wait(encoder)?;
+            gpu.read_words(&output, count as usize * words as usize)
+        })?;
+        out.extend_from_slice(&chunk);
+    }
+    Ok(out)
+}
+
+fn entry(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
+    wgpu::BindGroupEntry {
+        binding,
+        resource: buffer.as_entire_binding(),
+    }
+}

@@ -1,0 +1,4 @@
+//! File formats and safe output.
+
+pub mod atomic;
+pub mod ssa;

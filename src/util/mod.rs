@@ -1,0 +1,4 @@
+//! Small shared helpers.
+
+pub mod hash;
+pub mod memory;
