@@ -1,1 +1,65 @@
-fn main() {}
+//! `cargo bench`: kernel `project` on the CPU reference vs the GPU adapter, and the whole analysis.
+//! Wall-clock tables per exemplar size with peak memory come from `solidsynth bench analyze`.
+
+use criterion::{criterion_group, criterion_main, Criterion};
+use solidsynth::analysis::{self, neighbourhood::gather, pca, AnalysisInput, AnalysisParams};
+use solidsynth::backend::Compute;
+use solidsynth::exemplar::{procedural, Border};
+use solidsynth::gpu::{GpuContext, GpuOptions};
+
+fn project_kernel(c: &mut Criterion) {
+    let gpu = GpuContext::new(&GpuOptions::from_env()).ok();
+    match &gpu {
+        Some(g) => eprintln!("GPU adapter: {}", g.describe()),
+        None => eprintln!("no GPU adapter: GPU rows skipped"),
+    }
+    for size in [128u32, 256] {
+        let img = procedural::cobblestone(size, size / 8, 7);
+        let mut vectors = Vec::new();
+        for y in 0..size {
+            for x in 0..size {
+                gather(&img, Border::Wrap, x, y, &mut vectors);
+            }
+        }
+        let basis = pca::fit(&vectors, 75, 12, &[1.0; 75], 1 << 16).unwrap();
+        let mut group = c.benchmark_group(format!("project/{size}x{size}"));
+        group.sample_size(10);
+        group.bench_function("cpu", |b| {
+            b.iter(|| solidsynth::cpu::project::project(&img, Border::Wrap, &basis))
+        });
+        if let Some(g) = &gpu {
+            group.bench_function("gpu", |b| {
+                b.iter(|| solidsynth::gpu::project::project(g, &img, Border::Wrap, &basis).unwrap())
+            });
+        }
+        group.finish();
+    }
+}
+
+fn whole_analysis(c: &mut Criterion) {
+    let mut group = c.benchmark_group("analyze");
+    group.sample_size(10);
+    for size in [64u32, 128] {
+        let input = AnalysisInput {
+            exemplars: vec![procedural::cobblestone(size, size / 8, 7)],
+            masks: vec![],
+            border: Border::Wrap,
+            names: vec!["cobblestone".into()],
+        };
+        group.bench_function(format!("{size}x{size} cpu"), |b| {
+            b.iter(|| {
+                analysis::analyze(
+                    &input,
+                    &AnalysisParams::default(),
+                    &Compute::Cpu,
+                    &|_, _| {},
+                )
+                .unwrap()
+            })
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(benches, project_kernel, whole_analysis);
+criterion_main!(benches);

@@ -19,4 +19,14 @@ fn main() {
     );
     save(procedural::marble(32, 11), "tests/fixtures/marble32.png");
     save(procedural::stripes(32, 8), "tests/fixtures/stripes32.png");
+    // CC0 crops (scikit-image data, via ../shared/exemplars) when that folder is present.
+    for name in ["brick", "gravel"] {
+        let src = format!("../shared/exemplars/cc0_{name}.png");
+        if let Ok(img) = image::open(&src) {
+            let crop = image::imageops::crop_imm(&img.to_luma8(), 128, 128, 64, 64).to_image();
+            let path = format!("tests/fixtures/cc0_{name}64.png");
+            crop.save(&path).unwrap();
+            println!("wrote {path}");
+        }
+    }
 }

@@ -1,1 +1,33 @@
+//! GPU-vs-CPU tests of every WGSL kernel: one test binary, run on whatever Vulkan adapter wgpu
+//! finds (Mesa lavapipe in CI). With `CI` set, a missing adapter fails the run: a skipped GPU
+//! test must never look like a passing one.
 
+mod compare;
+mod project;
+mod shaders;
+
+use solidsynth::gpu::{GpuContext, GpuOptions};
+use std::sync::OnceLock;
+
+/// The shared context, or None (locally, without an adapter: the test prints SKIPPED).
+pub fn gpu() -> Option<&'static GpuContext> {
+    static CTX: OnceLock<Option<GpuContext>> = OnceLock::new();
+    CTX.get_or_init(|| open(GpuOptions::from_env())).as_ref()
+}
+
+/// Open a context with `opts`, failing hard in CI when there is no adapter.
+pub fn open(opts: GpuOptions) -> Option<GpuContext> {
+    match GpuContext::new(&opts) {
+        Ok(ctx) => {
+            eprintln!("kernels-tests adapter: {}", ctx.describe());
+            Some(ctx)
+        }
+        Err(e) if std::env::var_os("CI").is_some() => {
+            panic!("CI is set but no GPU adapter is usable: {e}")
+        }
+        Err(e) => {
+            eprintln!("SKIPPED (no GPU adapter, CI unset): {e}");
+            None
+        }
+    }
+}

@@ -12,6 +12,8 @@ pub mod exemplar;
 pub mod gpu;
 pub mod io;
 pub mod kernel_types;
+pub mod metrics;
 pub mod util;
+pub mod volume;
 
 pub use error::{Error, Result};

@@ -117,16 +117,37 @@ pub fn build_strips(images: &[&Image], border: Border) -> Vec<Strips> {
         .collect()
 }
 
-type Tree = ImmutableKdTree<f32, STRIP_TREE_DIMS>;
+/// A k-d tree over the first K reduced dimensions (K = 5 for gray strips, whose reduced vectors
+/// have only 5 meaningful dimensions: constant padded ones would make the tree degenerate).
+enum Tree {
+    Five(ImmutableKdTree<f32, 5>),
+    Eight(ImmutableKdTree<f32, STRIP_TREE_DIMS>),
+}
+
+impl Tree {
+    fn new(points: &[[f32; STRIP_TREE_DIMS]], strip_len: usize) -> Tree {
+        if strip_len < STRIP_TREE_DIMS {
+            let p5: Vec<[f32; 5]> = points
+                .iter()
+                .map(|p| std::array::from_fn(|i| p[i]))
+                .collect();
+            Tree::Five(ImmutableKdTree::new_from_slice(&p5).expect("tree"))
+        } else {
+            Tree::Eight(ImmutableKdTree::new_from_slice(points).expect("tree"))
+        }
+    }
+}
 
 fn nearest(tree: &Tree, q: &[f32; STRIP_TREE_DIMS], n: usize) -> Vec<u32> {
-    let mut found: Vec<(f32, u32)> = tree
-        .query(q)
-        .nearest_n::<SquaredEuclidean<f32>>(NonZeroUsize::new(n).unwrap())
-        .execute()
-        .into_iter()
-        .map(|r| (r.distance, r.item))
-        .collect();
+    let n = NonZeroUsize::new(n).unwrap();
+    let raw = match tree {
+        Tree::Five(t) => {
+            let q5: [f32; 5] = std::array::from_fn(|i| q[i]);
+            t.query(&q5).nearest_n::<SquaredEuclidean<f32>>(n).execute()
+        }
+        Tree::Eight(t) => t.query(q).nearest_n::<SquaredEuclidean<f32>>(n).execute(),
+    };
+    let mut found: Vec<(f32, u32)> = raw.into_iter().map(|r| (r.distance, r.item)).collect();
     found.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
     found.into_iter().map(|(_, i)| i).collect()
 }
@@ -155,8 +176,8 @@ pub fn candidates(
 ) -> Vec<Vec<RankedTriple>> {
     let count = |s: &Strips| s.h.len() / s.len;
     let (n0, n1, n2) = (count(strips[0]), count(strips[1]), count(strips[2]));
-    let h_tree1 = Tree::new_from_slice(&strips[1].h_reduced).expect("tree");
-    let v_tree2 = Tree::new_from_slice(&strips[2].v_reduced).expect("tree");
+    let h_tree1 = Tree::new(&strips[1].h_reduced, strips[1].len);
+    let v_tree2 = Tree::new(&strips[2].v_reduced, strips[2].len);
     let s1 = strips_per_axis.min(n1);
     let s2 = strips_per_axis.min(n2);
     (0..n0)

@@ -12,7 +12,7 @@ use std::num::NonZeroUsize;
 /// Minimum Chebyshev distance between a pixel and its candidates, and among candidates.
 pub const MIN_SPACING: u32 = 3;
 /// Nearest neighbours fetched per pixel before spacing them out.
-const POOL: usize = 48;
+const POOL: usize = 32;
 
 fn chebyshev(a: u32, b: u32, w: u32, h: u32, border: Border) -> u32 {
     let (ax, ay, bx, by) = (a % w, a / w, b % w, b / w);

@@ -302,6 +302,9 @@ pub fn analyze(
         let say = |what: &str, f: f32| progress(&format!("level {level}: {what}"), base + step * f);
         let images: Vec<&Image> = pyramids.iter().map(|p| &p[level]).collect();
 
+        let timer = std::time::Instant::now();
+        let lap =
+            |what: &str| tracing::debug!(level, "{what}: {:.3} s", timer.elapsed().as_secs_f64());
         say("PCA and projection", 0.0);
         let mut partial = Vec::new();
         for img in &images {
@@ -333,6 +336,7 @@ pub fn analyze(
             partial.push((basis, projected, candidates_2d));
         }
 
+        lap("PCA, projection, 2D candidates");
         say("crossbar candidates", 0.3);
         let strips = crossbar::build_strips(&images, border);
         let widths = [0, 1, 2].map(|a| images[if shared { 0 } else { a }].width);
@@ -346,6 +350,7 @@ pub fn analyze(
                 params.strips_per_axis as usize,
                 params.crossbar_keep as usize,
             );
+            lap("crossbar search");
             let best: Vec<Option<crossbar::RankedTriple>> =
                 sets.iter().map(|s| s.first().copied()).collect();
             let mean_best_cb =
@@ -363,6 +368,7 @@ pub fn analyze(
                 params.max_3d as usize,
                 params.max_filter_rounds as usize,
             );
+            lap("coherence filter");
             let k = params.max_3d as usize;
             let mut triples = vec![[NO_COORD; 3]; sets.len() * k];
             let mut counts = vec![0u8; sets.len()];

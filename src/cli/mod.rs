@@ -2,6 +2,7 @@
 
 pub mod analyze;
 pub mod bench;
+pub mod eval;
 pub mod inspect;
 
 use clap::{Args, Parser, Subcommand};
@@ -26,6 +27,9 @@ pub struct Cli {
 pub enum Command {
     /// Analyse exemplar(s): pyramids, PCA, 3D candidates; writes a .ssa file.
     Analyze(analyze::AnalyzeArgs),
+    /// Score a volume against its exemplar: histograms, patch coherence and completeness,
+    /// gradient orientations, per axis, with floors; optionally a contact sheet.
+    Eval(eval::EvalArgs),
     /// Describe a .ssa file and write its candidate slab as a PNG.
     Inspect(inspect::InspectArgs),
     /// Benchmarks printed as tables.
@@ -62,6 +66,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Analyze(a) => analyze::run(a, cli.quiet),
         Command::Inspect(a) => inspect::run(a),
+        Command::Eval(a) => eval::run(a),
         Command::Bench(b) => bench::run(b),
         Command::Adapters => {
             let list = solidsynth::gpu::context::list_adapters();

@@ -107,3 +107,54 @@ pub fn stripes(size: u32, period: u32) -> Image {
     }
     img
 }
+
+/// A periodic 3D Voronoi texture (cells of varied colour, dark borders): a solid whose slices in
+/// every direction are new pieces of the same texture. Test control for the evaluation: its
+/// z = 0 slice is an exemplar that its other slices should match about as well as unseen texture.
+pub fn cells_3d(size: u32, cells: u32, seed: u64) -> crate::volume::Volume {
+    let mut rng = SeededRng::new(seed);
+    let pts: Vec<([f32; 3], [f32; 3])> = (0..cells)
+        .map(|_| {
+            let p = [0, 1, 2].map(|_| unit(rng.next_u64()) * size as f32);
+            // A four-colour palette, as in many stone textures.
+            const PALETTE: [[f32; 3]; 4] = [
+                [0.85, 0.7, 0.5],
+                [0.55, 0.6, 0.65],
+                [0.75, 0.75, 0.7],
+                [0.5, 0.4, 0.35],
+            ];
+            (p, PALETTE[rng.below(4) as usize])
+        })
+        .collect();
+    let s = size as f32;
+    let mut v = crate::volume::Volume::new(size, size, size, 3);
+    for z in 0..size {
+        for y in 0..size {
+            for x in 0..size {
+                let (mut d1, mut d2, mut col) = (f32::MAX, f32::MAX, [0f32; 3]);
+                for (p, c) in &pts {
+                    let mut d = 0f32;
+                    for (k, q) in [x, y, z].iter().enumerate() {
+                        let a = (*q as f32 + 0.5 - p[k]).abs();
+                        let a = a.min(s - a);
+                        d += a * a;
+                    }
+                    let d = d.sqrt();
+                    if d < d1 {
+                        d2 = d1;
+                        d1 = d;
+                        col = *c;
+                    } else if d < d2 {
+                        d2 = d;
+                    }
+                }
+                let shade = 0.2 + 0.8 * ((d2 - d1) / 2.5).clamp(0.0, 1.0).sqrt();
+                let out = v.at_mut(x, y, z);
+                for k in 0..3 {
+                    out[k] = (255.0 * col[k] * shade).round().clamp(0.0, 255.0) as u8;
+                }
+            }
+        }
+    }
+    v
+}

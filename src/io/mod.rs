@@ -1,4 +1,5 @@
 //! File formats and safe output.
 
 pub mod atomic;
+pub mod nrrd;
 pub mod ssa;

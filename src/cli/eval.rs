@@ -1,0 +1,100 @@
+//! `solidsynth eval`.
+
+use clap::Args;
+use solidsynth::exemplar;
+use solidsynth::io::{atomic, nrrd};
+use solidsynth::metrics::{self, sheet, EvalParams, Scores};
+use std::path::PathBuf;
+use std::time::Instant;
+
+#[derive(Args, Debug)]
+pub struct EvalArgs {
+    /// The exemplar the volume was made from (for all three axes unless --ey/--ez are given).
+    pub exemplar: PathBuf,
+    /// The volume: NRRD, uint8, 1/3/4 channels, raw or gzip.
+    pub volume: PathBuf,
+    /// Exemplar of the slices perpendicular to y.
+    #[arg(long, requires = "ez")]
+    pub ey: Option<PathBuf>,
+    /// Exemplar of the slices perpendicular to z.
+    #[arg(long, requires = "ey")]
+    pub ez: Option<PathBuf>,
+    /// Slices scored per axis.
+    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..=64))]
+    pub slices: u32,
+    /// Seed of the patch sampling (the evaluation is deterministic for a given seed).
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Print JSON instead of a table.
+    #[arg(long)]
+    pub json: bool,
+    /// Write a contact sheet (exemplar beside orthogonal slices) to this PNG.
+    #[arg(long)]
+    pub sheet: Option<PathBuf>,
+}
+
+pub fn run(args: EvalArgs) -> anyhow::Result<()> {
+    if let Some(s) = &args.sheet {
+        atomic::check_output_path(s, "--sheet")?;
+    }
+    let start = Instant::now();
+    let mut exemplars = vec![exemplar::load_image(&args.exemplar, "exemplar")?];
+    if let (Some(ey), Some(ez)) = (&args.ey, &args.ez) {
+        exemplars.push(exemplar::load_image(ey, "--ey")?);
+        exemplars.push(exemplar::load_image(ez, "--ez")?);
+    }
+    let volume = nrrd::load(&args.volume)?;
+    let params = EvalParams {
+        slices_per_axis: args.slices,
+        seed: args.seed,
+        ..Default::default()
+    };
+    let report = metrics::evaluate(&volume, &exemplars, &params).map_err(|e| match e {
+        solidsynth::Error::InvalidInput { what, problem } if what == "volume" => {
+            solidsynth::Error::invalid(format!("volume {}", args.volume.display()), problem)
+        }
+        other => other,
+    })?;
+    if let Some(path) = &args.sheet {
+        atomic::save_png(path, &sheet::contact_sheet(&volume, &exemplars))?;
+    }
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+        return Ok(());
+    }
+    println!(
+        "{} vs {} ({}x{}x{}, {} slices per axis, {:.2} s)",
+        args.volume.display(),
+        args.exemplar.display(),
+        volume.nx,
+        volume.ny,
+        volume.nz,
+        args.slices,
+        start.elapsed().as_secs_f64()
+    );
+    println!(
+        "{:<13} {:>8} {:>8} {:>8} {:>8} {:>8} {:>8}",
+        "measure", "x", "y", "z", "worst", "floor", "ratio"
+    );
+    let rows: [(&str, fn(&Scores) -> f64); 5] = [
+        ("histogram", |s| s.histogram),
+        ("coherence", |s| s.coherence),
+        ("completeness", |s| s.completeness),
+        ("orientation", |s| s.orientation),
+        ("sharpness", |s| s.sharpness),
+    ];
+    for (name, get) in rows {
+        println!(
+            "{:<13} {:>8.3} {:>8.3} {:>8.3} {:>8.3} {:>8.3} {:>8.2}",
+            name,
+            get(&report.per_axis[0]),
+            get(&report.per_axis[1]),
+            get(&report.per_axis[2]),
+            get(&report.worst_axis),
+            get(&report.floor),
+            get(&report.worst_ratio)
+        );
+    }
+    println!("lower is better; floor = one half of the exemplar scored against the other; ratio = worst / floor");
+    Ok(())
+}

@@ -1,0 +1,227 @@
+//! NRRD volumes: 8-bit, 1 to 4 channels, raw or gzip encoding, data attached to the header.
+//!
+//! Written as `NRRD0004`, `type: uint8`, `dimension: 4`, `sizes: C X Y Z`, `encoding: raw`, x
+//! fastest after the channel. Read: versions NRRD0001-0005, types uint8/uchar/unsigned char,
+//! dimension 3 (one channel, `sizes: X Y Z`) or 4 (`sizes: C X Y Z`, C = 1..=4), encodings raw and
+//! gzip; header fields we do not need are skipped, detached data files are refused.
+
+use crate::error::{Error, Result};
+use crate::volume::Volume;
+use std::io::{Read, Write};
+use std::path::Path;
+
+/// Largest volume accepted when reading (voxels x channels), to refuse absurd headers before
+/// allocating.
+pub const MAX_READ_BYTES: u64 = 8 << 30;
+
+/// The header text of a volume.
+pub fn header(v: &Volume) -> String {
+    let kind = match v.channels {
+        3 => "RGB-color",
+        4 => "RGBA-color",
+        _ => "vector",
+    };
+    format!(
+        "NRRD0004\n# written by solidsynth\ntype: uint8\ndimension: 4\nsizes: {} {} {} {}\n\
+         kinds: {kind} domain domain domain\nencoding: raw\n\n",
+        v.channels, v.nx, v.ny, v.nz
+    )
+}
+
+/// Write a volume atomically.
+pub fn save(v: &Volume, path: &Path) -> Result<()> {
+    crate::io::atomic::write_with(path, |f| {
+        let mut w = std::io::BufWriter::new(f);
+        w.write_all(header(v).as_bytes())?;
+        w.write_all(&v.data)?;
+        w.flush()
+    })
+}
+
+/// Read a volume file.
+pub fn load(path: &Path) -> Result<Volume> {
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    parse(&bytes).map_err(|problem| Error::corrupt(path, problem))
+}
+
+/// Parse NRRD bytes; the error says what is wrong.
+pub fn parse(bytes: &[u8]) -> std::result::Result<Volume, String> {
+    if !bytes.starts_with(b"NRRD000") || bytes.len() < 9 || !(b'1'..=b'5').contains(&bytes[7]) {
+        return Err("not an NRRD file (expected magic NRRD0001..NRRD0005)".into());
+    }
+    // The header ends at the first empty line.
+    let end = bytes
+        .windows(2)
+        .position(|w| w == b"\n\n")
+        .ok_or("no end of header (blank line) found")?;
+    let text = std::str::from_utf8(&bytes[..end]).map_err(|_| "header is not text")?;
+    let data = &bytes[end + 2..];
+    let (mut ty, mut dimension, mut sizes, mut encoding) = (None, None, None, None);
+    for line in text.lines().skip(1) {
+        if line.starts_with('#') || line.trim().is_empty() {
+            continue;
+        }
+        let Some((key, value)) = line.split_once(':') else {
+            continue; // key:=value pairs and unknown syntax are not ours to interpret
+        };
+        let value = value.trim_start_matches('=').trim();
+        match key.trim() {
+            "type" => ty = Some(value.to_string()),
+            "dimension" => {
+                dimension = Some(
+                    value
+                        .parse::<u32>()
+                        .map_err(|_| format!("bad dimension '{value}'"))?,
+                )
+            }
+            "sizes" => {
+                sizes = Some(
+                    value
+                        .split_whitespace()
+                        .map(|s| s.parse::<u64>().map_err(|_| format!("bad size '{s}'")))
+                        .collect::<std::result::Result<Vec<_>, _>>()?,
+                )
+            }
+            "encoding" => encoding = Some(value.to_string()),
+            "data file" | "datafile" => return Err("detached data files are not supported".into()),
+            _ => {}
+        }
+    }
+    let ty = ty.ok_or("missing 'type'")?;
+    if !matches!(ty.as_str(), "uint8" | "uchar" | "unsigned char" | "uint8_t") {
+        return Err(format!("type '{ty}' is not supported (only uint8)"));
+    }
+    let dimension = dimension.ok_or("missing 'dimension'")?;
+    let sizes = sizes.ok_or("missing 'sizes'")?;
+    if sizes.len() != dimension as usize {
+        return Err(format!("{} sizes for dimension {dimension}", sizes.len()));
+    }
+    let (c, x, y, z) = match sizes.as_slice() {
+        [x, y, z] => (1, *x, *y, *z),
+        [c, x, y, z] => (*c, *x, *y, *z),
+        _ => return Err(format!("dimension {dimension} is not supported (3 or 4)")),
+    };
+    if !(1..=4).contains(&c) {
+        return Err(format!(
+            "{c} channels (the first size) is not supported (1 to 4)"
+        ));
+    }
+    if x == 0
+        || y == 0
+        || z == 0
+        || x > u32::MAX as u64
+        || y > u32::MAX as u64
+        || z > u32::MAX as u64
+    {
+        return Err(format!("bad volume size {x}x{y}x{z}"));
+    }
+    let want = c
+        .checked_mul(x)
+        .and_then(|v| v.checked_mul(y))
+        .and_then(|v| v.checked_mul(z))
+        .ok_or("size overflow")?;
+    if want > MAX_READ_BYTES {
+        return Err(format!(
+            "volume of {want} bytes is larger than the {MAX_READ_BYTES}-byte limit"
+        ));
+    }
+    let raw: Vec<u8> = match encoding.as_deref().ok_or("missing 'encoding'")? {
+        "raw" => data.to_vec(),
+        "gzip" | "gz" => {
+            let mut out = Vec::new();
+            flate2::read::GzDecoder::new(data)
+                .take(want + 1)
+                .read_to_end(&mut out)
+                .map_err(|e| format!("gzip data is damaged: {e}"))?;
+            out
+        }
+        other => return Err(format!("encoding '{other}' is not supported (raw or gzip)")),
+    };
+    if raw.len() as u64 != want {
+        return Err(format!(
+            "data is {} bytes but sizes {c} {x} {y} {z} need {want}",
+            raw.len()
+        ));
+    }
+    Ok(Volume {
+        nx: x as u32,
+        ny: y as u32,
+        nz: z as u32,
+        channels: c as u32,
+        data: raw,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sample() -> Volume {
+        let mut v = Volume::new(3, 4, 5, 3);
+        v.data
+            .iter_mut()
+            .enumerate()
+            .for_each(|(i, b)| *b = (i * 7 % 256) as u8);
+        v
+    }
+
+    #[test]
+    fn round_trip_raw_and_gzip() {
+        let v = sample();
+        let mut bytes = header(&v).into_bytes();
+        bytes.extend_from_slice(&v.data);
+        assert_eq!(parse(&bytes).unwrap(), v);
+
+        let mut gz = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
+        gz.write_all(&v.data).unwrap();
+        let text = header(&v).replace("encoding: raw", "encoding: gzip");
+        let mut bytes = text.into_bytes();
+        bytes.extend_from_slice(&gz.finish().unwrap());
+        assert_eq!(parse(&bytes).unwrap(), v);
+
+        // Three-dimensional (one channel) form.
+        let mut bytes =
+            b"NRRD0004\ntype: uchar\ndimension: 3\nsizes: 2 2 2\nencoding: raw\n\n".to_vec();
+        bytes.extend_from_slice(&[1, 2, 3, 4, 5, 6, 7, 8]);
+        let g = parse(&bytes).unwrap();
+        assert_eq!((g.channels, g.nx, g.ny, g.nz), (1, 2, 2, 2));
+    }
+
+    #[test]
+    fn bad_headers_are_named() {
+        let v = sample();
+        let mut ok = header(&v).into_bytes();
+        ok.extend_from_slice(&v.data);
+        let t = |s: &str| {
+            let mut b = s.as_bytes().to_vec();
+            b.extend_from_slice(&v.data);
+            parse(&b).unwrap_err()
+        };
+        assert!(parse(b"hello").unwrap_err().contains("magic"));
+        assert!(t(&header(&v).replace("uint8", "float")).contains("float"));
+        assert!(t(&header(&v).replace("sizes: 3 3 4 5", "sizes: 3 3 4 6")).contains("need"));
+        assert!(t(&header(&v).replace("sizes: 3 3 4 5", "sizes: 7 3 4 5")).contains("channels"));
+        assert!(t(&header(&v).replace("raw", "bzip2")).contains("bzip2"));
+        assert!(parse(&ok[..ok.len() - 1]).unwrap_err().contains("need"));
+    }
+
+    #[test]
+    fn fuzz_never_panics() {
+        let v = sample();
+        let mut ok = header(&v).into_bytes();
+        ok.extend_from_slice(&v.data);
+        let mut rng = crate::util::hash::SeededRng::new(1);
+        for _ in 0..3000 {
+            let mut b = ok.clone();
+            for _ in 0..1 + rng.below(3) {
+                let at = rng.below(b.len() as u64) as usize;
+                match rng.below(3) {
+                    0 => b[at] = rng.below(256) as u8,
+                    1 => b.truncate(at),
+                    _ => b.insert(at, b"0123456789 \n:"[rng.below(13) as usize]),
+                }
+            }
+            let _ = parse(&b);
+        }
+    }
+}

@@ -1,0 +1,43 @@
+//! A dense 8-bit volume with interleaved channels, x fastest (the NRRD order).
+
+/// `channels` bytes per voxel; voxel (x, y, z) at ((z * ny + y) * nx + x) * channels.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Volume {
+    pub nx: u32,
+    pub ny: u32,
+    pub nz: u32,
+    pub channels: u32,
+    pub data: Vec<u8>,
+}
+
+impl Volume {
+    pub fn new(nx: u32, ny: u32, nz: u32, channels: u32) -> Volume {
+        Volume {
+            nx,
+            ny,
+            nz,
+            channels,
+            data: vec![0; nx as usize * ny as usize * nz as usize * channels as usize],
+        }
+    }
+
+    pub fn dims(&self) -> [u32; 3] {
+        [self.nx, self.ny, self.nz]
+    }
+
+    fn offset(&self, x: u32, y: u32, z: u32) -> usize {
+        ((z as usize * self.ny as usize + y as usize) * self.nx as usize + x as usize)
+            * self.channels as usize
+    }
+
+    pub fn at(&self, x: u32, y: u32, z: u32) -> &[u8] {
+        let i = self.offset(x, y, z);
+        &self.data[i..i + self.channels as usize]
+    }
+
+    pub fn at_mut(&mut self, x: u32, y: u32, z: u32) -> &mut [u8] {
+        let i = self.offset(x, y, z);
+        let c = self.channels as usize;
+        &mut self.data[i..i + c]
+    }
+}

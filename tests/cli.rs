@@ -1,0 +1,319 @@
+//! The command line as a user meets it: outputs, and bad input (exit code 2, named input, nothing
+//! left behind).
+
+mod common;
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn bin() -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_solidsynth"));
+    c.env("SOLIDSYNTH_LOG", "warn");
+    c
+}
+
+fn fixture_path(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/fixtures")
+        .join(name)
+}
+
+fn run(args: &[&str]) -> Output {
+    bin().args(args).output().unwrap()
+}
+
+/// The command failed with exit code 2, mentioning `needle`, and `dir` holds only `allowed` files.
+fn assert_user_error(out: &Output, needle: &str, dir: &Path, allowed: &[&str]) {
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "stderr: {stderr}");
+    assert!(stderr.contains(needle), "expected '{needle}' in: {stderr}");
+    let mut left: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().to_string())
+        .filter(|n| !allowed.contains(&n.as_str()))
+        .collect();
+    left.sort();
+    assert!(left.is_empty(), "files left behind: {left:?}");
+}
+
+#[test]
+fn analyze_and_inspect_fixture() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("cells.ssa");
+    let o = run(&[
+        "analyze",
+        "--backend",
+        "cpu",
+        "--periodic",
+        fixture_path("cells32.png").to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let first = std::fs::read(&out).unwrap();
+    // Same inputs, byte-identical file.
+    let o = run(&[
+        "analyze",
+        "--backend",
+        "cpu",
+        "--periodic",
+        fixture_path("cells32.png").to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success());
+    assert!(std::fs::read(&out).unwrap() == first);
+
+    let o = run(&["inspect", out.to_str().unwrap(), "--json"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["levels"].as_array().unwrap().len(), 4);
+    assert_eq!(v["levels"][0]["width"], 32);
+    let slab = dir.path().join("cells.slab.png");
+    let img = image::open(&slab).unwrap();
+    assert!(img.width() > 5 * 32 && img.height() > 4 * 32);
+}
+
+#[test]
+fn analyze_three_exemplars_and_a_feature_mask() {
+    let dir = tempfile::tempdir().unwrap();
+    let mask = dir.path().join("mask.png");
+    let mut m = image::GrayImage::new(32, 32);
+    for (x, _, p) in m.enumerate_pixels_mut() {
+        p.0[0] = if x < 16 { 255 } else { 0 };
+    }
+    m.save(&mask).unwrap();
+    let out = dir.path().join("three.ssa");
+    let (a, b) = (fixture_path("cells32.png"), fixture_path("marble32.png"));
+    let o = run(&[
+        "analyze",
+        "--backend",
+        "cpu",
+        a.to_str().unwrap(),
+        "--ey",
+        b.to_str().unwrap(),
+        "--ez",
+        a.to_str().unwrap(),
+        "--feature-mask",
+        mask.to_str().unwrap(),
+        "--ey-feature-mask",
+        mask.to_str().unwrap(),
+        "--ez-feature-mask",
+        mask.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let a = solidsynth::io::ssa::load(&out).unwrap();
+    assert!(!a.shared && a.has_feature);
+}
+
+#[test]
+fn bad_inputs_exit_2_naming_the_input_and_leave_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let out = d.join("out.ssa");
+    let out_s = out.to_str().unwrap();
+    let p = |n: &str| d.join(n).to_str().unwrap().to_string();
+
+    // Missing file.
+    let o = run(&["analyze", "--backend", "cpu", &p("nope.png"), "-o", out_s]);
+    assert_user_error(&o, "nope.png", d, &[]);
+
+    // Truncated / corrupt image.
+    let png = std::fs::read(fixture_path("cells32.png")).unwrap();
+    std::fs::write(d.join("trunc.png"), &png[..png.len() / 2]).unwrap();
+    let o = run(&["analyze", "--backend", "cpu", &p("trunc.png"), "-o", out_s]);
+    assert_user_error(&o, "trunc.png", d, &["trunc.png"]);
+    std::fs::write(d.join("garbage.png"), b"this is not an image").unwrap();
+    let o = run(&[
+        "analyze",
+        "--backend",
+        "cpu",
+        &p("garbage.png"),
+        "-o",
+        out_s,
+    ]);
+    assert_user_error(&o, "garbage.png", d, &["trunc.png", "garbage.png"]);
+    let keep = [
+        "trunc.png",
+        "garbage.png",
+        "tiny.png",
+        "wide.png",
+        "mask.png",
+    ];
+
+    // Tiny exemplar.
+    image::RgbImage::new(8, 8).save(d.join("tiny.png")).unwrap();
+    let o = run(&["analyze", "--backend", "cpu", &p("tiny.png"), "-o", out_s]);
+    assert_user_error(&o, "at least 16", d, &keep);
+
+    // Mismatched Ex/Ey/Ez sizes.
+    image::RgbImage::new(40, 32)
+        .save(d.join("wide.png"))
+        .unwrap();
+    let c = fixture_path("cells32.png");
+    let o = run(&[
+        "analyze",
+        "--backend",
+        "cpu",
+        c.to_str().unwrap(),
+        "--ey",
+        &p("wide.png"),
+        "--ez",
+        c.to_str().unwrap(),
+        "-o",
+        out_s,
+    ]);
+    assert_user_error(&o, "--ey", d, &keep);
+
+    // A mask of another size.
+    image::GrayImage::new(20, 20)
+        .save(d.join("mask.png"))
+        .unwrap();
+    let o = run(&[
+        "analyze",
+        "--backend",
+        "cpu",
+        c.to_str().unwrap(),
+        "--feature-mask",
+        &p("mask.png"),
+        "-o",
+        out_s,
+    ]);
+    assert_user_error(&o, "mask", d, &keep);
+
+    // Output path is a directory, or in a missing directory.
+    std::fs::create_dir(d.join("adir")).unwrap();
+    let keep_dir = [&keep[..], &["adir"]].concat();
+    let o = run(&[
+        "analyze",
+        "--backend",
+        "cpu",
+        c.to_str().unwrap(),
+        "-o",
+        &p("adir"),
+    ]);
+    assert_user_error(&o, "is a directory", d, &keep_dir);
+    let o = run(&[
+        "analyze",
+        "--backend",
+        "cpu",
+        c.to_str().unwrap(),
+        "-o",
+        &p("missing/out.ssa"),
+    ]);
+    assert_user_error(&o, "does not exist", d, &keep_dir);
+
+    // A corrupt .ssa given to inspect.
+    std::fs::write(d.join("bad.ssa"), b"SOLIDSSA garbage").unwrap();
+    let keep_bad = [&keep_dir[..], &["bad.ssa"]].concat();
+    let o = run(&["inspect", &p("bad.ssa")]);
+    assert_user_error(&o, "bad.ssa", d, &keep_bad);
+
+    // Bad flag values are clap's: also exit 2.
+    let o = run(&[
+        "analyze",
+        "--backend",
+        "quantum",
+        c.to_str().unwrap(),
+        "-o",
+        out_s,
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+}
+
+#[test]
+fn existing_output_is_replaced_only_on_success() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("keep.ssa");
+    std::fs::write(&out, b"precious").unwrap();
+    let o = run(&[
+        "analyze",
+        "--backend",
+        "cpu",
+        "/nonexistent.png",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    assert_eq!(std::fs::read(&out).unwrap(), b"precious");
+}
+
+#[test]
+fn eval_scores_a_volume_and_writes_a_sheet() {
+    let dir = tempfile::tempdir().unwrap();
+    let vol = solidsynth::exemplar::procedural::cells_3d(24, 30, 5);
+    let nrrd = dir.path().join("v.nrrd");
+    solidsynth::io::nrrd::save(&vol, &nrrd).unwrap();
+    let ex = dir.path().join("ex.png");
+    solidsynth::metrics::slices::slice(
+        &solidsynth::exemplar::procedural::cells_3d(24, 30, 6),
+        2,
+        0,
+    )
+    .to_dynamic()
+    .save(&ex)
+    .unwrap();
+    let sheet = dir.path().join("sheet.png");
+    let o = run(&[
+        "eval",
+        ex.to_str().unwrap(),
+        nrrd.to_str().unwrap(),
+        "--json",
+        "--sheet",
+        sheet.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    for key in ["per_axis", "worst_axis", "floor", "worst_ratio"] {
+        assert!(v.get(key).is_some(), "missing {key}");
+    }
+    assert!(v["worst_axis"]["coherence"].as_f64().unwrap() > 0.0);
+    assert!(image::open(&sheet).unwrap().width() > 3 * 24);
+    let o = run(&["eval", ex.to_str().unwrap(), nrrd.to_str().unwrap()]);
+    assert!(String::from_utf8_lossy(&o.stdout).contains("completeness"));
+}
+
+#[test]
+fn eval_bad_inputs_exit_2() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let ex = fixture_path("cells32.png");
+    let ex = ex.to_str().unwrap();
+    let write = |name: &str, bytes: &[u8]| {
+        std::fs::write(d.join(name), bytes).unwrap();
+        d.join(name).to_str().unwrap().to_string()
+    };
+    let short = write(
+        "short.nrrd",
+        b"NRRD0004\ntype: uint8\ndimension: 4\nsizes: 3 16 16 16\nencoding: raw\n\nabc",
+    );
+    let o = run(&["eval", ex, &short]);
+    assert_user_error(&o, "short.nrrd", d, &["short.nrrd"]);
+    let float = write(
+        "float.nrrd",
+        b"NRRD0004\ntype: float\ndimension: 3\nsizes: 2 2 2\nencoding: raw\n\n12345678",
+    );
+    let o = run(&["eval", ex, &float]);
+    assert_user_error(&o, "float", d, &["short.nrrd", "float.nrrd"]);
+    let mut tiny_bytes =
+        b"NRRD0004\ntype: uint8\ndimension: 3\nsizes: 4 4 4\nencoding: raw\n\n".to_vec();
+    tiny_bytes.extend_from_slice(&[0u8; 64]);
+    let tiny = write("tiny.nrrd", &tiny_bytes);
+    let sheet = d.join("s.png");
+    let o = run(&["eval", ex, &tiny, "--sheet", sheet.to_str().unwrap()]);
+    assert_user_error(
+        &o,
+        "tiny.nrrd",
+        d,
+        &["short.nrrd", "float.nrrd", "tiny.nrrd"],
+    );
+    let o = run(&["eval", &d.join("missing.png").to_string_lossy(), &tiny]);
+    assert_user_error(
+        &o,
+        "missing.png",
+        d,
+        &["short.nrrd", "float.nrrd", "tiny.nrrd"],
+    );
+}
