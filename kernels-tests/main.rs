@@ -5,6 +5,7 @@
 mod compare;
 mod project;
 mod shaders;
+mod synth;
 
 use solidsynth::gpu::{GpuContext, GpuOptions};
 use std::sync::OnceLock;

@@ -1,52 +1,148 @@
-//! Structs shared between Rust and WGSL. Each is `#[repr(C)]` + `Pod`, has its size asserted at
-//! compile time, and a test in `kernels-tests` checks every field offset against naga's layout of
+//! Structs shared between Rust and WGSL. Each is `#[repr(C)]` + `Pod` with only 4-byte scalar
+//! fields (so WGSL's uniform layout matches C's), has its size asserted at compile time, and
+//! exposes `layout()` (field names and offsets) that `kernels-tests` compares with naga's layout of
 //! the WGSL struct of the same name.
 
 use bytemuck::{Pod, Zeroable};
 
-/// Uniforms of `wgsl/project.wgsl`.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
-pub struct ProjectParams {
-    pub width: u32,
-    pub height: u32,
-    pub channels: u32,
-    /// `Border::code()`: 0 wrap, 1 mirror.
-    pub border: u32,
-    pub input_dims: u32,
-    pub output_dims: u32,
-    pub shift: u32,
-    /// First pixel (row-major index) of this dispatch's chunk.
-    pub first_pixel: u32,
-    /// Pixels in this chunk.
-    pub pixel_count: u32,
-    /// u32 words per output vector (output_dims / 4 rounded up).
-    pub words_per_vector: u32,
-    /// Threads per row of the 2D dispatch grid (workgroups in x times the workgroup size).
-    pub grid_stride: u32,
-    pub _pad: u32,
+macro_rules! gpu_struct {
+    ($(#[$m:meta])* $name:ident size $size:literal { $($(#[$fm:meta])* $field:ident : $ty:ty),* $(,)? }) => {
+        $(#[$m])*
+        #[repr(C)]
+        #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
+        pub struct $name { $($(#[$fm])* pub $field: $ty),* }
+        const _: () = assert!(std::mem::size_of::<$name>() == $size);
+        impl $name {
+            /// Field names and byte offsets in declaration order.
+            pub fn layout() -> Vec<(&'static str, usize)> {
+                vec![$((stringify!($field), std::mem::offset_of!($name, $field))),*]
+            }
+        }
+    };
 }
 
-const _: () = assert!(std::mem::size_of::<ProjectParams>() == 48);
+gpu_struct! {
+    /// Uniforms of `wgsl/project.wgsl`.
+    ProjectParams size 48 {
+        width: u32, height: u32, channels: u32,
+        /// `Border::code()`: 0 wrap, 1 mirror.
+        border: u32,
+        input_dims: u32, output_dims: u32, shift: u32,
+        /// First pixel (row-major index) of this dispatch's chunk.
+        first_pixel: u32,
+        pixel_count: u32,
+        /// u32 words per output vector (output_dims / 4 rounded up).
+        words_per_vector: u32,
+        /// Threads per row of the 2D dispatch grid.
+        grid_stride: u32,
+        _pad: u32,
+    }
+}
 
-/// Field names and byte offsets, in declaration order, for the naga layout check.
-pub fn project_params_layout() -> Vec<(&'static str, usize)> {
-    use std::mem::offset_of;
+gpu_struct! {
+    /// Uniforms of `wgsl/init.wgsl`: tiling of the candidate slab, warped by the jitter field.
+    InitParams size 96 {
+        lo_x: i32, lo_y: i32, lo_z: i32,
+        size_x: u32, size_y: u32, size_z: u32,
+        ex_width: u32, ex_height: u32, border: u32,
+        seed_lo: u32, seed_hi: u32,
+        /// 0: no jitter.
+        jitter_on: u32,
+        tile_x: u32, tile_y: u32, tile_z: u32,
+        /// Word offset of exemplar 0's slab triples in the level data.
+        slab_offset: u32,
+        amp0: i32, amp1: i32, amp2: i32, amp3: i32,
+        sig0: i32, sig1: i32, sig2: i32, sig3: i32,
+    }
+}
+
+gpu_struct! {
+    /// Uniforms of `wgsl/upsample.wgsl`: coordinate inheritance from the coarser level.
+    UpsampleParams size 64 {
+        parent_lo_x: i32, parent_lo_y: i32, parent_lo_z: i32,
+        parent_size_x: u32, parent_size_y: u32, parent_size_z: u32,
+        child_lo_x: i32, child_lo_y: i32, child_lo_z: i32,
+        child_size_x: u32, child_size_y: u32, child_size_z: u32,
+        ex_width: u32, ex_height: u32, border: u32, _pad: u32,
+    }
+}
+
+gpu_struct! {
+    /// Uniforms of `wgsl/correct.wgsl`: one sub-pass over the voxels of one parity class.
+    CorrectParams size 208 {
+        lo_x: i32, lo_y: i32, lo_z: i32,
+        size_x: u32, size_y: u32, size_z: u32,
+        /// First voxel of the class inside the sub-pass box, and voxel counts (stride 2).
+        first_x: i32, first_y: i32, first_z: i32,
+        count_x: u32, count_y: u32, count_z: u32,
+        ex_width: u32, ex_height: u32, channels: u32, pixel_words: u32,
+        pca_in: u32, pca_out: u32, shift: u32, proj_words: u32,
+        k2d: u32, k3d_used: u32, k3d_stride: u32, border: u32,
+        /// 0: 3D candidates (two-step search); 1: 2D candidates only (ablation).
+        mode: u32,
+        /// 1: one exemplar for all axes; sets 1 and 2 are rotations of set 0.
+        shared_sets: u32,
+        pixels0: u32, pixels1: u32, pixels2: u32,
+        proj0: u32, proj1: u32, proj2: u32,
+        mean0: u32, mean1: u32, mean2: u32,
+        weights0: u32, weights1: u32, weights2: u32,
+        cand2d0: u32, cand2d1: u32, cand2d2: u32,
+        cand3d0: u32, cand3d1: u32, cand3d2: u32,
+        counts0: u32, counts1: u32, counts2: u32,
+        _pad0: u32, _pad1: u32, _pad2: u32, _pad3: u32, _pad4: u32,
+    }
+}
+
+gpu_struct! {
+    /// Uniforms of `wgsl/colorize.wgsl`: voxel colours of an output box.
+    ColorizeParams size 80 {
+        lo_x: i32, lo_y: i32, lo_z: i32,
+        size_x: u32, size_y: u32, size_z: u32,
+        out_lo_x: i32, out_lo_y: i32, out_lo_z: i32,
+        out_size_x: u32, out_size_y: u32, out_size_z: u32,
+        ex_width: u32, channels: u32, color_channels: u32, pixel_words: u32,
+        pixels0: u32, pixels1: u32, pixels2: u32, _pad: u32,
+    }
+}
+
+/// Every shared struct: (WGSL kernel, struct name, Rust layout, Rust size).
+pub fn all_layouts() -> Vec<(
+    &'static str,
+    &'static str,
+    Vec<(&'static str, usize)>,
+    usize,
+)> {
+    use std::mem::size_of;
     vec![
-        ("width", offset_of!(ProjectParams, width)),
-        ("height", offset_of!(ProjectParams, height)),
-        ("channels", offset_of!(ProjectParams, channels)),
-        ("border", offset_of!(ProjectParams, border)),
-        ("input_dims", offset_of!(ProjectParams, input_dims)),
-        ("output_dims", offset_of!(ProjectParams, output_dims)),
-        ("shift", offset_of!(ProjectParams, shift)),
-        ("first_pixel", offset_of!(ProjectParams, first_pixel)),
-        ("pixel_count", offset_of!(ProjectParams, pixel_count)),
         (
-            "words_per_vector",
-            offset_of!(ProjectParams, words_per_vector),
+            "project",
+            "ProjectParams",
+            ProjectParams::layout(),
+            size_of::<ProjectParams>(),
         ),
-        ("grid_stride", offset_of!(ProjectParams, grid_stride)),
-        ("_pad", offset_of!(ProjectParams, _pad)),
+        (
+            "init",
+            "InitParams",
+            InitParams::layout(),
+            size_of::<InitParams>(),
+        ),
+        (
+            "upsample",
+            "UpsampleParams",
+            UpsampleParams::layout(),
+            size_of::<UpsampleParams>(),
+        ),
+        (
+            "correct",
+            "CorrectParams",
+            CorrectParams::layout(),
+            size_of::<CorrectParams>(),
+        ),
+        (
+            "colorize",
+            "ColorizeParams",
+            ColorizeParams::layout(),
+            size_of::<ColorizeParams>(),
+        ),
     ]
 }

@@ -12,6 +12,7 @@ pub mod exemplar;
 pub mod gpu;
 pub mod io;
 pub mod kernel_types;
+pub mod lazy;
 pub mod metrics;
 pub mod util;
 pub mod volume;

@@ -1,17 +1,20 @@
-//! `solidsynth analyze`.
+//! `solidsynth analyze`, and the input handling shared with the commands that synthesize.
 
 use clap::Args;
-use solidsynth::analysis::{self, AnalysisInput, AnalysisParams};
+use solidsynth::analysis::{self, Analysis, AnalysisInput, AnalysisParams};
+use solidsynth::backend::Compute;
 use solidsynth::exemplar::{self, Border};
 use solidsynth::io::{atomic, ssa};
+use solidsynth::Error;
 use std::path::PathBuf;
 use std::time::Instant;
 
+/// Exemplar inputs: an image (analysed), an .ssa file (loaded), or nothing (built-in exemplar).
 #[derive(Args, Debug)]
-pub struct AnalyzeArgs {
-    /// Exemplar image (PNG, JPEG, ...; gray, RGB or RGBA; 8 or 16 bit). Used for all three axes
-    /// unless --ey and --ez are given. Without it, the built-in exemplar.
-    pub image: Option<PathBuf>,
+pub struct InputArgs {
+    /// Exemplar image (PNG, JPEG, ...; gray, RGB or RGBA; 8 or 16 bit), used for all three axes
+    /// unless --ey and --ez are given; or an .ssa analysis file. Without it, the built-in exemplar.
+    pub input: Option<PathBuf>,
     /// Exemplar for the plane orthogonal to y.
     #[arg(long, requires = "ez")]
     pub ey: Option<PathBuf>,
@@ -31,87 +34,186 @@ pub struct AnalyzeArgs {
     #[arg(long, default_value_t = 1.0)]
     pub feature_weight: f32,
     /// The exemplars tile (wrap around at the edges). Without it, edges are mirrored so no
-    /// neighbourhood straddles the seam of a non-tileable image.
+    /// neighbourhood straddles the seam of a non-tileable image. The built-in exemplar tiles.
     #[arg(long)]
     pub periodic: bool,
+    #[command(flatten)]
+    pub backend: super::BackendArgs,
+}
+
+impl InputArgs {
+    fn is_ssa(&self) -> bool {
+        self.input
+            .as_ref()
+            .is_some_and(|p| p.extension().is_some_and(|e| e == "ssa"))
+    }
+
+    /// Load the images and masks the arguments name.
+    pub fn analysis_input(&self) -> solidsynth::Result<(AnalysisInput, AnalysisParams)> {
+        let mut exemplars = Vec::new();
+        let mut names = Vec::new();
+        let mut border = if self.periodic {
+            Border::Wrap
+        } else {
+            Border::Mirror
+        };
+        match &self.input {
+            Some(p) => {
+                exemplars.push(exemplar::load_image(p, "exemplar")?);
+                names.push(format!("exemplar {}", p.display()));
+            }
+            None => {
+                if self.ey.is_some() {
+                    return Err(Error::invalid("--ey", "needs the x exemplar INPUT too"));
+                }
+                exemplars.push(exemplar::default_exemplar());
+                names.push("built-in exemplar".into());
+                border = Border::Wrap;
+            }
+        }
+        if let (Some(ey), Some(ez)) = (&self.ey, &self.ez) {
+            exemplars.push(exemplar::load_image(ey, "--ey")?);
+            names.push(format!("--ey {}", ey.display()));
+            exemplars.push(exemplar::load_image(ez, "--ez")?);
+            names.push(format!("--ez {}", ez.display()));
+        }
+        let flags = [
+            ("--feature-mask", &self.feature_mask),
+            ("--ey-feature-mask", &self.ey_feature_mask),
+            ("--ez-feature-mask", &self.ez_feature_mask),
+        ];
+        let given = flags.iter().filter(|(_, p)| p.is_some()).count();
+        let mut masks = Vec::new();
+        if given > 0 {
+            if given != exemplars.len() || flags[0].1.is_none() {
+                return Err(Error::invalid(
+                    "feature masks",
+                    if exemplars.len() == 3 {
+                        "give --feature-mask, --ey-feature-mask and --ez-feature-mask together"
+                    } else {
+                        "give --feature-mask only (one exemplar)"
+                    },
+                ));
+            }
+            for (flag, path) in flags.iter().take(exemplars.len()) {
+                masks.push(exemplar::load_image(path.as_ref().unwrap(), flag)?);
+            }
+        }
+        let params = AnalysisParams {
+            feature_weight: self.feature_weight,
+            ..Default::default()
+        };
+        Ok((
+            AnalysisInput {
+                exemplars,
+                masks,
+                border,
+                names,
+            },
+            params,
+        ))
+    }
+}
+
+/// The analysis of the inputs: loaded from an .ssa, taken from the cache, or computed (and
+/// cached). The cache key hashes the decoded pixels, masks, border and parameters.
+pub fn load_or_analyze(
+    args: &InputArgs,
+    compute: &Compute,
+    quiet: bool,
+) -> solidsynth::Result<Analysis> {
+    if args.is_ssa() {
+        if args.ey.is_some() || args.feature_mask.is_some() {
+            return Err(Error::invalid(
+                "--ey/--feature-mask",
+                "are analysis inputs; an .ssa file already holds them",
+            ));
+        }
+        return ssa::load(args.input.as_ref().unwrap());
+    }
+    let (input, params) = args.analysis_input()?;
+    let key = cache_key(&input, &params);
+    let cache = cache_dir().map(|d| d.join(format!("{key:016x}.ssa")));
+    if let Some(path) = &cache {
+        if let Ok(a) = ssa::load(path) {
+            tracing::info!("analysis from cache {}", path.display());
+            return Ok(a);
+        }
+    }
+    let bar = super::progress_bar(quiet);
+    let report = |stage: &str, f: f32| {
+        bar.set_position((f * 1000.0) as u64);
+        bar.set_message(format!("analysis {stage}"));
+    };
+    let a = analysis::analyze(&input, &params, compute, &report)?;
+    bar.finish_and_clear();
+    if let Some(path) = &cache {
+        let saved = path
+            .parent()
+            .map(std::fs::create_dir_all)
+            .transpose()
+            .ok()
+            .and_then(|_| ssa::save(&a, path).ok());
+        if saved.is_none() {
+            tracing::warn!("could not cache the analysis at {}", path.display());
+        }
+    }
+    Ok(a)
+}
+
+fn cache_dir() -> Option<PathBuf> {
+    if let Some(d) = std::env::var_os("SOLIDSYNTH_CACHE_DIR") {
+        return Some(PathBuf::from(d));
+    }
+    let base = std::env::var_os("XDG_CACHE_HOME")
+        .map(PathBuf::from)
+        .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".cache")))?;
+    Some(base.join("solidsynth"))
+}
+
+fn cache_key(input: &AnalysisInput, params: &AnalysisParams) -> u64 {
+    let mut h = crc32fast::Hasher::new();
+    let mut h2 = crc32fast::Hasher::new_with_initial(0x5EED);
+    let mut feed = |b: &[u8]| {
+        h.update(b);
+        h2.update(b);
+    };
+    feed(&ssa::FORMAT_VERSION.to_le_bytes());
+    feed(format!("{params:?}{:?}", input.border).as_bytes());
+    for img in input.exemplars.iter().chain(&input.masks) {
+        feed(
+            &[img.width, img.height, img.channels]
+                .map(u32::to_le_bytes)
+                .concat(),
+        );
+        feed(&img.pixels);
+    }
+    ((h.finalize() as u64) << 32) | h2.finalize() as u64
+}
+
+#[derive(Args, Debug)]
+pub struct AnalyzeArgs {
+    #[command(flatten)]
+    pub input: InputArgs,
     /// Output .ssa file.
     #[arg(short, long)]
     pub output: PathBuf,
     /// Print a JSON summary on stdout.
     #[arg(long)]
     pub json: bool,
-    #[command(flatten)]
-    pub backend: super::BackendArgs,
 }
 
 pub fn run(args: AnalyzeArgs, quiet: bool) -> anyhow::Result<()> {
     atomic::check_output_path(&args.output, "-o")?;
+    if args.input.is_ssa() {
+        anyhow::bail!(Error::invalid(
+            "input",
+            "is already an .ssa analysis; give an image"
+        ));
+    }
     let start = Instant::now();
-    let mut exemplars = Vec::new();
-    let mut names = Vec::new();
-    match &args.image {
-        Some(p) => {
-            exemplars.push(exemplar::load_image(p, "exemplar")?);
-            names.push(format!("exemplar {}", p.display()));
-        }
-        None => {
-            if args.ey.is_some() {
-                anyhow::bail!(solidsynth::Error::invalid(
-                    "--ey",
-                    "needs the x exemplar IMAGE too"
-                ));
-            }
-            exemplars.push(exemplar::default_exemplar());
-            names.push("built-in exemplar".into());
-        }
-    }
-    if let (Some(ey), Some(ez)) = (&args.ey, &args.ez) {
-        exemplars.push(exemplar::load_image(ey, "--ey")?);
-        names.push(format!("--ey {}", ey.display()));
-        exemplars.push(exemplar::load_image(ez, "--ez")?);
-        names.push(format!("--ez {}", ez.display()));
-    }
-    let mut masks = Vec::new();
-    let mask_flags = [
-        ("--feature-mask", &args.feature_mask),
-        ("--ey-feature-mask", &args.ey_feature_mask),
-        ("--ez-feature-mask", &args.ez_feature_mask),
-    ];
-    let given: Vec<_> = mask_flags.iter().filter(|(_, p)| p.is_some()).collect();
-    if !given.is_empty() {
-        if given.len() != exemplars.len() || mask_flags[0].1.is_none() {
-            anyhow::bail!(solidsynth::Error::invalid(
-                "feature masks",
-                format!(
-                    "give one mask per exemplar: --feature-mask{}",
-                    if exemplars.len() == 3 {
-                        ", --ey-feature-mask and --ez-feature-mask"
-                    } else {
-                        " only"
-                    }
-                ),
-            ));
-        }
-        for (flag, path) in mask_flags.iter().take(exemplars.len()) {
-            let path = path.as_ref().unwrap();
-            masks.push(exemplar::load_image(path, flag)?);
-        }
-    }
-    let input = AnalysisInput {
-        exemplars,
-        masks,
-        border: if args.periodic {
-            Border::Wrap
-        } else {
-            Border::Mirror
-        },
-        names,
-    };
-    let params = AnalysisParams {
-        feature_weight: args.feature_weight,
-        ..Default::default()
-    };
-    let compute = args.backend.open()?;
+    let (input, params) = args.input.analysis_input()?;
+    let compute = args.input.backend.open()?;
     let bar = super::progress_bar(quiet || args.json);
     let report = |stage: &str, f: f32| {
         bar.set_position((f * 1000.0) as u64);
@@ -125,12 +227,8 @@ pub fn run(args: AnalyzeArgs, quiet: bool) -> anyhow::Result<()> {
     let finest = &result.exemplars[0].levels[0].image;
     if args.json {
         let summary = serde_json::json!({
-            "output": args.output,
-            "width": finest.width,
-            "height": finest.height,
-            "shared": result.shared,
-            "bytes": bytes.len(),
-            "seconds": seconds,
+            "output": args.output, "width": finest.width, "height": finest.height,
+            "shared": result.shared, "bytes": bytes.len(), "seconds": seconds,
             "peak_rss_bytes": solidsynth::util::memory::peak_rss_bytes(),
             "backend": compute.describe(),
         });

@@ -4,6 +4,7 @@ pub mod analyze;
 pub mod bench;
 pub mod eval;
 pub mod inspect;
+pub mod synth;
 
 use clap::{Args, Parser, Subcommand};
 use solidsynth::backend::{BackendChoice, Compute};
@@ -30,6 +31,8 @@ pub enum Command {
     /// Score a volume against its exemplar: histograms, patch coherence and completeness,
     /// gradient orientations, per axis, with floors; optionally a contact sheet.
     Eval(eval::EvalArgs),
+    /// Synthesize the solid texture box [0, N)^3 (NRRD, optional PNG slices, flipbook, sheet).
+    Synth(synth::SynthArgs),
     /// Describe a .ssa file and write its candidate slab as a PNG.
     Inspect(inspect::InspectArgs),
     /// Benchmarks printed as tables.
@@ -67,6 +70,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Analyze(a) => analyze::run(a, cli.quiet),
         Command::Inspect(a) => inspect::run(a),
         Command::Eval(a) => eval::run(a),
+        Command::Synth(a) => synth::run(a, cli.quiet),
         Command::Bench(b) => bench::run(b),
         Command::Adapters => {
             let list = solidsynth::gpu::context::list_adapters();

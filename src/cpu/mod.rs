@@ -2,4 +2,9 @@
 //! Each mirrors its shader's loops and integer arithmetic, and is also the real, rayon-parallel
 //! CPU backend.
 
+pub mod colorize;
+pub mod correct;
+pub mod init;
 pub mod project;
+pub mod synth_common;
+pub mod upsample;

@@ -61,7 +61,9 @@ pub struct GpuContext {
     pub limits: wgpu::Limits,
     timeout: Duration,
     max_binding_bytes: u64,
-    pipelines: Mutex<HashMap<&'static str, Arc<wgpu::ComputePipeline>>>,
+    pipelines: Mutex<HashMap<String, Arc<wgpu::ComputePipeline>>>,
+    /// GPU errors raised outside an error scope, reported at the next wait instead of panicking.
+    uncaptured: Arc<Mutex<Option<String>>>,
 }
 
 fn new_instance() -> wgpu::Instance {
@@ -142,7 +144,16 @@ impl GpuContext {
             max_storage_binding = adapter_max,
             "GPU adapter"
         );
+        let uncaptured = Arc::new(Mutex::new(None));
+        let sink = uncaptured.clone();
+        device.on_uncaptured_error(Arc::new(move |e: wgpu::Error| {
+            let mut slot = sink.lock().unwrap();
+            if slot.is_none() {
+                *slot = Some(e.to_string());
+            }
+        }));
         Ok(GpuContext {
+            uncaptured,
             device,
             queue,
             info,
@@ -172,7 +183,18 @@ impl GpuContext {
 
     /// The compute pipeline of kernel `name` (entry point `main`), built once and cached.
     pub fn pipeline(&self, name: &'static str) -> Result<Arc<wgpu::ComputePipeline>> {
-        if let Some(p) = self.pipelines.lock().unwrap().get(name) {
+        self.pipeline_with(name, &[])
+    }
+
+    /// The pipeline of kernel `name` with its WGSL `override` constants set, built once per set
+    /// of values and cached (constant loop bounds let the driver unroll the kernel's loops).
+    pub fn pipeline_with(
+        &self,
+        name: &'static str,
+        constants: &[(&str, f64)],
+    ) -> Result<Arc<wgpu::ComputePipeline>> {
+        let key = format!("{name}{constants:?}");
+        if let Some(p) = self.pipelines.lock().unwrap().get(&key) {
             return Ok(p.clone());
         }
         let source = super::shaders::source(name);
@@ -190,17 +212,17 @@ impl GpuContext {
                 layout: None,
                 module: &module,
                 entry_point: Some("main"),
-                compilation_options: Default::default(),
+                compilation_options: wgpu::PipelineCompilationOptions {
+                    constants,
+                    ..Default::default()
+                },
                 cache: None,
             });
         if let Some(err) = pollster::block_on(scope.pop()) {
             return Err(Error::Gpu(format!("kernel {name}: {err}")));
         }
         let pipeline = Arc::new(pipeline);
-        self.pipelines
-            .lock()
-            .unwrap()
-            .insert(name, pipeline.clone());
+        self.pipelines.lock().unwrap().insert(key, pipeline.clone());
         Ok(pipeline)
     }
 
@@ -234,7 +256,9 @@ impl GpuContext {
             .create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some(label),
                 contents: bytemuck::cast_slice(&fill),
-                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+                usage: wgpu::BufferUsages::STORAGE
+                    | wgpu::BufferUsages::COPY_SRC
+                    | wgpu::BufferUsages::COPY_DST,
             })
     }
 
@@ -245,6 +269,9 @@ impl GpuContext {
     }
 
     fn wait(&self, index: Option<wgpu::SubmissionIndex>) -> Result<()> {
+        if let Some(e) = self.uncaptured.lock().unwrap().take() {
+            return Err(Error::Gpu(e));
+        }
         self.device
             .poll(wgpu::PollType::Wait {
                 submission_index: index,

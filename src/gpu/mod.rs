@@ -4,5 +4,6 @@
 pub mod context;
 pub mod project;
 pub mod shaders;
+pub mod synth;
 
 pub use context::{GpuContext, GpuOptions};

@@ -1,7 +1,24 @@
-//! The WGSL sources, embedded, and their validation with naga.
+//! The WGSL sources, embedded, and their validation with naga. Synthesis kernels get the shared
+//! prelude `wgsl/lib/synth_common.wgsl` prepended (WGSL has no includes).
 
-/// (kernel name, source) of every kernel in `wgsl/`.
-pub const KERNELS: &[(&str, &str)] = &[("project", include_str!("../../wgsl/project.wgsl"))];
+macro_rules! with_prelude {
+    ($file:literal) => {
+        concat!(
+            include_str!("../../wgsl/lib/synth_common.wgsl"),
+            "\n",
+            include_str!($file)
+        )
+    };
+}
+
+/// (kernel name, complete source) of every kernel in `wgsl/`.
+pub const KERNELS: &[(&str, &str)] = &[
+    ("project", include_str!("../../wgsl/project.wgsl")),
+    ("init", with_prelude!("../../wgsl/init.wgsl")),
+    ("upsample", with_prelude!("../../wgsl/upsample.wgsl")),
+    ("correct", with_prelude!("../../wgsl/correct.wgsl")),
+    ("colorize", with_prelude!("../../wgsl/colorize.wgsl")),
+];
 
 /// The source of kernel `name`.
 pub fn source(name: &str) -> &'static str {

@@ -16,9 +16,9 @@ pub fn contact_sheet(volume: &Volume, exemplars: &[Image]) -> image::RgbaImage {
         .chain(exemplars.iter().map(|e| e.width.max(e.height)))
         .max()
         .unwrap_or(1);
-    let zoom = (256 / biggest).clamp(1, 8);
+    // Each panel at its own integer zoom, so small volumes are as legible as large exemplars.
+    let cell = biggest.max(256);
     let gap = 4;
-    let cell = biggest * zoom;
     let rows = 3u32.max(exemplars.len() as u32);
     let mut sheet = image::RgbaImage::from_pixel(
         4 * (cell + gap) + gap,
@@ -26,6 +26,7 @@ pub fn contact_sheet(volume: &Volume, exemplars: &[Image]) -> image::RgbaImage {
         image::Rgba([32, 32, 32, 255]),
     );
     let mut blit = |img: &Image, col: u32, row: u32| {
+        let zoom = (cell / img.width.max(img.height)).clamp(1, 16);
         let rgba = img.to_rgba8();
         for y in 0..img.height * zoom {
             for x in 0..img.width * zoom {

@@ -26,3 +26,13 @@ impl SeededRng {
         self.next_u64() % n
     }
 }
+
+/// A 32-bit integer hash (lowbias32), the same in WGSL: the GPU has no 64-bit integers.
+#[inline]
+pub fn hash32(mut x: u32) -> u32 {
+    x ^= x >> 16;
+    x = x.wrapping_mul(0x7feb_352d);
+    x ^= x >> 15;
+    x = x.wrapping_mul(0x846c_a68b);
+    x ^ (x >> 16)
+}

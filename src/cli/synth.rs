@@ -1,0 +1,208 @@
+//! `solidsynth synth`: a full volume, the box [0, N)^3 of the infinite solid.
+
+use super::analyze::{load_or_analyze, InputArgs};
+use clap::Args;
+use solidsynth::io::{atomic, nrrd};
+use solidsynth::lazy::{Box3, CandidateMode, SynthParams, Synthesizer};
+use solidsynth::metrics::sheet::contact_sheet;
+use solidsynth::volume::Volume;
+use solidsynth::Error;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+#[derive(Args, Debug)]
+pub struct SynthArgs {
+    #[command(flatten)]
+    pub input: InputArgs,
+    /// Edge of the cube [0, N)^3 to synthesize, in finest-level voxels.
+    #[arg(long)]
+    pub size: u32,
+    /// Seed of the jitter field and the tiling offsets.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Jitter magnitude (0 disables the warp).
+    #[arg(long, default_value_t = 1.0)]
+    pub jitter: f32,
+    /// Candidates searched by the correction: the paper's 3D candidates, or 2D (ablation).
+    #[arg(long, value_enum, default_value = "3d")]
+    pub candidates: CandidateMode,
+    /// Correction passes per level.
+    #[arg(long, default_value_t = 2)]
+    pub passes: u32,
+    /// Output NRRD volume.
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Also write one PNG per z slice into this (new or empty) directory.
+    #[arg(long)]
+    pub slices: Option<PathBuf>,
+    /// Also write all z slices in one grid PNG (the layout Unity and Unreal import as a 3D texture).
+    #[arg(long)]
+    pub flipbook: Option<PathBuf>,
+    /// Also write a contact sheet (exemplar beside orthogonal slices).
+    #[arg(long)]
+    pub sheet: Option<PathBuf>,
+    /// Print a JSON summary on stdout.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Largest --size accepted before the memory estimate is even computed.
+pub const MAX_SIZE: u32 = 2048;
+
+fn available_memory() -> u64 {
+    std::fs::read_to_string("/proc/meminfo")
+        .ok()
+        .and_then(|s| {
+            let line = s
+                .lines()
+                .find(|l| l.starts_with("MemAvailable:"))?
+                .to_string();
+            line.split_whitespace().nth(1)?.parse::<u64>().ok()
+        })
+        .map_or(u64::MAX, |kib| kib * 1024)
+}
+
+/// Refuse a size before allocating anything for it.
+pub fn check_size(size: u32, channels: u32) -> solidsynth::Result<u64> {
+    if !(8..=MAX_SIZE).contains(&size) {
+        return Err(Error::invalid(
+            format!("--size {size}"),
+            format!("must be 8..={MAX_SIZE}"),
+        ));
+    }
+    let output = size as u64 * size as u64 * size as u64 * channels as u64;
+    let working = Synthesizer::chunk_bytes(size.min(256));
+    let estimate = output * 2 + working;
+    let available = available_memory();
+    if estimate > available {
+        return Err(Error::invalid(
+            format!("--size {size}"),
+            format!(
+                "needs about {:.1} GiB of memory, {:.1} GiB is available",
+                estimate as f64 / (1u64 << 30) as f64,
+                available as f64 / (1u64 << 30) as f64
+            ),
+        ));
+    }
+    Ok(estimate)
+}
+
+fn check_slices_dir(dir: &Path) -> solidsynth::Result<()> {
+    if dir.exists() {
+        let empty = dir.is_dir()
+            && std::fs::read_dir(dir)
+                .map_err(|e| Error::io(dir, e))?
+                .next()
+                .is_none();
+        if !empty {
+            return Err(Error::invalid(
+                format!("--slices {}", dir.display()),
+                "exists and is not an empty directory (nothing is overwritten)",
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// All z slices in a grid of ceil(sqrt(N)) columns, row-major, x along rows of each tile.
+pub fn flipbook(v: &Volume) -> image::RgbaImage {
+    let cols = (v.nz as f64).sqrt().ceil() as u32;
+    let rows = v.nz.div_ceil(cols);
+    let mut img = image::RgbaImage::new(cols * v.nx, rows * v.ny);
+    for z in 0..v.nz {
+        let (ox, oy) = ((z % cols) * v.nx, (z / cols) * v.ny);
+        for y in 0..v.ny {
+            for x in 0..v.nx {
+                img.put_pixel(ox + x, oy + y, rgba(v.at(x, y, z)));
+            }
+        }
+    }
+    img
+}
+
+fn rgba(p: &[u8]) -> image::Rgba<u8> {
+    match p.len() {
+        1 => image::Rgba([p[0], p[0], p[0], 255]),
+        3 => image::Rgba([p[0], p[1], p[2], 255]),
+        4 => image::Rgba([p[0], p[1], p[2], p[3]]),
+        _ => image::Rgba([p[0], p[0], p[0], 255]),
+    }
+}
+
+fn z_slice(v: &Volume, z: u32) -> image::RgbaImage {
+    image::RgbaImage::from_fn(v.nx, v.ny, |x, y| rgba(v.at(x, y, z)))
+}
+
+pub fn run(args: SynthArgs, quiet: bool) -> anyhow::Result<()> {
+    atomic::check_output_path(&args.output, "-o")?;
+    for (flag, p) in [("--flipbook", &args.flipbook), ("--sheet", &args.sheet)] {
+        if let Some(p) = p {
+            atomic::check_output_path(p, flag)?;
+        }
+    }
+    if let Some(d) = &args.slices {
+        check_slices_dir(d)?;
+    }
+    let params = SynthParams {
+        seed: args.seed,
+        jitter: args.jitter,
+        candidates: args.candidates,
+        passes: args.passes,
+    };
+    params.validate()?;
+    check_size(args.size, 4)?;
+    let start = Instant::now();
+    let compute = args.input.backend.open()?;
+    let analysis = load_or_analyze(&args.input, &compute, quiet || args.json)?;
+    let analysis_s = start.elapsed().as_secs_f64();
+    let bar = super::progress_bar(quiet || args.json);
+    let report = |m: &str, f: f32| {
+        bar.set_position((f * 1000.0) as u64);
+        bar.set_message(m.to_string());
+    };
+    let synth_start = Instant::now();
+    let mut synth = Synthesizer::new(&analysis, params, &compute)?;
+    let n = args.size as i32;
+    let volume = synth.synthesize(Box3::new([0; 3], [n; 3]), &report)?;
+    let synth_s = synth_start.elapsed().as_secs_f64();
+    bar.finish_and_clear();
+    nrrd::save(&volume, &args.output)?;
+    if let Some(p) = &args.flipbook {
+        atomic::save_png(p, &flipbook(&volume))?;
+    }
+    if let Some(p) = &args.sheet {
+        let exemplars: Vec<_> = (0..if analysis.shared { 1 } else { 3 })
+            .map(|a| {
+                analysis.exemplar(a).levels[0]
+                    .image
+                    .select_channels(0..analysis.color_channels)
+            })
+            .collect();
+        atomic::save_png(p, &contact_sheet(&volume, &exemplars))?;
+    }
+    if let Some(dir) = &args.slices {
+        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+        for z in 0..volume.nz {
+            atomic::save_png(&dir.join(format!("slice_{z:04}.png")), &z_slice(&volume, z))?;
+        }
+    }
+    if args.json {
+        println!(
+            "{}",
+            serde_json::json!({
+                "output": args.output, "size": args.size, "seed": args.seed, "jitter": args.jitter,
+                "candidates": args.candidates, "passes": args.passes,
+                "analysis_seconds": analysis_s, "synthesis_seconds": synth_s,
+                "peak_rss_bytes": solidsynth::util::memory::peak_rss_bytes(),
+                "backend": compute.describe(),
+            })
+        );
+    } else if !quiet {
+        eprintln!(
+            "synthesized {0}^3 in {synth_s:.2} s (analysis {analysis_s:.2} s) -> {1}",
+            args.size,
+            args.output.display()
+        );
+    }
+    Ok(())
+}

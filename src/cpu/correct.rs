@@ -1,0 +1,205 @@
+//! CPU reference of `wgsl/correct.wgsl`: one correction sub-pass (paper 5.1) over the voxels of one
+//! parity class in a box.
+//!
+//! Per voxel:
+//! 1. Gather its 3-neighbourhood: for each exemplar a, the 5x5 plane through the voxel spanned by
+//!    axes a+1 (columns) and a+2 (rows), each voxel's value being the mean of its three exemplar
+//!    pixels (colour and feature channels). Project each plane with E_a's PCA basis exactly as
+//!    kernel `project` projects exemplar neighbourhoods.
+//! 2. Per exemplar a, the best k-coherent 2D candidate: from the 9 in-plane neighbours n = v +
+//!    du e_{a+1} + dv e_{a+2}, the pixel (their E_a coordinate) - (du, dv), and its k2d 2D
+//!    candidates, scored on plane a alone.
+//! 3. 3D mode: among the current triple and the first k3d_used 3D candidates of the three best 2D
+//!    pixels, the triple with the lowest summed distance over the three planes ("separation of the
+//!    first candidate coordinate"). 2D mode (ablation): the three best 2D coordinates.
+//! Distances are integer sums of squared differences of 8-bit projections; ties keep the first
+//! found in that enumeration order.
+//!
+//! Reads come from `state`; results are returned, not written in place, so a sub-pass never reads
+//! a value it produced (the GPU ping-pongs two buffers for the same reason).
+
+use super::synth_common::{box_index, coord, pack_resolved, voxel_channel};
+use crate::analysis::frame::rotate_from_shared;
+use crate::kernel_types::CorrectParams;
+use rayon::prelude::*;
+
+/// Largest projection length (bytes) the kernels support.
+pub const MAX_PCA_OUT: usize = 16;
+
+struct Ctx<'a> {
+    p: &'a CorrectParams,
+    level: &'a [u32],
+    state: &'a [u32],
+    lo: [i32; 3],
+    size: [u32; 3],
+    pixels: [u32; 3],
+}
+
+impl Ctx<'_> {
+    fn triple(&self, pos: [i32; 3]) -> [u32; 3] {
+        let i = box_index(pos, self.lo, self.size) * 3;
+        [self.state[i], self.state[i + 1], self.state[i + 2]]
+    }
+
+    /// Projection of the plane of exemplar `a` through voxel `pos`.
+    fn project_plane(&self, pos: [i32; 3], a: usize) -> [i32; MAX_PCA_OUT] {
+        let p = self.p;
+        let (ua, va) = ((a + 1) % 3, (a + 2) % 3);
+        let mean = [p.mean0, p.mean1, p.mean2][a];
+        let weights = [p.weights0, p.weights1, p.weights2][a];
+        let mut acc = [0i32; MAX_PCA_OUT];
+        let mut i = 0u32;
+        for dv in -2..=2 {
+            for du in -2..=2 {
+                let mut n = pos;
+                n[ua] += du;
+                n[va] += dv;
+                let t = self.triple(n);
+                for ch in 0..p.channels {
+                    let value =
+                        voxel_channel(self.level, self.pixels, p.pixel_words, p.ex_width, t, ch)
+                            as i32;
+                    let centred = value - self.level[(mean + i) as usize] as i32;
+                    for (j, a) in acc.iter_mut().enumerate().take(p.pca_out as usize) {
+                        *a = a.wrapping_add(centred.wrapping_mul(
+                            self.level[(weights + j as u32 * p.pca_in + i) as usize] as i32,
+                        ));
+                    }
+                    i += 1;
+                }
+            }
+        }
+        let round = 1i32 << (p.shift - 1);
+        let mut q = [0i32; MAX_PCA_OUT];
+        for j in 0..p.pca_out as usize {
+            q[j] = ((acc[j].wrapping_add(round) >> p.shift) + 128).clamp(0, 255);
+        }
+        q
+    }
+
+    /// Squared distance between a plane projection and E_a's stored projection at pixel `c`.
+    fn distance(&self, q: &[i32; MAX_PCA_OUT], a: usize, c: u32) -> u32 {
+        let p = self.p;
+        let (x, y) = coord(c);
+        let base =
+            [p.proj0, p.proj1, p.proj2][a] + (y as u32 * p.ex_width + x as u32) * p.proj_words;
+        let mut d = 0u32;
+        for (j, &qj) in q.iter().enumerate().take(p.pca_out as usize) {
+            let byte = (self.level[(base + j as u32 / 4) as usize] >> ((j as u32 % 4) * 8)) & 0xFF;
+            let diff = qj - byte as i32;
+            d += (diff * diff) as u32;
+        }
+        d
+    }
+
+    /// Best k-coherent 2D candidate of exemplar `a` for the voxel at `pos`.
+    fn best_2d(&self, pos: [i32; 3], a: usize, q: &[i32; MAX_PCA_OUT]) -> u32 {
+        let p = self.p;
+        let (ua, va) = ((a + 1) % 3, (a + 2) % 3);
+        let cand2d = [p.cand2d0, p.cand2d1, p.cand2d2][a];
+        let (mut best, mut best_d) = (0u32, u32::MAX);
+        for dv in -1..=1 {
+            for du in -1..=1 {
+                let mut n = pos;
+                n[ua] += du;
+                n[va] += dv;
+                let (cx, cy) = coord(self.triple(n)[a]);
+                let (sx, sy) = (cx - du, cy - dv);
+                if p.border != 0
+                    && (sx < 0 || sy < 0 || sx >= p.ex_width as i32 || sy >= p.ex_height as i32)
+                {
+                    continue;
+                }
+                let src = pack_resolved(sx, sy, p.ex_width, p.ex_height, p.border);
+                let (px, py) = coord(src);
+                let list = cand2d + (py as u32 * p.ex_width + px as u32) * p.k2d;
+                for j in 0..p.k2d {
+                    let c = self.level[(list + j) as usize];
+                    let d = self.distance(q, a, c);
+                    if d < best_d {
+                        best_d = d;
+                        best = c;
+                    }
+                }
+            }
+        }
+        best
+    }
+
+    fn total_distance(&self, q: &[[i32; MAX_PCA_OUT]; 3], t: [u32; 3]) -> u32 {
+        self.distance(&q[0], 0, t[0])
+            + self.distance(&q[1], 1, t[1])
+            + self.distance(&q[2], 2, t[2])
+    }
+
+    fn correct_voxel(&self, pos: [i32; 3]) -> [u32; 3] {
+        let p = self.p;
+        let q = [
+            self.project_plane(pos, 0),
+            self.project_plane(pos, 1),
+            self.project_plane(pos, 2),
+        ];
+        let best2d = [
+            self.best_2d(pos, 0, &q[0]),
+            self.best_2d(pos, 1, &q[1]),
+            self.best_2d(pos, 2, &q[2]),
+        ];
+        if p.mode == 1 {
+            return best2d;
+        }
+        let mut best = self.triple(pos);
+        let mut best_d = self.total_distance(&q, best);
+        for a in 0..3 {
+            let set = if p.shared_sets != 0 { 0 } else { a };
+            let (x, y) = coord(best2d[a]);
+            let pixel = y as u32 * p.ex_width + x as u32;
+            let count = self.level[([p.counts0, p.counts1, p.counts2][set] + pixel) as usize]
+                .min(p.k3d_used);
+            let list = [p.cand3d0, p.cand3d1, p.cand3d2][set] + pixel * p.k3d_stride * 3;
+            for j in 0..count {
+                let e = (list + j * 3) as usize;
+                let mut t = [self.level[e], self.level[e + 1], self.level[e + 2]];
+                if p.shared_sets != 0 {
+                    t = rotate_from_shared(t, a);
+                }
+                let d = self.total_distance(&q, t);
+                if d < best_d {
+                    best_d = d;
+                    best = t;
+                }
+            }
+        }
+        best
+    }
+}
+
+/// Run one sub-pass: returns (box-local index, new triple) for every voxel of the class.
+pub fn correct(p: &CorrectParams, level: &[u32], state: &[u32]) -> Vec<(usize, [u32; 3])> {
+    let ctx = Ctx {
+        p,
+        level,
+        state,
+        lo: [p.lo_x, p.lo_y, p.lo_z],
+        size: [p.size_x, p.size_y, p.size_z],
+        pixels: [p.pixels0, p.pixels1, p.pixels2],
+    };
+    let (cx, cy, cz) = (p.count_x as usize, p.count_y as usize, p.count_z as usize);
+    (0..cx * cy * cz)
+        .into_par_iter()
+        .map(|i| {
+            let pos = [
+                p.first_x + 2 * (i % cx) as i32,
+                p.first_y + 2 * ((i / cx) % cy) as i32,
+                p.first_z + 2 * (i / (cx * cy)) as i32,
+            ];
+            (box_index(pos, ctx.lo, ctx.size), ctx.correct_voxel(pos))
+        })
+        .collect()
+}
+
+/// Apply a sub-pass's results to the state.
+pub fn apply(state: &mut [u32], updates: &[(usize, [u32; 3])]) {
+    for &(i, t) in updates {
+        state[i * 3..i * 3 + 3].copy_from_slice(&t);
+    }
+}

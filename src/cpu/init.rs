@@ -1,0 +1,57 @@
+//! CPU reference of `wgsl/init.wgsl`: the l_start level as a tiling of exemplar 0's candidate slab
+//! (5 voxels thick along x), warped by the jitter field.
+
+use super::synth_common::{coord, pack_resolved};
+use crate::analysis::frame::pack;
+use crate::kernel_types::InitParams;
+use crate::lazy::jitter;
+use rayon::prelude::*;
+
+/// Triples (3 words per voxel, x fastest) of the box in `p`.
+pub fn init(p: &InitParams, table: &[u32], level: &[u32]) -> Vec<u32> {
+    let (sx, sy, sz) = (p.size_x as usize, p.size_y as usize, p.size_z as usize);
+    let mut out = vec![0u32; sx * sy * sz * 3];
+    out.par_chunks_mut(sx * 3)
+        .enumerate()
+        .for_each(|(row, dst)| {
+            let (y, z) = ((row % sy) as i32, (row / sy) as i32);
+            for x in 0..sx {
+                let pos = [p.lo_x + x as i32, p.lo_y + y, p.lo_z + z];
+                dst[x * 3..x * 3 + 3].copy_from_slice(&init_voxel(p, table, level, pos));
+            }
+        });
+    out
+}
+
+pub fn init_voxel(p: &InitParams, table: &[u32], level: &[u32], pos: [i32; 3]) -> [u32; 3] {
+    let warp = if p.jitter_on != 0 {
+        jitter::offset(
+            pos,
+            p.seed_lo,
+            p.seed_hi,
+            [p.amp0, p.amp1, p.amp2, p.amp3],
+            [p.sig0, p.sig1, p.sig2, p.sig3],
+            table,
+        )
+    } else {
+        [0; 3]
+    };
+    let q = [
+        pos[0] + warp[0] + p.tile_x as i32,
+        pos[1] + warp[1] + p.tile_y as i32,
+        pos[2] + warp[2] + p.tile_z as i32,
+    ];
+    let (w, h) = (p.ex_width, p.ex_height);
+    let u = q[1].rem_euclid(w as i32) as u32;
+    let v = q[2].rem_euclid(h as i32) as u32;
+    let depth = q[0].rem_euclid(5) - 2;
+    let s = (p.slab_offset + (v * w + u) * 3) as usize;
+    // Along x (the slab's normal): v in Ey, u in Ez (see analysis::frame).
+    let (x1, y1) = coord(level[s + 1]);
+    let (x2, y2) = coord(level[s + 2]);
+    [
+        pack(u, v),
+        pack_resolved(x1, y1 + depth, w, h, p.border),
+        pack_resolved(x2 + depth, y2, w, h, p.border),
+    ]
+}

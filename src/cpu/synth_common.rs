@@ -1,0 +1,62 @@
+//! Helpers shared by the synthesis kernels' CPU references, one per WGSL helper function of the
+//! same name (the shaders repeat them: WGSL has no includes).
+
+use crate::analysis::frame::{pack, unpack};
+
+/// Border::resolve with the kernels' code (0 wrap, 1 mirror).
+#[inline]
+pub fn resolve(c: i32, len: u32, border: u32) -> u32 {
+    let n = len as i32;
+    if border == 0 {
+        return c.rem_euclid(n) as u32;
+    }
+    if n == 1 {
+        return 0;
+    }
+    let period = 2 * (n - 1);
+    let m = c.rem_euclid(period);
+    (if m >= n { period - m } else { m }) as u32
+}
+
+/// Pack a coordinate after resolving it against the exemplar size.
+#[inline]
+pub fn pack_resolved(x: i32, y: i32, w: u32, h: u32, border: u32) -> u32 {
+    pack(resolve(x, w, border), resolve(y, h, border))
+}
+
+#[inline]
+pub fn coord(c: u32) -> (i32, i32) {
+    let (x, y) = unpack(c);
+    (x as i32, y as i32)
+}
+
+/// Box-local index of absolute voxel `p` in a box at `lo` of `size`.
+#[inline]
+pub fn box_index(p: [i32; 3], lo: [i32; 3], size: [u32; 3]) -> usize {
+    ((((p[2] - lo[2]) as u32 * size[1]) + (p[1] - lo[1]) as u32) * size[0] + (p[0] - lo[0]) as u32)
+        as usize
+}
+
+/// Byte `ch` of an exemplar pixel stored `pixel_words` words per pixel at word `base`.
+#[inline]
+pub fn pixel_byte(level: &[u32], base: u32, pixel_words: u32, width: u32, c: u32, ch: u32) -> u32 {
+    let (x, y) = unpack(c);
+    let word = level[(base + (y * width + x) * pixel_words + ch / 4) as usize];
+    (word >> ((ch % 4) * 8)) & 0xFF
+}
+
+/// Channel `ch` of a voxel: the rounded mean of its three exemplar pixels.
+#[inline]
+pub fn voxel_channel(
+    level: &[u32],
+    pixels: [u32; 3],
+    pixel_words: u32,
+    width: u32,
+    t: [u32; 3],
+    ch: u32,
+) -> u32 {
+    let sum = pixel_byte(level, pixels[0], pixel_words, width, t[0], ch)
+        + pixel_byte(level, pixels[1], pixel_words, width, t[1], ch)
+        + pixel_byte(level, pixels[2], pixel_words, width, t[2], ch);
+    (sum + 1) / 3
+}

@@ -1,0 +1,204 @@
+//! Dispatch of the synthesis kernels `init`, `upsample`, `correct`, `colorize` (CPU references in
+//! `src/cpu/`). Level data stays resident; a level's state is two buffers: `correct` reads one
+//! and writes the other (only its class's voxels), which is then copied back, so no invocation
+//! reads a value written in the same sub-pass. Work is submitted without waiting; the only wait
+//! is the bounded read-back of the colours.
+
+use super::context::GpuContext;
+use crate::error::{Error, Result};
+use crate::kernel_types::{ColorizeParams, CorrectParams, InitParams, UpsampleParams};
+use crate::lazy::pack::LevelPack;
+use std::sync::Arc;
+
+/// Written into fresh state buffers: a triple the kernels never produce.
+pub const SENTINEL: u32 = 0xFFFF_FFFF;
+
+pub struct GpuState {
+    current: wgpu::Buffer,
+    scratch: Option<wgpu::Buffer>,
+    words: u64,
+}
+
+pub struct GpuSynth {
+    ctx: Arc<GpuContext>,
+    levels: Vec<wgpu::Buffer>,
+    table: wgpu::Buffer,
+}
+
+fn entries<'a>(buffers: &[&'a wgpu::Buffer]) -> Vec<wgpu::BindGroupEntry<'a>> {
+    buffers
+        .iter()
+        .enumerate()
+        .map(|(i, b)| wgpu::BindGroupEntry {
+            binding: i as u32,
+            resource: b.as_entire_binding(),
+        })
+        .collect()
+}
+
+fn groups(n: [u32; 3]) -> (u32, u32, u32) {
+    (n[0].div_ceil(4), n[1].div_ceil(4), n[2].div_ceil(4))
+}
+
+impl GpuSynth {
+    pub fn new(ctx: Arc<GpuContext>, packs: &[LevelPack], table: &[u32]) -> Result<GpuSynth> {
+        for p in packs {
+            let bytes = p.words.len() as u64 * 4;
+            if bytes > ctx.max_binding_bytes() {
+                return Err(Error::invalid(
+                    "exemplar",
+                    format!(
+                        "its analysis needs {bytes} bytes per level on the GPU, over the adapter's \
+                         {}-byte binding limit; use a smaller exemplar or --backend cpu",
+                        ctx.max_binding_bytes()
+                    ),
+                ));
+            }
+        }
+        for k in ["init", "upsample", "colorize"] {
+            ctx.pipeline(k)?;
+        }
+        let levels = packs
+            .iter()
+            .map(|p| ctx.storage_buffer("level data", bytemuck::cast_slice(&p.words)))
+            .collect();
+        let table = ctx.storage_buffer("jitter table", bytemuck::cast_slice(table));
+        Ok(GpuSynth { ctx, levels, table })
+    }
+
+    pub fn max_state_bytes(&self) -> u64 {
+        self.ctx.max_binding_bytes()
+    }
+
+    fn state_buffer(&self, words: u64) -> wgpu::Buffer {
+        self.ctx.output_buffer("triples", words as usize, SENTINEL)
+    }
+
+    #[allow(clippy::type_complexity)]
+    fn run(
+        &self,
+        kernel: &'static str,
+        constants: &[(&str, f64)],
+        buffers: &[&wgpu::Buffer],
+        grid: (u32, u32, u32),
+        then: Option<(&wgpu::Buffer, &wgpu::Buffer, u64)>,
+    ) -> Result<()> {
+        let pipeline = self.ctx.pipeline_with(kernel, constants)?;
+        self.ctx.checked(kernel, || {
+            let bind = self
+                .ctx
+                .device
+                .create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some(kernel),
+                    layout: &pipeline.get_bind_group_layout(0),
+                    entries: &entries(buffers),
+                });
+            let mut encoder =
+                self.ctx
+                    .device
+                    .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                        label: Some(kernel),
+                    });
+            {
+                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor::default());
+                pass.set_pipeline(&pipeline);
+                pass.set_bind_group(0, &bind, &[]);
+                pass.dispatch_workgroups(grid.0, grid.1, grid.2);
+            }
+            if let Some((from, to, bytes)) = then {
+                encoder.copy_buffer_to_buffer(from, 0, to, 0, Some(bytes));
+            }
+            self.ctx.queue.submit(Some(encoder.finish()));
+            Ok(())
+        })
+    }
+
+    pub fn init(&mut self, level: usize, p: &InitParams) -> Result<GpuState> {
+        let words = p.size_x as u64 * p.size_y as u64 * p.size_z as u64 * 3;
+        let out = self.state_buffer(words);
+        let uniform = self.ctx.uniform_buffer("init params", p);
+        self.run(
+            "init",
+            &[],
+            &[&uniform, &self.table, &self.levels[level], &out],
+            groups([p.size_x, p.size_y, p.size_z]),
+            None,
+        )?;
+        Ok(GpuState {
+            current: out,
+            scratch: None,
+            words,
+        })
+    }
+
+    pub fn upsample(&mut self, p: &UpsampleParams, parent: GpuState) -> Result<GpuState> {
+        let words = p.child_size_x as u64 * p.child_size_y as u64 * p.child_size_z as u64 * 3;
+        let out = self.state_buffer(words);
+        let uniform = self.ctx.uniform_buffer("upsample params", p);
+        self.run(
+            "upsample",
+            &[],
+            &[&uniform, &parent.current, &out],
+            groups([p.child_size_x, p.child_size_y, p.child_size_z]),
+            None,
+        )?;
+        Ok(GpuState {
+            current: out,
+            scratch: None,
+            words,
+        })
+    }
+
+    pub fn correct(&mut self, level: usize, p: &CorrectParams, s: &mut GpuState) -> Result<()> {
+        let bytes = s.words * 4;
+        if s.scratch.is_none() {
+            let scratch = self.state_buffer(s.words);
+            self.ctx.checked("copy", || {
+                let mut encoder =
+                    self.ctx
+                        .device
+                        .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                            label: Some("copy"),
+                        });
+                encoder.copy_buffer_to_buffer(&s.current, 0, &scratch, 0, Some(bytes));
+                self.ctx.queue.submit(Some(encoder.finish()));
+                Ok(())
+            })?;
+            s.scratch = Some(scratch);
+        }
+        let scratch = s.scratch.as_ref().unwrap();
+        let uniform = self.ctx.uniform_buffer("correct params", p);
+        self.run(
+            "correct",
+            &[
+                ("CHANNELS", p.channels as f64),
+                ("PCA_OUT", p.pca_out as f64),
+                ("K2D", p.k2d as f64),
+            ],
+            &[&uniform, &self.levels[level], &s.current, scratch],
+            groups([p.count_x, p.count_y, p.count_z]),
+            Some((scratch, &s.current, bytes)),
+        )
+    }
+
+    pub fn colorize(&mut self, level: usize, p: &ColorizeParams, s: &GpuState) -> Result<Vec<u32>> {
+        let n = p.out_size_x as usize * p.out_size_y as usize * p.out_size_z as usize;
+        let out = self.ctx.output_buffer("colours", n, SENTINEL);
+        let uniform = self.ctx.uniform_buffer("colorize params", p);
+        self.run(
+            "colorize",
+            &[],
+            &[&uniform, &self.levels[level], &s.current, &out],
+            groups([p.out_size_x, p.out_size_y, p.out_size_z]),
+            None,
+        )?;
+        self.ctx.read_words(&out, n)
+    }
+}
+
+impl GpuSynth {
+    /// Read a state back (tests and debugging).
+    pub fn read_state(&self, s: &GpuState) -> Result<Vec<u32>> {
+        self.ctx.read_words(&s.current, s.words as usize)
+    }
+}

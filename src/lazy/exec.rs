@@ -1,0 +1,88 @@
+//! Running the synthesis kernels on the chosen backend. The CPU executor calls the references in
+//! `cpu/`; the GPU executor keeps the level data resident and ping-pongs two state buffers.
+
+use super::pack::LevelPack;
+use crate::backend::Compute;
+use crate::error::Result;
+use crate::gpu::synth::GpuSynth;
+use crate::kernel_types::{ColorizeParams, CorrectParams, InitParams, UpsampleParams};
+
+/// A level's triples on the backend.
+pub enum State {
+    Cpu(Vec<u32>),
+    Gpu(crate::gpu::synth::GpuState),
+}
+
+pub enum Executor {
+    Cpu {
+        levels: Vec<Vec<u32>>,
+        table: Vec<u32>,
+    },
+    Gpu(Box<GpuSynth>),
+}
+
+impl Executor {
+    pub fn new(compute: &Compute, packs: &[LevelPack], table: &[u32]) -> Result<Executor> {
+        Ok(match compute {
+            Compute::Cpu => Executor::Cpu {
+                levels: packs.iter().map(|p| p.words.clone()).collect(),
+                table: table.to_vec(),
+            },
+            Compute::Gpu(ctx) => Executor::Gpu(Box::new(GpuSynth::new(ctx.clone(), packs, table)?)),
+        })
+    }
+
+    /// Largest state (one triple buffer) a chunk may use.
+    pub fn max_state_bytes(&self) -> u64 {
+        match self {
+            Executor::Cpu { .. } => 1 << 31,
+            Executor::Gpu(g) => g.max_state_bytes(),
+        }
+    }
+
+    pub fn init(&mut self, level: usize, p: &InitParams) -> Result<State> {
+        match self {
+            Executor::Cpu { levels, table } => {
+                Ok(State::Cpu(crate::cpu::init::init(p, table, &levels[level])))
+            }
+            Executor::Gpu(g) => Ok(State::Gpu(g.init(level, p)?)),
+        }
+    }
+
+    pub fn upsample(&mut self, _level: usize, p: &UpsampleParams, parent: State) -> Result<State> {
+        match (self, parent) {
+            (Executor::Cpu { .. }, State::Cpu(v)) => {
+                Ok(State::Cpu(crate::cpu::upsample::upsample(p, &v)))
+            }
+            (Executor::Gpu(g), State::Gpu(s)) => Ok(State::Gpu(g.upsample(p, s)?)),
+            _ => unreachable!("state from another backend"),
+        }
+    }
+
+    pub fn correct(&mut self, level: usize, p: &CorrectParams, state: &mut State) -> Result<()> {
+        match (self, state) {
+            (Executor::Cpu { levels, .. }, State::Cpu(v)) => {
+                let updates = crate::cpu::correct::correct(p, &levels[level], v);
+                crate::cpu::correct::apply(v, &updates);
+                Ok(())
+            }
+            (Executor::Gpu(g), State::Gpu(s)) => g.correct(level, p, s),
+            _ => unreachable!("state from another backend"),
+        }
+    }
+
+    pub fn colorize(
+        &mut self,
+        level: usize,
+        p: &ColorizeParams,
+        state: &State,
+    ) -> Result<Vec<u32>> {
+        match (self, state) {
+            (Executor::Cpu { levels, .. }, State::Cpu(v)) => {
+                Ok(crate::cpu::colorize::colorize(p, &levels[level], v))
+            }
+            (Executor::Gpu(g), State::Gpu(s)) => g.colorize(level, p, s),
+            _ => unreachable!("state from another backend"),
+        }
+    }
+}

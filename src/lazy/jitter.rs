@@ -1,0 +1,98 @@
+//! The jitter field (paper 5.1): a continuous random warp made of Gaussians, defined everywhere in
+//! Z^3 so that it does not depend on which box is synthesized. One Gaussian per 4^3 cell of the
+//! l_start lattice, placed, sized and oriented by a hash of (seed, cell); the paper's "about 200 per
+//! unit volume" with larger amplitude at smaller width. All in fixed point, so GPU and CPU agree.
+
+use crate::util::hash::hash32;
+
+/// Cell side, in l_start voxels.
+pub const CELL: i32 = 4;
+/// Cells visited on each side of the voxel's cell (covers 3 sigma of the widest Gaussian).
+pub const REACH: i32 = 2;
+/// Gaussian widths (l_start voxels) and base amplitudes (voxels, scaled by --jitter).
+pub const SIGMAS: [f64; 4] = [1.0, 1.5, 2.0, 2.5];
+pub const AMPLITUDES: [f64; 4] = [2.0, 1.6, 1.2, 0.8];
+/// Entries of the weight table: q = r^2 / sigma^2 in 1/16 units, up to 9 (3 sigma).
+pub const WEIGHT_ENTRIES: usize = 144;
+/// Unit directions in the table.
+pub const DIRECTIONS: usize = 64;
+/// Largest accepted --jitter (keeps the fixed-point sums inside i32).
+pub const MAX_JITTER: f32 = 8.0;
+
+/// The table the kernels read: exp(-q/32) * 65535 for q in 0..144, then 64 unit directions
+/// (Fibonacci sphere) in 1/256 units, xyz.
+pub fn table() -> Vec<u32> {
+    let mut t: Vec<u32> = (0..WEIGHT_ENTRIES)
+        .map(|q| ((-(q as f64) / 32.0).exp() * 65535.0).round() as u32)
+        .collect();
+    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+    for i in 0..DIRECTIONS {
+        let z = 1.0 - 2.0 * (i as f64 + 0.5) / DIRECTIONS as f64;
+        let r = (1.0 - z * z).sqrt();
+        let phi = golden * i as f64;
+        for c in [r * phi.cos(), r * phi.sin(), z] {
+            t.push(((c * 256.0).round() as i32) as u32);
+        }
+    }
+    t
+}
+
+/// Fixed-point amplitudes (1/256 voxel) for a user jitter magnitude.
+pub fn amplitudes(jitter: f32) -> [i32; 4] {
+    AMPLITUDES.map(|a| (a * jitter as f64 * 256.0).round() as i32)
+}
+
+/// sigma^2 in the units of q's denominator: r^2 is in 1/65536 voxel^2 and q in 1/16, so
+/// q = r2 / (sigma^2 * 4096).
+pub fn sigma2_fixed() -> [i32; 4] {
+    SIGMAS.map(|s| (s * s * 4096.0).round() as i32)
+}
+
+/// Hash of a cell of the lattice for a seed (shared with the WGSL kernel `init`).
+pub fn cell_hash(seed_lo: u32, seed_hi: u32, c: [i32; 3]) -> u32 {
+    let mut h = hash32(seed_lo ^ 0x9E37_79B9);
+    h = hash32(h ^ seed_hi);
+    for v in c {
+        h = hash32(h ^ v as u32);
+    }
+    h
+}
+
+/// The warp offset (whole voxels) at l_start voxel `p` (CPU side of `wgsl/init.wgsl`).
+pub fn offset(
+    p: [i32; 3],
+    seed_lo: u32,
+    seed_hi: u32,
+    amps: [i32; 4],
+    sig2: [i32; 4],
+    table: &[u32],
+) -> [i32; 3] {
+    let pos = p.map(|v| v * 256 + 128);
+    let cell = p.map(|v| v.div_euclid(CELL));
+    let mut disp = [0i32; 3];
+    for cz in cell[2] - REACH..=cell[2] + REACH {
+        for cy in cell[1] - REACH..=cell[1] + REACH {
+            for cx in cell[0] - REACH..=cell[0] + REACH {
+                let h = cell_hash(seed_lo, seed_hi, [cx, cy, cz]);
+                let centre = [
+                    cx * CELL * 256 + (hash32(h ^ 1) & 1023) as i32,
+                    cy * CELL * 256 + (hash32(h ^ 2) & 1023) as i32,
+                    cz * CELL * 256 + (hash32(h ^ 3) & 1023) as i32,
+                ];
+                let shape = hash32(h ^ 4);
+                let s = (shape & 3) as usize;
+                let dir = ((shape >> 2) & 63) as usize;
+                let d = [0, 1, 2].map(|i| pos[i] - centre[i]);
+                let r2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+                let q = r2 / sig2[s];
+                if q < WEIGHT_ENTRIES as i32 {
+                    let t = (amps[s] * table[q as usize] as i32) >> 16;
+                    for i in 0..3 {
+                        disp[i] += t * table[WEIGHT_ENTRIES + dir * 3 + i] as i32;
+                    }
+                }
+            }
+        }
+    }
+    disp.map(|v| (v + 32768) >> 16)
+}

@@ -1,0 +1,238 @@
+//! The synthesis engine: kernel semantics on constructed states, spatial determinism, backends.
+
+mod common;
+
+use solidsynth::analysis::frame::{pack, unpack};
+use solidsynth::exemplar::Border;
+use solidsynth::kernel_types::CorrectParams;
+use solidsynth::lazy::pack::LevelPack;
+
+/// A state in which every voxel's three coordinates are its position along (a+1, a+2) (mod the
+/// exemplar size): each voxel is an exemplar pixel, so the plane of E_a through any voxel IS an
+/// exemplar neighbourhood. The 2D search of exemplar a must find that very pixel (distance 0) and
+/// keep it, for every voxel: this pins the gather order, plane orientation and projection.
+#[test]
+fn correction_keeps_an_exact_exemplar_plane() {
+    for axis in 0..3 {
+        exact_plane_is_kept(axis);
+    }
+}
+
+fn exact_plane_is_kept(axis: usize) {
+    let a = common::analyze(vec![common::fixture("cells32.png")], Border::Wrap);
+    let pack = LevelPack::new(&a, 0);
+    let (w, h) = (pack.width, pack.height);
+    let n = 20i32;
+    let lo = [-3, 5, -7];
+    let mut state = vec![0u32; (n * n * n * 3) as usize];
+    for z in 0..n {
+        for y in 0..n {
+            for x in 0..n {
+                let i = (((z * n + y) * n + x) * 3) as usize;
+                let pos = [lo[0] + x, lo[1] + y, lo[2] + z];
+                let c = pack_coord(pos[(axis + 1) % 3], pos[(axis + 2) % 3], w, h);
+                state[i..i + 3].copy_from_slice(&[c, c, c]);
+            }
+        }
+    }
+    let o = &pack.offsets;
+    let p = CorrectParams {
+        lo_x: lo[0],
+        lo_y: lo[1],
+        lo_z: lo[2],
+        size_x: n as u32,
+        size_y: n as u32,
+        size_z: n as u32,
+        first_x: lo[0] + 2,
+        first_y: lo[1] + 2,
+        first_z: lo[2] + 2,
+        count_x: 8,
+        count_y: 8,
+        count_z: 8,
+        ex_width: w,
+        ex_height: h,
+        channels: pack.channels,
+        pixel_words: pack.pixel_words,
+        pca_in: pack.pca_in,
+        pca_out: pack.pca_out,
+        shift: pack.shift,
+        proj_words: pack.proj_words,
+        k2d: pack.k2d,
+        k3d_used: 4,
+        k3d_stride: pack.k3d_stride,
+        border: 0,
+        mode: 1,
+        shared_sets: 1,
+        pixels0: o.pixels[0],
+        pixels1: o.pixels[1],
+        pixels2: o.pixels[2],
+        proj0: o.projected[0],
+        proj1: o.projected[1],
+        proj2: o.projected[2],
+        mean0: o.mean[0],
+        mean1: o.mean[1],
+        mean2: o.mean[2],
+        weights0: o.weights[0],
+        weights1: o.weights[1],
+        weights2: o.weights[2],
+        cand2d0: o.cand2d[0],
+        cand2d1: o.cand2d[1],
+        cand2d2: o.cand2d[2],
+        cand3d0: o.cand3d[0],
+        cand3d1: o.cand3d[1],
+        cand3d2: o.cand3d[2],
+        counts0: o.counts[0],
+        counts1: o.counts[1],
+        counts2: o.counts[2],
+        ..Default::default()
+    };
+    let updates = solidsynth::cpu::correct::correct(&p, &pack.words, &state);
+    assert_eq!(updates.len(), 512);
+    let mut kept = 0;
+    for (i, t) in &updates {
+        if t[axis] == state[i * 3 + axis] {
+            kept += 1;
+        }
+    }
+    assert_eq!(
+        kept,
+        updates.len(),
+        "exemplar {axis}: the exact plane match was not kept everywhere"
+    );
+}
+
+fn pack_coord(u: i32, v: i32, w: u32, h: u32) -> u32 {
+    pack(u.rem_euclid(w as i32) as u32, v.rem_euclid(h as i32) as u32)
+}
+
+#[allow(dead_code)]
+fn coords(c: u32) -> (u32, u32) {
+    unpack(c)
+}
+
+mod determinism {
+    use super::common;
+    use solidsynth::backend::Compute;
+    use solidsynth::exemplar::Border;
+    use solidsynth::lazy::{Box3, SynthParams, Synthesizer};
+    use solidsynth::volume::Volume;
+
+    fn synth(
+        a: &solidsynth::analysis::Analysis,
+        params: &SynthParams,
+        b: Box3,
+        chunk: Option<u32>,
+    ) -> Volume {
+        let mut s = Synthesizer::new(a, params.clone(), &Compute::Cpu).unwrap();
+        if let Some(c) = chunk {
+            s.set_max_chunk_side(c);
+        }
+        s.synthesize(b, &|_, _| {}).unwrap()
+    }
+
+    /// Voxels of `small` (box `sb`) equal the same voxels of `big` (box `bb`).
+    fn assert_contained(big: &Volume, bb: Box3, small: &Volume, sb: Box3) {
+        for z in sb.lo[2]..sb.hi[2] {
+            for y in sb.lo[1]..sb.hi[1] {
+                for x in sb.lo[0]..sb.hi[0] {
+                    let s = small.at(
+                        (x - sb.lo[0]) as u32,
+                        (y - sb.lo[1]) as u32,
+                        (z - sb.lo[2]) as u32,
+                    );
+                    let g = big.at(
+                        (x - bb.lo[0]) as u32,
+                        (y - bb.lo[1]) as u32,
+                        (z - bb.lo[2]) as u32,
+                    );
+                    assert_eq!(s, g, "voxel ({x},{y},{z}) of {sb:?} differs inside {bb:?}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn any_box_equals_the_same_voxels_of_a_larger_box() {
+        let a = common::analyze(vec![common::fixture("cells32.png")], Border::Wrap);
+        let params = SynthParams {
+            seed: 5,
+            ..Default::default()
+        };
+        let big = Box3::new([-12, -4, -9], [14, 18, 11]);
+        let v = synth(&a, &params, big, None);
+        for small in [
+            Box3::new([0, 0, 0], [9, 7, 5]),
+            Box3::new([-12, -4, -9], [-3, 1, -2]),
+            Box3::new([3, 11, 6], [14, 18, 11]),
+            Box3::new([-1, -1, -1], [1, 1, 1]),
+        ] {
+            assert_contained(&v, big, &synth(&a, &params, small, None), small);
+        }
+        // Chunking (seams at multiples of 7 voxels) changes nothing.
+        assert_eq!(synth(&a, &params, big, Some(7)), v);
+    }
+
+    #[test]
+    fn mirrored_three_exemplar_solids_are_deterministic_too() {
+        let ex = vec![
+            common::fixture("cells32.png"),
+            common::fixture("marble32.png"),
+            common::fixture("cells32.png"),
+        ];
+        let a = common::analyze(ex, Border::Mirror);
+        let params = SynthParams {
+            seed: 9,
+            jitter: 2.0,
+            ..Default::default()
+        };
+        let big = Box3::new([30, -20, 0], [46, -6, 12]);
+        let v = synth(&a, &params, big, Some(6));
+        let small = Box3::new([33, -15, 4], [40, -9, 12]);
+        assert_contained(&v, big, &synth(&a, &params, small, None), small);
+    }
+
+    #[test]
+    fn seed_and_jitter_change_the_solid_and_same_inputs_repeat_it() {
+        let a = common::analyze(vec![common::fixture("marble32.png")], Border::Wrap);
+        let b = Box3::new([0, 0, 0], [12, 12, 12]);
+        let base = SynthParams {
+            seed: 1,
+            ..Default::default()
+        };
+        let v = synth(&a, &base, b, None);
+        assert_eq!(v, synth(&a, &base, b, None));
+        assert_ne!(
+            v,
+            synth(
+                &a,
+                &SynthParams {
+                    seed: 2,
+                    ..base.clone()
+                },
+                b,
+                None
+            )
+        );
+        assert_ne!(
+            v,
+            synth(
+                &a,
+                &SynthParams {
+                    jitter: 0.0,
+                    ..base.clone()
+                },
+                b,
+                None
+            )
+        );
+        let one = rayon::ThreadPoolBuilder::new()
+            .num_threads(1)
+            .build()
+            .unwrap();
+        assert_eq!(
+            v,
+            one.install(|| synth(&a, &base, b, None)),
+            "thread count changed the result"
+        );
+    }
+}

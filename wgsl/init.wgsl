@@ -1,0 +1,94 @@
+// Initialization of the l_start level: tiling of exemplar 0's candidate slab (5 voxels thick
+// along x), warped by the jitter field. CPU reference: src/cpu/init.rs and src/lazy/jitter.rs.
+
+struct InitParams {
+    lo_x: i32, lo_y: i32, lo_z: i32,
+    size_x: u32, size_y: u32, size_z: u32,
+    ex_width: u32, ex_height: u32, border: u32,
+    seed_lo: u32, seed_hi: u32,
+    jitter_on: u32,
+    tile_x: u32, tile_y: u32, tile_z: u32,
+    slab_offset: u32,
+    amp0: i32, amp1: i32, amp2: i32, amp3: i32,
+    sig0: i32, sig1: i32, sig2: i32, sig3: i32,
+}
+
+const CELL: i32 = 4;
+const REACH: i32 = 2;
+const WEIGHT_ENTRIES: i32 = 144;
+
+@group(0) @binding(0) var<uniform> params: InitParams;
+// 144 Gaussian weights, then 64 unit directions (xyz, 1/256 units, as i32 bits).
+@group(0) @binding(1) var<storage, read> table: array<u32>;
+@group(0) @binding(2) var<storage, read> level: array<u32>;
+@group(0) @binding(3) var<storage, read_write> out_state: array<u32>;
+
+fn cell_hash(c: vec3<i32>) -> u32 {
+    var h = hash32(params.seed_lo ^ 0x9E3779B9u);
+    h = hash32(h ^ params.seed_hi);
+    h = hash32(h ^ bitcast<u32>(c.x));
+    h = hash32(h ^ bitcast<u32>(c.y));
+    h = hash32(h ^ bitcast<u32>(c.z));
+    return h;
+}
+
+fn jitter_offset(p: vec3<i32>) -> vec3<i32> {
+    var amps = array<i32, 4>(params.amp0, params.amp1, params.amp2, params.amp3);
+    var sig2 = array<i32, 4>(params.sig0, params.sig1, params.sig2, params.sig3);
+    let pos = p * 256 + vec3<i32>(128);
+    let cell = p >> vec3<u32>(2u); // floor(p / CELL), CELL = 4
+    var disp = vec3<i32>(0);
+    for (var cz = cell.z - REACH; cz <= cell.z + REACH; cz++) {
+        for (var cy = cell.y - REACH; cy <= cell.y + REACH; cy++) {
+            for (var cx = cell.x - REACH; cx <= cell.x + REACH; cx++) {
+                let h = cell_hash(vec3<i32>(cx, cy, cz));
+                let centre = vec3<i32>(
+                    cx * CELL * 256 + i32(hash32(h ^ 1u) & 1023u),
+                    cy * CELL * 256 + i32(hash32(h ^ 2u) & 1023u),
+                    cz * CELL * 256 + i32(hash32(h ^ 3u) & 1023u),
+                );
+                let shape = hash32(h ^ 4u);
+                let s = shape & 3u;
+                let dir = (shape >> 2u) & 63u;
+                let d = pos - centre;
+                let r2 = d.x * d.x + d.y * d.y + d.z * d.z;
+                let q = r2 / sig2[s];
+                if (q < WEIGHT_ENTRIES) {
+                    let t = (amps[s] * i32(table[q])) >> 16u;
+                    let base = u32(WEIGHT_ENTRIES) + dir * 3u;
+                    disp += t * vec3<i32>(
+                        bitcast<i32>(table[base]),
+                        bitcast<i32>(table[base + 1u]),
+                        bitcast<i32>(table[base + 2u]),
+                    );
+                }
+            }
+        }
+    }
+    return (disp + vec3<i32>(32768)) >> vec3<u32>(16u);
+}
+
+@compute @workgroup_size(4, 4, 4)
+fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    if (gid.x >= params.size_x || gid.y >= params.size_y || gid.z >= params.size_z) {
+        return;
+    }
+    let pos = vec3<i32>(params.lo_x, params.lo_y, params.lo_z) + vec3<i32>(gid);
+    var warp = vec3<i32>(0);
+    if (params.jitter_on != 0u) {
+        warp = jitter_offset(pos);
+    }
+    let q = pos + warp + vec3<i32>(i32(params.tile_x), i32(params.tile_y), i32(params.tile_z));
+    let w = params.ex_width;
+    let h = params.ex_height;
+    let u = u32(rem_euclid(q.y, i32(w)));
+    let v = u32(rem_euclid(q.z, i32(h)));
+    let depth = rem_euclid(q.x, 5) - 2;
+    let s = params.slab_offset + (v * w + u) * 3u;
+    let c1 = level[s + 1u];
+    let c2 = level[s + 2u];
+    let i = ((gid.z * params.size_y + gid.y) * params.size_x + gid.x) * 3u;
+    out_state[i] = pack_coord(u, v);
+    out_state[i + 1u] = pack_resolved(coord_x(c1), coord_y(c1) + depth, w, h, params.border);
+    out_state[i + 2u] = pack_resolved(coord_x(c2) + depth, coord_y(c2), w, h, params.border);
+}

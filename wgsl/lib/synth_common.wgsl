@@ -1,0 +1,55 @@
+// Pure helpers shared by the synthesis kernels (prepended to init, upsample, correct and colorize
+// by src/gpu/shaders.rs). CPU counterparts: src/cpu/synth_common.rs, src/util/hash.rs.
+
+// Border::resolve: 0 = wrap, 1 = mirror (reflect-101).
+fn resolve(c: i32, len: u32, border: u32) -> u32 {
+    let n = i32(len);
+    if (border == 0u) {
+        return u32(((c % n) + n) % n);
+    }
+    if (n == 1) {
+        return 0u;
+    }
+    let period = 2 * (n - 1);
+    let m = ((c % period) + period) % period;
+    if (m >= n) {
+        return u32(period - m);
+    }
+    return u32(m);
+}
+
+fn pack_coord(x: u32, y: u32) -> u32 {
+    return x | (y << 16u);
+}
+
+fn pack_resolved(x: i32, y: i32, w: u32, h: u32, border: u32) -> u32 {
+    return pack_coord(resolve(x, w, border), resolve(y, h, border));
+}
+
+fn coord_x(c: u32) -> i32 {
+    return i32(c & 0xFFFFu);
+}
+
+fn coord_y(c: u32) -> i32 {
+    return i32(c >> 16u);
+}
+
+fn box_index(p: vec3<i32>, lo: vec3<i32>, size: vec3<u32>) -> u32 {
+    let d = vec3<u32>(p - lo);
+    return (d.z * size.y + d.y) * size.x + d.x;
+}
+
+fn rem_euclid(a: i32, n: i32) -> i32 {
+    return ((a % n) + n) % n;
+}
+
+// lowbias32
+fn hash32(v: u32) -> u32 {
+    var x = v;
+    x ^= x >> 16u;
+    x *= 0x7feb352du;
+    x ^= x >> 15u;
+    x *= 0x846ca68bu;
+    x ^= x >> 16u;
+    return x;
+}
