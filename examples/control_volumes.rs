@@ -10,7 +10,10 @@ fn main() {
     let dir = std::path::PathBuf::from(args.next().expect("OUT_DIR"));
     let size: u32 = args.next().map(|s| s.parse().unwrap()).unwrap_or(128);
     std::fs::create_dir_all(&dir).unwrap();
-    let cells = (size * size * size / 2600).max(20);
+    let cells: u32 = args
+        .next()
+        .map(|s| s.parse().unwrap())
+        .unwrap_or((size * size * size / 2600).max(20));
     let v = procedural::cells_3d(size, cells, 5);
     solidsynth::io::nrrd::save(&v, &dir.join("cells.nrrd")).unwrap();
     slice(&procedural::cells_3d(size, cells, 6), 2, 0)

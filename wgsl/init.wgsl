@@ -81,8 +81,11 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let q = pos + warp + vec3<i32>(i32(params.tile_x), i32(params.tile_y), i32(params.tile_z));
     let w = params.ex_width;
     let h = params.ex_height;
-    let u = u32(rem_euclid(q.y, i32(w)));
-    let v = u32(rem_euclid(q.z, i32(h)));
+    // Each 5-voxel layer of slabs along x gets its own hashed (y, z) offset (see the CPU reference).
+    let layer = q.x / 5 - select(0, 1, q.x % 5 < 0); // floor division
+    let shift = hash32(hash32(params.seed_lo ^ 0x5EEDu) ^ bitcast<u32>(layer));
+    let u = u32(rem_euclid(q.y + i32(shift % w), i32(w)));
+    let v = u32(rem_euclid(q.z + i32((shift >> 16u) % h), i32(h)));
     let depth = rem_euclid(q.x, 5) - 2;
     let s = params.slab_offset + (v * w + u) * 3u;
     let c1 = level[s + 1u];

@@ -5,6 +5,7 @@ use super::synth_common::{coord, pack_resolved};
 use crate::analysis::frame::pack;
 use crate::kernel_types::InitParams;
 use crate::lazy::jitter;
+use crate::util::hash::hash32;
 use rayon::prelude::*;
 
 /// Triples (3 words per voxel, x fastest) of the box in `p`.
@@ -42,8 +43,13 @@ pub fn init_voxel(p: &InitParams, table: &[u32], level: &[u32], pos: [i32; 3]) -
         pos[2] + warp[2] + p.tile_z as i32,
     ];
     let (w, h) = (p.ex_width, p.ex_height);
-    let u = q[1].rem_euclid(w as i32) as u32;
-    let v = q[2].rem_euclid(h as i32) as u32;
+    // Each 5-voxel layer of slabs along x is shifted by its own hashed (y, z) offset, so the
+    // tiling does not extrude exemplar 0 along x (a state the correction cannot leave: it
+    // satisfies every x plane exactly).
+    let layer = q[0].div_euclid(5);
+    let shift = hash32(hash32(p.seed_lo ^ 0x5EED) ^ layer as u32);
+    let u = (q[1] + (shift % w) as i32).rem_euclid(w as i32) as u32;
+    let v = (q[2] + ((shift >> 16) % h) as i32).rem_euclid(h as i32) as u32;
     let depth = q[0].rem_euclid(5) - 2;
     let s = (p.slab_offset + (v * w + u) * 3) as usize;
     // Along x (the slab's normal): v in Ey, u in Ez (see analysis::frame).

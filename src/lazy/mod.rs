@@ -252,6 +252,7 @@ impl Synthesizer {
                 &format!("level {level}: correction"),
                 (level as f32 + 0.1) / plans.len() as f32,
             );
+            // The paper's reduced search at the finest level: 4 of the 3D candidates.
             let k3d_used = if level + 1 == plans.len() {
                 4
             } else {
