@@ -8,8 +8,10 @@ fn main() {
         img.to_dynamic().save(path).expect(path);
         println!("wrote {path}");
     };
+    // The built-in exemplar: a slice of a procedural solid (palette Voronoi cells), so a
+    // consistent solid texture for it exists.
     save(
-        procedural::cobblestone(128, 20, 7),
+        solidsynth::metrics::slices::slice(&procedural::cells_3d(128, 120, 6), 2, 0),
         "assets/default-exemplar.png",
     );
     std::fs::create_dir_all("tests/fixtures").unwrap();
