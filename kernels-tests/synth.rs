@@ -107,12 +107,12 @@ fn bytes_to_words(b: &[u8]) -> Vec<u32> {
 /// Single kernels in isolation: each GPU kernel against its CPU reference on the same inputs.
 #[test]
 fn each_synthesis_kernel_matches_its_reference() {
-    let Some(ctx) = crate::gpu() else { return };
-    let _ = ctx;
+    let Some(_) = crate::gpu() else { return };
     use solidsynth::kernel_types::{InitParams, UpsampleParams};
     use solidsynth::lazy::{jitter, pack::LevelPack};
     let a = analysis(false, Border::Wrap);
     let pack = LevelPack::new(&a, 3);
+    let o = &pack.offsets;
     let table = jitter::table();
     let amps = jitter::amplitudes(3.0);
     let sig = jitter::sigma2_fixed();
@@ -132,7 +132,7 @@ fn each_synthesis_kernel_matches_its_reference() {
         tile_x: 2,
         tile_y: 1,
         tile_z: 0,
-        slab_offset: pack.offsets.slab,
+        slab_offset: o.slab,
         amp0: amps[0],
         amp1: amps[1],
         amp2: amps[2],
@@ -141,14 +141,18 @@ fn each_synthesis_kernel_matches_its_reference() {
         sig1: sig[1],
         sig2: sig[2],
         sig3: sig[3],
+        channels: pack.channels,
+        pixel_words: pack.pixel_words,
+        pixels0: o.pixels[0],
+        pixels1: o.pixels[1],
+        pixels2: o.pixels[2],
+        ..Default::default()
     };
     let cpu_init = solidsynth::cpu::init::init(&init, &table, &pack.words);
-    let mut g = solidsynth::gpu::synth::GpuSynth::new(
-        std::sync::Arc::new(solidsynth::gpu::GpuContext::new(&GpuOptions::from_env()).unwrap()),
-        &[pack.clone()],
-        &table,
-    )
-    .unwrap();
+    let ctx = solidsynth::gpu::GpuContext::new(&GpuOptions::from_env()).unwrap();
+    let mut g =
+        solidsynth::gpu::synth::GpuSynth::new(std::sync::Arc::new(ctx), &[pack.clone()], &table)
+            .unwrap();
     let gpu_state = g.init(0, &init).unwrap();
     words_equal("init", &cpu_init, &g.read_state(&gpu_state).unwrap()).unwrap();
     // The jitter moves voxels: with it off, the same box differs.
@@ -162,6 +166,7 @@ fn each_synthesis_kernel_matches_its_reference() {
     );
     assert!(words_equal("jitter matters", &cpu_init, &flat).is_err());
 
+    // Upsampling into a child box (the same level's data serves for the values).
     let up = UpsampleParams {
         parent_lo_x: -9,
         parent_lo_y: -2,
@@ -175,12 +180,16 @@ fn each_synthesis_kernel_matches_its_reference() {
         child_size_x: 20,
         child_size_y: 9,
         child_size_z: 3,
-        ex_width: pack.width * 2,
-        ex_height: pack.height * 2,
+        ex_width: pack.width,
+        ex_height: pack.height,
         border: 0,
-        _pad: 0,
+        channels: pack.channels,
+        pixel_words: pack.pixel_words,
+        pixels0: o.pixels[0],
+        pixels1: o.pixels[1],
+        pixels2: o.pixels[2],
     };
-    let cpu_up = solidsynth::cpu::upsample::upsample(&up, &cpu_init);
-    let gpu_up = g.upsample(&up, gpu_state).unwrap();
+    let cpu_up = solidsynth::cpu::upsample::upsample(&up, &pack.words, &cpu_init);
+    let gpu_up = g.upsample(0, &up, gpu_state).unwrap();
     words_equal("upsample", &cpu_up, &g.read_state(&gpu_up).unwrap()).unwrap();
 }

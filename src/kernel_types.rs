@@ -1,3 +1,7 @@
+//! Structs shared between Rust and WGSL. Synthesis states hold, per voxel, its triple (3 words)
+//! then its value (the mean of its three exemplar pixels, `pixel_words` words): stride
+//! 3 + pixel_words.
+//!
 //! Structs shared between Rust and WGSL. Each is `#[repr(C)]` + `Pod` with only 4-byte scalar
 //! fields (so WGSL's uniform layout matches C's), has its size asserted at compile time, and
 //! exposes `layout()` (field names and offsets) that `kernels-tests` compares with naga's layout of
@@ -41,7 +45,7 @@ gpu_struct! {
 
 gpu_struct! {
     /// Uniforms of `wgsl/init.wgsl`: tiling of the candidate slab, warped by the jitter field.
-    InitParams size 96 {
+    InitParams size 128 {
         lo_x: i32, lo_y: i32, lo_z: i32,
         size_x: u32, size_y: u32, size_z: u32,
         ex_width: u32, ex_height: u32, border: u32,
@@ -53,17 +57,22 @@ gpu_struct! {
         slab_offset: u32,
         amp0: i32, amp1: i32, amp2: i32, amp3: i32,
         sig0: i32, sig1: i32, sig2: i32, sig3: i32,
+        /// For the cached voxel value: working channels, words per pixel, exemplar pixel offsets.
+        channels: u32, pixel_words: u32, pixels0: u32, pixels1: u32,
+        pixels2: u32, _pad0: u32, _pad1: u32, _pad2: u32,
     }
 }
 
 gpu_struct! {
     /// Uniforms of `wgsl/upsample.wgsl`: coordinate inheritance from the coarser level.
-    UpsampleParams size 64 {
+    UpsampleParams size 80 {
         parent_lo_x: i32, parent_lo_y: i32, parent_lo_z: i32,
         parent_size_x: u32, parent_size_y: u32, parent_size_z: u32,
         child_lo_x: i32, child_lo_y: i32, child_lo_z: i32,
         child_size_x: u32, child_size_y: u32, child_size_z: u32,
-        ex_width: u32, ex_height: u32, border: u32, _pad: u32,
+        ex_width: u32, ex_height: u32, border: u32,
+        /// For the cached voxel value (child level).
+        channels: u32, pixel_words: u32, pixels0: u32, pixels1: u32, pixels2: u32,
     }
 }
 
@@ -100,8 +109,8 @@ gpu_struct! {
         size_x: u32, size_y: u32, size_z: u32,
         out_lo_x: i32, out_lo_y: i32, out_lo_z: i32,
         out_size_x: u32, out_size_y: u32, out_size_z: u32,
-        ex_width: u32, channels: u32, color_channels: u32, pixel_words: u32,
-        pixels0: u32, pixels1: u32, pixels2: u32, _pad: u32,
+        color_channels: u32, pixel_words: u32, _pad0: u32, _pad1: u32,
+        _pad2: u32, _pad3: u32, _pad4: u32, _pad5: u32,
     }
 }
 

@@ -24,18 +24,27 @@ fn exact_plane_is_kept(axis: usize) {
     let (w, h) = (pack.width, pack.height);
     let n = 20i32;
     let lo = [-3, 5, -7];
-    let mut state = vec![0u32; (n * n * n * 3) as usize];
+    let stride = 3 + pack.pixel_words as usize;
+    let o = &pack.offsets;
+    let mut state = vec![0u32; (n * n * n) as usize * stride];
     for z in 0..n {
         for y in 0..n {
             for x in 0..n {
-                let i = (((z * n + y) * n + x) * 3) as usize;
+                let i = ((z * n + y) * n + x) as usize * stride;
                 let pos = [lo[0] + x, lo[1] + y, lo[2] + z];
                 let c = pack_coord(pos[(axis + 1) % 3], pos[(axis + 2) % 3], w, h);
-                state[i..i + 3].copy_from_slice(&[c, c, c]);
+                solidsynth::cpu::synth_common::write_voxel(
+                    &mut state[i..i + stride],
+                    &pack.words,
+                    [c, c, c],
+                    o.pixels,
+                    w,
+                    pack.pixel_words,
+                    pack.channels,
+                );
             }
         }
     }
-    let o = &pack.offsets;
     let p = CorrectParams {
         lo_x: lo[0],
         lo_y: lo[1],
@@ -90,7 +99,7 @@ fn exact_plane_is_kept(axis: usize) {
     assert_eq!(updates.len(), 512);
     let mut kept = 0;
     for (i, t) in &updates {
-        if t[axis] == state[i * 3 + axis] {
+        if t[axis] == state[i * stride + axis] {
             kept += 1;
         }
     }

@@ -31,7 +31,7 @@ override PCA_OUT: u32 = 8u;
 override K2D: u32 = 2u;
 
 @group(0) @binding(0) var<uniform> params: CorrectParams;
-@group(0) @binding(1) var<storage, read> level: array<u32>;
+// (binding 1: level data, declared by the prelude)
 @group(0) @binding(2) var<storage, read> state: array<u32>;
 @group(0) @binding(3) var<storage, read_write> next_state: array<u32>;
 
@@ -43,23 +43,19 @@ fn size() -> vec3<u32> {
     return vec3<u32>(params.size_x, params.size_y, params.size_z);
 }
 
+fn stride() -> u32 {
+    return 3u + params.pixel_words;
+}
+
 fn triple(p: vec3<i32>) -> vec3<u32> {
-    let i = box_index(p, lo(), size()) * 3u;
+    let i = box_index(p, lo(), size()) * stride();
     return vec3<u32>(state[i], state[i + 1u], state[i + 2u]);
 }
 
-fn pixels(a: u32) -> u32 {
-    return select(select(params.pixels2, params.pixels1, a == 1u), params.pixels0, a == 0u);
-}
-
-fn pixel_byte(base: u32, c: u32, ch: u32) -> u32 {
-    let word = level[base + (u32(coord_y(c)) * params.ex_width + u32(coord_x(c))) * params.pixel_words + ch / 4u];
-    return (word >> ((ch % 4u) * 8u)) & 0xFFu;
-}
-
-fn voxel_channel(t: vec3<u32>, ch: u32) -> u32 {
-    let sum = pixel_byte(params.pixels0, t.x, ch) + pixel_byte(params.pixels1, t.y, ch) + pixel_byte(params.pixels2, t.z, ch);
-    return (sum + 1u) / 3u;
+// Channel `ch` of the cached value of voxel p.
+fn voxel_channel(p: vec3<i32>, ch: u32) -> u32 {
+    let i = box_index(p, lo(), size()) * stride() + 3u + ch / 4u;
+    return (state[i] >> ((ch % 4u) * 8u)) & 0xFFu;
 }
 
 // Unit vector along volume axis `a`.
@@ -79,9 +75,9 @@ fn project_plane(pos: vec3<i32>, a: u32) -> array<i32, MAX_PCA_OUT> {
     var i = 0u;
     for (var dv = -2; dv <= 2; dv++) {
         for (var du = -2; du <= 2; du++) {
-            let t = triple(pos + du * eu + dv * ev);
+            let n = pos + du * eu + dv * ev;
             for (var ch = 0u; ch < CHANNELS; ch++) {
-                let centred = i32(voxel_channel(t, ch)) - bitcast<i32>(level[mean + i]);
+                let centred = i32(voxel_channel(n, ch)) - bitcast<i32>(level[mean + i]);
                 for (var j = 0u; j < PCA_OUT; j++) {
                     acc[j] += centred * bitcast<i32>(level[weights + j * params.pca_in + i]);
                 }
@@ -193,8 +189,12 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             }
         }
     }
-    let i = box_index(pos, lo(), size()) * 3u;
+    let i = box_index(pos, lo(), size()) * stride();
     next_state[i] = best.x;
     next_state[i + 1u] = best.y;
     next_state[i + 2u] = best.z;
+    let pixels = vec3<u32>(params.pixels0, params.pixels1, params.pixels2);
+    for (var wd = 0u; wd < params.pixel_words; wd++) {
+        next_state[i + 3u + wd] = value_word(best, wd, pixels, params.ex_width, params.pixel_words, params.channels);
+    }
 }

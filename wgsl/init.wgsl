@@ -11,6 +11,8 @@ struct InitParams {
     slab_offset: u32,
     amp0: i32, amp1: i32, amp2: i32, amp3: i32,
     sig0: i32, sig1: i32, sig2: i32, sig3: i32,
+    channels: u32, pixel_words: u32, pixels0: u32, pixels1: u32,
+    pixels2: u32, _pad0: u32, _pad1: u32, _pad2: u32,
 }
 
 const CELL: i32 = 4;
@@ -18,9 +20,9 @@ const REACH: i32 = 2;
 const WEIGHT_ENTRIES: i32 = 144;
 
 @group(0) @binding(0) var<uniform> params: InitParams;
+// (binding 1: level data, declared by the prelude)
 // 144 Gaussian weights, then 64 unit directions (xyz, 1/256 units, as i32 bits).
-@group(0) @binding(1) var<storage, read> table: array<u32>;
-@group(0) @binding(2) var<storage, read> level: array<u32>;
+@group(0) @binding(2) var<storage, read> table: array<u32>;
 @group(0) @binding(3) var<storage, read_write> out_state: array<u32>;
 
 fn cell_hash(c: vec3<i32>) -> u32 {
@@ -90,8 +92,18 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let s = params.slab_offset + (v * w + u) * 3u;
     let c1 = level[s + 1u];
     let c2 = level[s + 2u];
-    let i = ((gid.z * params.size_y + gid.y) * params.size_x + gid.x) * 3u;
-    out_state[i] = pack_coord(u, v);
-    out_state[i + 1u] = pack_resolved(coord_x(c1), coord_y(c1) + depth, w, h, params.border);
-    out_state[i + 2u] = pack_resolved(coord_x(c2) + depth, coord_y(c2), w, h, params.border);
+    let t = vec3<u32>(
+        pack_coord(u, v),
+        pack_resolved(coord_x(c1), coord_y(c1) + depth, w, h, params.border),
+        pack_resolved(coord_x(c2) + depth, coord_y(c2), w, h, params.border),
+    );
+    let stride = 3u + params.pixel_words;
+    let i = ((gid.z * params.size_y + gid.y) * params.size_x + gid.x) * stride;
+    out_state[i] = t.x;
+    out_state[i + 1u] = t.y;
+    out_state[i + 2u] = t.z;
+    let pixels = vec3<u32>(params.pixels0, params.pixels1, params.pixels2);
+    for (var wd = 0u; wd < params.pixel_words; wd++) {
+        out_state[i + 3u + wd] = value_word(t, wd, pixels, w, params.pixel_words, params.channels);
+    }
 }

@@ -18,7 +18,7 @@
 //! Reads come from `state`; results are returned, not written in place, so a sub-pass never reads
 //! a value it produced (the GPU ping-pongs two buffers for the same reason).
 
-use super::synth_common::{box_index, coord, pack_resolved, voxel_channel};
+use super::synth_common::{box_index, coord, pack_resolved, write_voxel};
 use crate::analysis::frame::rotate_from_shared;
 use crate::kernel_types::CorrectParams;
 use rayon::prelude::*;
@@ -29,41 +29,53 @@ pub const MAX_PCA_OUT: usize = 16;
 struct Ctx<'a> {
     p: &'a CorrectParams,
     level: &'a [u32],
+    /// The level data as bytes (little-endian words), for reading projections directly.
+    level_bytes: &'a [u8],
     state: &'a [u32],
     lo: [i32; 3],
     size: [u32; 3],
-    pixels: [u32; 3],
+    /// Per exemplar: the PCA weights transposed to input-major (input_dims x MAX_PCA_OUT, zero
+    /// padded) and the mean, so the inner loop is contiguous. Integer sums do not depend on the
+    /// order of accumulation, so the results equal the shader's bit for bit.
+    weights_t: [Vec<i32>; 3],
+    means: [Vec<i32>; 3],
 }
 
 impl Ctx<'_> {
+    fn stride(&self) -> usize {
+        3 + self.p.pixel_words as usize
+    }
+
     fn triple(&self, pos: [i32; 3]) -> [u32; 3] {
-        let i = box_index(pos, self.lo, self.size) * 3;
+        let i = box_index(pos, self.lo, self.size) * self.stride();
         [self.state[i], self.state[i + 1], self.state[i + 2]]
+    }
+
+    /// Channel `ch` of the cached value of voxel `pos`.
+    fn voxel_channel(&self, pos: [i32; 3], ch: u32) -> u32 {
+        let i = box_index(pos, self.lo, self.size) * self.stride() + 3 + ch as usize / 4;
+        (self.state[i] >> ((ch % 4) * 8)) & 0xFF
     }
 
     /// Projection of the plane of exemplar `a` through voxel `pos`.
     fn project_plane(&self, pos: [i32; 3], a: usize) -> [i32; MAX_PCA_OUT] {
         let p = self.p;
         let (ua, va) = ((a + 1) % 3, (a + 2) % 3);
-        let mean = [p.mean0, p.mean1, p.mean2][a];
-        let weights = [p.weights0, p.weights1, p.weights2][a];
+        let (wt, mean) = (&self.weights_t[a], &self.means[a]);
         let mut acc = [0i32; MAX_PCA_OUT];
-        let mut i = 0u32;
+        let mut i = 0usize;
         for dv in -2..=2 {
             for du in -2..=2 {
                 let mut n = pos;
                 n[ua] += du;
                 n[va] += dv;
-                let t = self.triple(n);
                 for ch in 0..p.channels {
-                    let value =
-                        voxel_channel(self.level, self.pixels, p.pixel_words, p.ex_width, t, ch)
-                            as i32;
-                    let centred = value - self.level[(mean + i) as usize] as i32;
-                    for (j, a) in acc.iter_mut().enumerate().take(p.pca_out as usize) {
-                        *a = a.wrapping_add(centred.wrapping_mul(
-                            self.level[(weights + j as u32 * p.pca_in + i) as usize] as i32,
-                        ));
+                    let centred = self.voxel_channel(n, ch) as i32 - mean[i];
+                    let row: &[i32; MAX_PCA_OUT] = wt[i * MAX_PCA_OUT..(i + 1) * MAX_PCA_OUT]
+                        .try_into()
+                        .unwrap();
+                    for j in 0..MAX_PCA_OUT {
+                        acc[j] = acc[j].wrapping_add(centred.wrapping_mul(row[j]));
                     }
                     i += 1;
                 }
@@ -81,12 +93,13 @@ impl Ctx<'_> {
     fn distance(&self, q: &[i32; MAX_PCA_OUT], a: usize, c: u32) -> u32 {
         let p = self.p;
         let (x, y) = coord(c);
-        let base =
-            [p.proj0, p.proj1, p.proj2][a] + (y as u32 * p.ex_width + x as u32) * p.proj_words;
+        let base = ([p.proj0, p.proj1, p.proj2][a]
+            + (y as u32 * p.ex_width + x as u32) * p.proj_words) as usize
+            * 4;
+        let stored = &self.level_bytes[base..base + p.pca_out as usize];
         let mut d = 0u32;
-        for (j, &qj) in q.iter().enumerate().take(p.pca_out as usize) {
-            let byte = (self.level[(base + j as u32 / 4) as usize] >> ((j as u32 % 4) * 8)) & 0xFF;
-            let diff = qj - byte as i32;
+        for (&qj, &b) in q.iter().zip(stored) {
+            let diff = qj - b as i32;
             d += (diff * diff) as u32;
         }
         d
@@ -175,13 +188,38 @@ impl Ctx<'_> {
 
 /// Run one sub-pass: returns (box-local index, new triple) for every voxel of the class.
 pub fn correct(p: &CorrectParams, level: &[u32], state: &[u32]) -> Vec<(usize, [u32; 3])> {
+    let transpose = |a: usize| {
+        let (w0, m0) = (
+            [p.weights0, p.weights1, p.weights2][a] as usize,
+            [p.mean0, p.mean1, p.mean2][a] as usize,
+        );
+        let (d, k) = (p.pca_in as usize, p.pca_out as usize);
+        let mut t = vec![0i32; d * MAX_PCA_OUT];
+        for i in 0..d {
+            for j in 0..k {
+                t[i * MAX_PCA_OUT + j] = level[w0 + j * d + i] as i32;
+            }
+        }
+        (
+            t,
+            level[m0..m0 + d]
+                .iter()
+                .map(|&m| m as i32)
+                .collect::<Vec<i32>>(),
+        )
+    };
+    let (t0, m0) = transpose(0);
+    let (t1, m1) = transpose(1);
+    let (t2, m2) = transpose(2);
     let ctx = Ctx {
         p,
         level,
+        level_bytes: bytemuck::cast_slice(level),
+        weights_t: [t0, t1, t2],
+        means: [m0, m1, m2],
         state,
         lo: [p.lo_x, p.lo_y, p.lo_z],
         size: [p.size_x, p.size_y, p.size_z],
-        pixels: [p.pixels0, p.pixels1, p.pixels2],
     };
     let (cx, cy, cz) = (p.count_x as usize, p.count_y as usize, p.count_z as usize);
     (0..cx * cy * cz)
@@ -197,9 +235,19 @@ pub fn correct(p: &CorrectParams, level: &[u32], state: &[u32]) -> Vec<(usize, [
         .collect()
 }
 
-/// Apply a sub-pass's results to the state.
-pub fn apply(state: &mut [u32], updates: &[(usize, [u32; 3])]) {
+/// Apply a sub-pass's results to the state: each voxel's new triple and its value.
+pub fn apply(p: &CorrectParams, level: &[u32], state: &mut [u32], updates: &[(usize, [u32; 3])]) {
+    let stride = 3 + p.pixel_words as usize;
+    let pixels = [p.pixels0, p.pixels1, p.pixels2];
     for &(i, t) in updates {
-        state[i * 3..i * 3 + 3].copy_from_slice(&t);
+        write_voxel(
+            &mut state[i * stride..(i + 1) * stride],
+            level,
+            t,
+            pixels,
+            p.ex_width,
+            p.pixel_words,
+            p.channels,
+        );
     }
 }

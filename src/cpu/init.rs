@@ -1,24 +1,36 @@
 //! CPU reference of `wgsl/init.wgsl`: the l_start level as a tiling of exemplar 0's candidate slab
 //! (5 voxels thick along x), warped by the jitter field.
 
-use super::synth_common::{coord, pack_resolved};
+use super::synth_common::{coord, pack_resolved, write_voxel};
 use crate::analysis::frame::pack;
 use crate::kernel_types::InitParams;
 use crate::lazy::jitter;
 use crate::util::hash::hash32;
 use rayon::prelude::*;
 
-/// Triples (3 words per voxel, x fastest) of the box in `p`.
+/// The state (triple and value per voxel, x fastest) of the box in `p`.
 pub fn init(p: &InitParams, table: &[u32], level: &[u32]) -> Vec<u32> {
     let (sx, sy, sz) = (p.size_x as usize, p.size_y as usize, p.size_z as usize);
-    let mut out = vec![0u32; sx * sy * sz * 3];
-    out.par_chunks_mut(sx * 3)
+    let stride = 3 + p.pixel_words as usize;
+    let pixels = [p.pixels0, p.pixels1, p.pixels2];
+    let mut out = vec![0u32; sx * sy * sz * stride];
+    out.par_chunks_mut(sx * stride)
         .enumerate()
         .for_each(|(row, dst)| {
             let (y, z) = ((row % sy) as i32, (row / sy) as i32);
             for x in 0..sx {
                 let pos = [p.lo_x + x as i32, p.lo_y + y, p.lo_z + z];
-                dst[x * 3..x * 3 + 3].copy_from_slice(&init_voxel(p, table, level, pos));
+                let t = init_voxel(p, table, level, pos);
+                let voxel = &mut dst[x * stride..(x + 1) * stride];
+                write_voxel(
+                    voxel,
+                    level,
+                    t,
+                    pixels,
+                    p.ex_width,
+                    p.pixel_words,
+                    p.channels,
+                );
             }
         });
     out

@@ -45,18 +45,43 @@ pub fn pixel_byte(level: &[u32], base: u32, pixel_words: u32, width: u32, c: u32
     (word >> ((ch % 4) * 8)) & 0xFF
 }
 
-/// Channel `ch` of a voxel: the rounded mean of its three exemplar pixels.
+/// Word `w` of a voxel's value: channels 4w..4w+3 of the rounded mean of its three pixels.
 #[inline]
-pub fn voxel_channel(
+pub fn value_word(
     level: &[u32],
-    pixels: [u32; 3],
-    pixel_words: u32,
-    width: u32,
     t: [u32; 3],
-    ch: u32,
+    w: u32,
+    pixels: [u32; 3],
+    width: u32,
+    pixel_words: u32,
+    channels: u32,
 ) -> u32 {
-    let sum = pixel_byte(level, pixels[0], pixel_words, width, t[0], ch)
-        + pixel_byte(level, pixels[1], pixel_words, width, t[1], ch)
-        + pixel_byte(level, pixels[2], pixel_words, width, t[2], ch);
-    (sum + 1) / 3
+    let mut word = 0u32;
+    for b in 0..4 {
+        let ch = w * 4 + b;
+        if ch < channels {
+            let sum = pixel_byte(level, pixels[0], pixel_words, width, t[0], ch)
+                + pixel_byte(level, pixels[1], pixel_words, width, t[1], ch)
+                + pixel_byte(level, pixels[2], pixel_words, width, t[2], ch);
+            word |= ((sum + 1) / 3) << (b * 8);
+        }
+    }
+    word
+}
+
+/// Write a voxel (triple, then value words) into `dst` (stride 3 + pixel_words).
+#[inline]
+pub fn write_voxel(
+    dst: &mut [u32],
+    level: &[u32],
+    t: [u32; 3],
+    pixels: [u32; 3],
+    width: u32,
+    pixel_words: u32,
+    channels: u32,
+) {
+    dst[..3].copy_from_slice(&t);
+    for w in 0..pixel_words {
+        dst[3 + w as usize] = value_word(level, t, w, pixels, width, pixel_words, channels);
+    }
 }

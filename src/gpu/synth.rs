@@ -25,12 +25,11 @@ pub struct GpuSynth {
     table: wgpu::Buffer,
 }
 
-fn entries<'a>(buffers: &[&'a wgpu::Buffer]) -> Vec<wgpu::BindGroupEntry<'a>> {
+fn entries<'a>(buffers: &[(u32, &'a wgpu::Buffer)]) -> Vec<wgpu::BindGroupEntry<'a>> {
     buffers
         .iter()
-        .enumerate()
-        .map(|(i, b)| wgpu::BindGroupEntry {
-            binding: i as u32,
+        .map(|&(binding, b)| wgpu::BindGroupEntry {
+            binding,
             resource: b.as_entire_binding(),
         })
         .collect()
@@ -79,7 +78,7 @@ impl GpuSynth {
         &self,
         kernel: &'static str,
         constants: &[(&str, f64)],
-        buffers: &[&wgpu::Buffer],
+        buffers: &[(u32, &wgpu::Buffer)],
         grid: (u32, u32, u32),
         then: Option<(&wgpu::Buffer, &wgpu::Buffer, u64)>,
     ) -> Result<()> {
@@ -114,13 +113,19 @@ impl GpuSynth {
     }
 
     pub fn init(&mut self, level: usize, p: &InitParams) -> Result<GpuState> {
-        let words = p.size_x as u64 * p.size_y as u64 * p.size_z as u64 * 3;
+        let words =
+            p.size_x as u64 * p.size_y as u64 * p.size_z as u64 * (3 + p.pixel_words as u64);
         let out = self.state_buffer(words);
         let uniform = self.ctx.uniform_buffer("init params", p);
         self.run(
             "init",
             &[],
-            &[&uniform, &self.table, &self.levels[level], &out],
+            &[
+                (0, &uniform),
+                (1, &self.levels[level]),
+                (2, &self.table),
+                (3, &out),
+            ],
             groups([p.size_x, p.size_y, p.size_z]),
             None,
         )?;
@@ -131,14 +136,28 @@ impl GpuSynth {
         })
     }
 
-    pub fn upsample(&mut self, p: &UpsampleParams, parent: GpuState) -> Result<GpuState> {
-        let words = p.child_size_x as u64 * p.child_size_y as u64 * p.child_size_z as u64 * 3;
+    /// `level`: the child level.
+    pub fn upsample(
+        &mut self,
+        level: usize,
+        p: &UpsampleParams,
+        parent: GpuState,
+    ) -> Result<GpuState> {
+        let words = p.child_size_x as u64
+            * p.child_size_y as u64
+            * p.child_size_z as u64
+            * (3 + p.pixel_words as u64);
         let out = self.state_buffer(words);
         let uniform = self.ctx.uniform_buffer("upsample params", p);
         self.run(
             "upsample",
             &[],
-            &[&uniform, &parent.current, &out],
+            &[
+                (0, &uniform),
+                (1, &self.levels[level]),
+                (2, &parent.current),
+                (3, &out),
+            ],
             groups([p.child_size_x, p.child_size_y, p.child_size_z]),
             None,
         )?;
@@ -175,20 +194,25 @@ impl GpuSynth {
                 ("PCA_OUT", p.pca_out as f64),
                 ("K2D", p.k2d as f64),
             ],
-            &[&uniform, &self.levels[level], &s.current, scratch],
+            &[
+                (0, &uniform),
+                (1, &self.levels[level]),
+                (2, &s.current),
+                (3, scratch),
+            ],
             groups([p.count_x, p.count_y, p.count_z]),
             Some((scratch, &s.current, bytes)),
         )
     }
 
-    pub fn colorize(&mut self, level: usize, p: &ColorizeParams, s: &GpuState) -> Result<Vec<u32>> {
+    pub fn colorize(&mut self, p: &ColorizeParams, s: &GpuState) -> Result<Vec<u32>> {
         let n = p.out_size_x as usize * p.out_size_y as usize * p.out_size_z as usize;
         let out = self.ctx.output_buffer("colours", n, SENTINEL);
         let uniform = self.ctx.uniform_buffer("colorize params", p);
         self.run(
             "colorize",
             &[],
-            &[&uniform, &self.levels[level], &s.current, &out],
+            &[(0, &uniform), (2, &s.current), (3, &out)],
             groups([p.out_size_x, p.out_size_y, p.out_size_z]),
             None,
         )?;

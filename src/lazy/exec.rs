@@ -49,12 +49,13 @@ impl Executor {
         }
     }
 
-    pub fn upsample(&mut self, _level: usize, p: &UpsampleParams, parent: State) -> Result<State> {
+    /// `level` is the child level.
+    pub fn upsample(&mut self, level: usize, p: &UpsampleParams, parent: State) -> Result<State> {
         match (self, parent) {
-            (Executor::Cpu { .. }, State::Cpu(v)) => {
-                Ok(State::Cpu(crate::cpu::upsample::upsample(p, &v)))
-            }
-            (Executor::Gpu(g), State::Gpu(s)) => Ok(State::Gpu(g.upsample(p, s)?)),
+            (Executor::Cpu { levels, .. }, State::Cpu(v)) => Ok(State::Cpu(
+                crate::cpu::upsample::upsample(p, &levels[level], &v),
+            )),
+            (Executor::Gpu(g), State::Gpu(s)) => Ok(State::Gpu(g.upsample(level, p, s)?)),
             _ => unreachable!("state from another backend"),
         }
     }
@@ -63,7 +64,7 @@ impl Executor {
         match (self, state) {
             (Executor::Cpu { levels, .. }, State::Cpu(v)) => {
                 let updates = crate::cpu::correct::correct(p, &levels[level], v);
-                crate::cpu::correct::apply(v, &updates);
+                crate::cpu::correct::apply(p, &levels[level], v, &updates);
                 Ok(())
             }
             (Executor::Gpu(g), State::Gpu(s)) => g.correct(level, p, s),
@@ -71,17 +72,10 @@ impl Executor {
         }
     }
 
-    pub fn colorize(
-        &mut self,
-        level: usize,
-        p: &ColorizeParams,
-        state: &State,
-    ) -> Result<Vec<u32>> {
+    pub fn colorize(&mut self, p: &ColorizeParams, state: &State) -> Result<Vec<u32>> {
         match (self, state) {
-            (Executor::Cpu { levels, .. }, State::Cpu(v)) => {
-                Ok(crate::cpu::colorize::colorize(p, &levels[level], v))
-            }
-            (Executor::Gpu(g), State::Gpu(s)) => g.colorize(level, p, s),
+            (Executor::Cpu { .. }, State::Cpu(v)) => Ok(crate::cpu::colorize::colorize(p, v)),
+            (Executor::Gpu(g), State::Gpu(s)) => g.colorize(p, s),
             _ => unreachable!("state from another backend"),
         }
     }

@@ -117,11 +117,12 @@ impl Synthesizer {
         self.packs[0].color_channels
     }
 
-    /// Bytes of working memory one chunk of `side`^3 needs at the finest level (two triple
-    /// buffers of the padded box).
+    /// Bytes of working memory one chunk of `side`^3 needs at the finest level: two state
+    /// buffers of the padded box, each voxel a triple and a value word (one word covers up to
+    /// four channels; the estimate assumes that).
     pub fn chunk_bytes(side: u32) -> u64 {
         let padded = (side + 2 * PADDING_ESTIMATE) as u64;
-        padded * padded * padded * 12 * 2
+        padded * padded * padded * 16 * 2
     }
 
     /// Synthesize the box `out` (finest-level voxel coordinates, half-open).
@@ -220,6 +221,14 @@ impl Synthesizer {
             sig1: sig[1],
             sig2: sig[2],
             sig3: sig[3],
+            channels: coarse.channels,
+            pixel_words: coarse.pixel_words,
+            pixels0: coarse.offsets.pixels[0],
+            pixels1: coarse.offsets.pixels[1],
+            pixels2: coarse.offsets.pixels[2],
+            _pad0: 0,
+            _pad1: 0,
+            _pad2: 0,
         };
         progress("level 0: init", 0.0);
         let mut state = self.exec.init(0, &init)?;
@@ -244,7 +253,11 @@ impl Synthesizer {
                     ex_width: pack.width,
                     ex_height: pack.height,
                     border: self.border,
-                    _pad: 0,
+                    channels: pack.channels,
+                    pixel_words: pack.pixel_words,
+                    pixels0: pack.offsets.pixels[0],
+                    pixels1: pack.offsets.pixels[1],
+                    pixels2: pack.offsets.pixels[2],
                 };
                 state = self.exec.upsample(level, &up, state)?;
             }
@@ -342,16 +355,11 @@ impl Synthesizer {
             out_size_x: out.size()[0],
             out_size_y: out.size()[1],
             out_size_z: out.size()[2],
-            ex_width: pack.width,
-            channels: pack.channels,
             color_channels: pack.color_channels,
             pixel_words: pack.pixel_words,
-            pixels0: pack.offsets.pixels[0],
-            pixels1: pack.offsets.pixels[1],
-            pixels2: pack.offsets.pixels[2],
-            _pad: 0,
+            ..Default::default()
         };
-        self.exec.colorize(plans.len() - 1, &c, &state)
+        self.exec.colorize(&c, &state)
     }
 
     /// The jitter table (for tests of the warp).

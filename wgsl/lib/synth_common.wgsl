@@ -1,5 +1,11 @@
-// Pure helpers shared by the synthesis kernels (prepended to init, upsample, correct and colorize
-// by src/gpu/shaders.rs). CPU counterparts: src/cpu/synth_common.rs, src/util/hash.rs.
+// Helpers shared by the synthesis kernels (prepended to init, upsample, correct and colorize by
+// src/gpu/shaders.rs). CPU counterparts: src/cpu/synth_common.rs, src/util/hash.rs.
+//
+// Every synthesis kernel binds the level's packed exemplar data at @binding(1) (kernels that do
+// not use it leave it out of their layout). A state holds per voxel its triple (3 words), then
+// its value, the mean of its three exemplar pixels (pixel_words words): stride 3 + pixel_words.
+
+@group(0) @binding(1) var<storage, read> level: array<u32>;
 
 // Border::resolve: 0 = wrap, 1 = mirror (reflect-101).
 fn resolve(c: i32, len: u32, border: u32) -> u32 {
@@ -52,4 +58,25 @@ fn hash32(v: u32) -> u32 {
     x *= 0x846ca68bu;
     x ^= x >> 16u;
     return x;
+}
+
+// Byte `ch` of the exemplar pixel at coordinate c, stored pixel_words words per pixel from `base`.
+fn pixel_byte(base: u32, width: u32, pixel_words: u32, c: u32, ch: u32) -> u32 {
+    let word = level[base + (u32(coord_y(c)) * width + u32(coord_x(c))) * pixel_words + ch / 4u];
+    return (word >> ((ch % 4u) * 8u)) & 0xFFu;
+}
+
+// Word `w` of a voxel's value: channels 4w..4w+3 of the rounded mean of its three pixels.
+fn value_word(t: vec3<u32>, w: u32, pixels: vec3<u32>, width: u32, pixel_words: u32, channels: u32) -> u32 {
+    var word = 0u;
+    for (var b = 0u; b < 4u; b++) {
+        let ch = w * 4u + b;
+        if (ch < channels) {
+            let sum = pixel_byte(pixels.x, width, pixel_words, t.x, ch)
+                + pixel_byte(pixels.y, width, pixel_words, t.y, ch)
+                + pixel_byte(pixels.z, width, pixel_words, t.z, ch);
+            word |= ((sum + 1u) / 3u) << (b * 8u);
+        }
+    }
+    return word;
 }
