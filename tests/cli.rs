@@ -317,3 +317,136 @@ fn eval_bad_inputs_exit_2() {
         &["short.nrrd", "float.nrrd", "tiny.nrrd"],
     );
 }
+
+#[test]
+fn synth_writes_nrrd_flipbook_slices_and_sheet_from_an_ssa() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let ssa = d.join("m.ssa");
+    let o = run(&[
+        "analyze",
+        "--backend",
+        "cpu",
+        "--periodic",
+        fixture_path("marble32.png").to_str().unwrap(),
+        "-o",
+        ssa.to_str().unwrap(),
+    ]);
+    assert!(o.status.success());
+    let out = d.join("v.nrrd");
+    let (flip, sheet, slices) = (d.join("f.png"), d.join("s.png"), d.join("slices"));
+    let o = run(&[
+        "synth",
+        ssa.to_str().unwrap(),
+        "--size",
+        "12",
+        "--seed",
+        "3",
+        "--backend",
+        "cpu",
+        "-o",
+        out.to_str().unwrap(),
+        "--flipbook",
+        flip.to_str().unwrap(),
+        "--sheet",
+        sheet.to_str().unwrap(),
+        "--slices",
+        slices.to_str().unwrap(),
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v = solidsynth::io::nrrd::load(&out).unwrap();
+    assert_eq!((v.nx, v.ny, v.nz, v.channels), (12, 12, 12, 3));
+    let header = String::from_utf8_lossy(&std::fs::read(&out).unwrap()[..80]).to_string();
+    assert!(
+        header.starts_with("NRRD0004\n") && header.contains("sizes: 3 12 12 12"),
+        "{header}"
+    );
+    let f = image::open(&flip).unwrap();
+    assert_eq!((f.width(), f.height()), (4 * 12, 3 * 12));
+    assert_eq!(std::fs::read_dir(&slices).unwrap().count(), 12);
+    assert!(image::open(&sheet).is_ok());
+    // The flipbook tile of slice z = 5 is the NRRD's z = 5 slice.
+    let f = f.to_rgba8();
+    for (x, y) in [(0u32, 0u32), (7, 3), (11, 11)] {
+        let p = f.get_pixel(12 + x, 12 + y);
+        assert_eq!(&p.0[..3], v.at(x, y, 5));
+    }
+}
+
+#[test]
+fn synth_bad_inputs_exit_2_and_write_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let out = d.join("v.nrrd");
+    let out_s = out.to_str().unwrap();
+    let o = run(&["synth", "--size", "0", "-o", out_s]);
+    assert_user_error(&o, "--size 0", d, &[]);
+    let o = run(&["synth", "--size", "2048", "-o", out_s]);
+    assert_user_error(&o, "--size 2048", d, &[]);
+    let o = run(&["synth", "--size", "16", "--jitter", "nan", "-o", out_s]);
+    assert_user_error(&o, "--jitter", d, &[]);
+    let o = run(&["synth", "--size", "16", "--jitter", "100", "-o", out_s]);
+    assert_user_error(&o, "--jitter", d, &[]);
+    std::fs::write(d.join("bad.ssa"), b"SOLIDSSA\x01\x00\x00\x00").unwrap();
+    let o = run(&[
+        "synth",
+        d.join("bad.ssa").to_str().unwrap(),
+        "--size",
+        "16",
+        "--backend",
+        "cpu",
+        "-o",
+        out_s,
+    ]);
+    assert_user_error(&o, "bad.ssa", d, &["bad.ssa"]);
+    // A version from the future is named as such.
+    let mut future = solidsynth::io::ssa::to_bytes(&common::analyze(
+        vec![common::fixture("cells32.png")],
+        solidsynth::exemplar::Border::Wrap,
+    ));
+    future[8] = 9;
+    std::fs::write(d.join("future.ssa"), &future).unwrap();
+    let o = run(&[
+        "synth",
+        d.join("future.ssa").to_str().unwrap(),
+        "--size",
+        "16",
+        "--backend",
+        "cpu",
+        "-o",
+        out_s,
+    ]);
+    assert_user_error(&o, "version 9", d, &["bad.ssa", "future.ssa"]);
+    // Unwritable output locations.
+    let o = run(&[
+        "synth",
+        "--size",
+        "16",
+        "--backend",
+        "cpu",
+        "-o",
+        d.join("no/such/dir/v.nrrd").to_str().unwrap(),
+    ]);
+    assert_user_error(&o, "does not exist", d, &["bad.ssa", "future.ssa"]);
+    std::fs::create_dir(d.join("full")).unwrap();
+    std::fs::write(d.join("full/keep.png"), b"x").unwrap();
+    let o = run(&[
+        "synth",
+        "--size",
+        "16",
+        "--backend",
+        "cpu",
+        "-o",
+        out_s,
+        "--slices",
+        d.join("full").to_str().unwrap(),
+    ]);
+    assert_user_error(
+        &o,
+        "not an empty directory",
+        d,
+        &["bad.ssa", "future.ssa", "full"],
+    );
+    assert_eq!(std::fs::read(d.join("full/keep.png")).unwrap(), b"x");
+}

@@ -10,6 +10,27 @@ use std::time::Instant;
 pub enum BenchCommand {
     /// Analysis wall time and peak memory per exemplar size (each size in a fresh process).
     Analyze(BenchAnalyzeArgs),
+    /// Synthesis (after analysis) per volume size and backend: median wall time, peak memory,
+    /// and per-kernel times with the CPU/GPU ratio (each run in a fresh process).
+    Synth(BenchSynthArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct BenchSynthArgs {
+    /// Exemplar image or .ssa (default: the built-in exemplar).
+    pub input: Option<PathBuf>,
+    /// Volume edges, comma-separated.
+    #[arg(long, value_delimiter = ',', default_values_t = vec![64u32, 128])]
+    pub sizes: Vec<u32>,
+    /// Backends to compare, comma-separated.
+    #[arg(long, value_delimiter = ',', default_values_t = vec!["cpu".to_string(), "gpu".to_string()])]
+    pub backends: Vec<String>,
+    /// Runs per size and backend; the median is reported.
+    #[arg(long, default_value_t = 3)]
+    pub runs: u32,
+    /// Treat the input exemplar as periodic.
+    #[arg(long)]
+    pub periodic: bool,
 }
 
 #[derive(Args, Debug)]
@@ -42,7 +63,102 @@ fn crop(img: &Image, size: u32) -> Image {
 }
 
 pub fn run(cmd: BenchCommand) -> anyhow::Result<()> {
-    let BenchCommand::Analyze(args) = cmd;
+    match cmd {
+        BenchCommand::Analyze(args) => bench_analyze(args),
+        BenchCommand::Synth(args) => bench_synth(args),
+    }
+}
+
+fn bench_synth(args: BenchSynthArgs) -> anyhow::Result<()> {
+    let dir = tempfile::tempdir()?;
+    let exe = std::env::current_exe()?;
+    let child = |size: u32, backend: &str, profile: bool| -> anyhow::Result<serde_json::Value> {
+        let mut cmd = Command::new(&exe);
+        cmd.env("SOLIDSYNTH_CACHE_DIR", dir.path().join("cache"))
+            .args([
+                "--quiet",
+                "synth",
+                "--json",
+                "--size",
+                &size.to_string(),
+                "--backend",
+                backend,
+                "-o",
+            ])
+            .arg(dir.path().join("v.nrrd"));
+        if let Some(i) = &args.input {
+            cmd.arg(i);
+        }
+        if args.periodic {
+            cmd.arg("--periodic");
+        }
+        if profile {
+            cmd.arg("--profile");
+        }
+        let out = cmd.output()?;
+        if !out.status.success() {
+            anyhow::bail!(
+                "synth {size} on {backend} failed: {}",
+                String::from_utf8_lossy(&out.stderr)
+            );
+        }
+        Ok(serde_json::from_slice(&out.stdout)?)
+    };
+    // Warm the analysis cache so the runs time synthesis only.
+    child(16, "cpu", false)?;
+    println!("synthesis benchmark: median of {} run(s), analysis excluded; per-kernel times from one --profile run", args.runs);
+    println!(
+        "{:>6}  {:>8}  {:>10}  {:>12}  kernels (s): init / upsample / correct / colorize",
+        "size", "backend", "median s", "peak RSS MiB"
+    );
+    for &size in &args.sizes {
+        let mut per_backend = Vec::new();
+        for backend in &args.backends {
+            let mut times = Vec::new();
+            let mut peak = 0u64;
+            for _ in 0..args.runs.max(1) {
+                let v = child(size, backend, false)?;
+                times.push(v["synthesis_seconds"].as_f64().unwrap_or(f64::NAN));
+                peak = peak.max(v["peak_rss_bytes"].as_u64().unwrap_or(0));
+            }
+            times.sort_by(f64::total_cmp);
+            let median = times[times.len() / 2];
+            let prof = child(size, backend, true)?;
+            let k = |name: &str| {
+                prof["kernels"][name]["seconds"]
+                    .as_f64()
+                    .unwrap_or(f64::NAN)
+            };
+            let kernels = [k("init"), k("upsample"), k("correct"), k("colorize")];
+            println!(
+                "{:>6}  {:>8}  {:>10.3}  {:>12.1}  {:.3} / {:.3} / {:.3} / {:.3}",
+                size,
+                backend,
+                median,
+                peak as f64 / (1 << 20) as f64,
+                kernels[0],
+                kernels[1],
+                kernels[2],
+                kernels[3]
+            );
+            per_backend.push((backend.clone(), median, kernels));
+        }
+        if let [(a, ta, ka), (b, tb, kb)] = per_backend.as_slice() {
+            println!(
+                "{:>6}  {a}/{b} ratio: end-to-end {:.2}; kernels {:.2} / {:.2} / {:.2} / {:.2}",
+                size,
+                ta / tb,
+                ka[0] / kb[0],
+                ka[1] / kb[1],
+                ka[2] / kb[2],
+                ka[3] / kb[3]
+            );
+        }
+    }
+    Ok(())
+}
+
+fn bench_analyze(args: BenchAnalyzeArgs) -> anyhow::Result<()> {
     let source = match &args.exemplar {
         Some(p) => Some(exemplar::load_image(p, "--exemplar")?),
         None => None,

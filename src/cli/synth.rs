@@ -44,6 +44,9 @@ pub struct SynthArgs {
     /// Print a JSON summary on stdout.
     #[arg(long)]
     pub json: bool,
+    /// Time each kernel (waits for the device after every kernel) and report the times.
+    #[arg(long)]
+    pub profile: bool,
 }
 
 /// Largest --size accepted before the memory estimate is even computed.
@@ -162,6 +165,9 @@ pub fn run(args: SynthArgs, quiet: bool) -> anyhow::Result<()> {
     };
     let synth_start = Instant::now();
     let mut synth = Synthesizer::new(&analysis, params, &compute)?;
+    if args.profile {
+        synth.enable_profiling();
+    }
     let n = args.size as i32;
     let volume = synth.synthesize(Box3::new([0; 3], [n; 3]), &report)?;
     let synth_s = synth_start.elapsed().as_secs_f64();
@@ -186,6 +192,19 @@ pub fn run(args: SynthArgs, quiet: bool) -> anyhow::Result<()> {
             atomic::save_png(&dir.join(format!("slice_{z:04}.png")), &z_slice(&volume, z))?;
         }
     }
+    let kernels: serde_json::Map<String, serde_json::Value> = synth
+        .kernel_times()
+        .map(|t| {
+            t.iter()
+                .map(|(k, (d, n))| {
+                    (
+                        k.to_string(),
+                        serde_json::json!({"seconds": d.as_secs_f64(), "calls": n}),
+                    )
+                })
+                .collect()
+        })
+        .unwrap_or_default();
     if args.json {
         println!(
             "{}",
@@ -195,9 +214,17 @@ pub fn run(args: SynthArgs, quiet: bool) -> anyhow::Result<()> {
                 "analysis_seconds": analysis_s, "synthesis_seconds": synth_s,
                 "peak_rss_bytes": solidsynth::util::memory::peak_rss_bytes(),
                 "backend": compute.describe(),
+                "kernels": kernels,
             })
         );
     } else if !quiet {
+        for (k, v) in &kernels {
+            eprintln!(
+                "  kernel {k:<9} {:>8.3} s in {} calls",
+                v["seconds"].as_f64().unwrap_or(0.0),
+                v["calls"]
+            );
+        }
         eprintln!(
             "synthesized {0}^3 in {synth_s:.2} s (analysis {analysis_s:.2} s) -> {1}",
             args.size,

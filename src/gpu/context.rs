@@ -287,6 +287,11 @@ impl GpuContext {
             })
     }
 
+    /// Wait (bounded) until all submitted work is done.
+    pub fn wait_idle(&self) -> Result<()> {
+        self.wait(None)
+    }
+
     /// Copy the first `words` u32 of `buffer` back to the host (bounded wait).
     pub fn read_words(&self, buffer: &wgpu::Buffer, words: usize) -> Result<Vec<u32>> {
         let size = (words * 4) as u64;

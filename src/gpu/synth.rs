@@ -226,3 +226,10 @@ impl GpuSynth {
         self.ctx.read_words(&s.current, s.words as usize)
     }
 }
+
+impl GpuSynth {
+    /// Wait until all submitted kernels finished (for per-kernel timing).
+    pub fn finish(&self) -> Result<()> {
+        self.ctx.wait_idle()
+    }
+}

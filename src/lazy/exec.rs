@@ -80,3 +80,25 @@ impl Executor {
         }
     }
 }
+
+/// Wall time and calls per kernel, when profiling.
+pub type KernelTimes = std::collections::BTreeMap<&'static str, (std::time::Duration, u32)>;
+
+/// Runs `f`, waiting for the GPU afterwards when profiling, and adds its time to `times[kernel]`.
+pub fn timed<T>(
+    exec: &mut Executor,
+    times: &mut Option<KernelTimes>,
+    kernel: &'static str,
+    f: impl FnOnce(&mut Executor) -> Result<T>,
+) -> Result<T> {
+    let Some(t) = times else { return f(exec) };
+    let start = std::time::Instant::now();
+    let out = f(exec)?;
+    if let Executor::Gpu(g) = exec {
+        g.finish()?;
+    }
+    let e = t.entry(kernel).or_default();
+    e.0 += start.elapsed();
+    e.1 += 1;
+    Ok(out)
+}

@@ -91,6 +91,8 @@ pub struct Synthesizer {
     exec: exec::Executor,
     /// Upper bound on chunk edges (None: as large as the backend allows).
     max_chunk_side: Option<u32>,
+    /// Per-kernel times when profiling (each kernel then waits for the device).
+    times: Option<exec::KernelTimes>,
 }
 
 impl Synthesizer {
@@ -109,6 +111,7 @@ impl Synthesizer {
             border: analysis.border.code(),
             exec,
             max_chunk_side: None,
+            times: None,
         })
     }
 
@@ -154,6 +157,16 @@ impl Synthesizer {
         }
         progress("done", 1.0);
         Ok(volume)
+    }
+
+    /// Time every kernel (waiting for the device after each, so totals grow slightly).
+    pub fn enable_profiling(&mut self) {
+        self.times = Some(Default::default());
+    }
+
+    /// Kernel name -> (total time, calls), when profiling.
+    pub fn kernel_times(&self) -> Option<&exec::KernelTimes> {
+        self.times.as_ref()
     }
 
     /// Cap the chunk edge (the result is the same whatever the chunking; tests prove it).
@@ -231,7 +244,9 @@ impl Synthesizer {
             _pad2: 0,
         };
         progress("level 0: init", 0.0);
-        let mut state = self.exec.init(0, &init)?;
+        let mut state = exec::timed(&mut self.exec, &mut self.times, "init", |e| {
+            e.init(0, &init)
+        })?;
         for (level, lp) in plans.iter().enumerate() {
             let pack = &self.packs[level];
             if level > 0 {
@@ -259,7 +274,9 @@ impl Synthesizer {
                     pixels1: pack.offsets.pixels[1],
                     pixels2: pack.offsets.pixels[2],
                 };
-                state = self.exec.upsample(level, &up, state)?;
+                state = exec::timed(&mut self.exec, &mut self.times, "upsample", |e| {
+                    e.upsample(level, &up, state)
+                })?;
             }
             progress(
                 &format!("level {level}: correction"),
@@ -337,7 +354,9 @@ impl Synthesizer {
                     _pad3: 0,
                     _pad4: 0,
                 };
-                self.exec.correct(level, &p, &mut state)?;
+                exec::timed(&mut self.exec, &mut self.times, "correct", |e| {
+                    e.correct(level, &p, &mut state)
+                })?;
             }
         }
         let finest = plans.last().unwrap();
@@ -359,7 +378,9 @@ impl Synthesizer {
             pixel_words: pack.pixel_words,
             ..Default::default()
         };
-        self.exec.colorize(&c, &state)
+        exec::timed(&mut self.exec, &mut self.times, "colorize", |e| {
+            e.colorize(&c, &state)
+        })
     }
 
     /// The jitter table (for tests of the warp).
