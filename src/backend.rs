@@ -13,7 +13,9 @@ pub enum BackendChoice {
     Gpu,
     /// The rayon-parallel CPU references.
     Cpu,
-    /// The GPU when an adapter exists, else the CPU (the choice is logged).
+    /// A hardware GPU when one exists, else the CPU backend (the choice is logged). A software
+    /// Vulkan device such as lavapipe is not chosen here: it runs on the same CPU cores and is
+    /// slower than the native CPU backend; ask for it with `--backend gpu`.
     Auto,
 }
 
@@ -30,9 +32,18 @@ impl Compute {
             BackendChoice::Cpu => Ok(Compute::Cpu),
             BackendChoice::Gpu => Ok(Compute::Gpu(Arc::new(GpuContext::new(opts)?))),
             BackendChoice::Auto => match GpuContext::new(opts) {
-                Ok(ctx) => Ok(Compute::Gpu(Arc::new(ctx))),
+                Ok(ctx) if ctx.info.device_type != wgpu::DeviceType::Cpu => {
+                    Ok(Compute::Gpu(Arc::new(ctx)))
+                }
+                Ok(ctx) => {
+                    tracing::info!(
+                        "--backend auto: only a software adapter ({}); the CPU backend is faster, using it",
+                        ctx.info.name
+                    );
+                    Ok(Compute::Cpu)
+                }
                 Err(e) => {
-                    tracing::warn!("--backend auto: no usable GPU ({e}); running on the CPU");
+                    tracing::info!("--backend auto: no GPU adapter ({e}); using the CPU backend");
                     Ok(Compute::Cpu)
                 }
             },

@@ -1,6 +1,7 @@
 //! Quality regression: evaluation scores of the repository's fixtures, recorded in
-//! `tests/fixtures/scores.json`. A change to the metrics (or, once synthesis exists, to synthesis)
-//! that moves a score outside its recorded bound fails here. Re-record deliberately with
+//! `tests/fixtures/scores.json`: the floors (exact: they only depend on the metrics) and the
+//! worst-axis ratios of small synthesized volumes (bounds: a synthesis change may improve them
+//! freely but not worsen any by more than 10%). Re-record deliberately with
 //! `SOLIDSYNTH_RECORD_SCORES=1 cargo test --test quality` and explain the change in the commit.
 
 mod common;
@@ -18,6 +19,72 @@ const FIXTURES: &[&str] = &[
 
 fn scores_path() -> std::path::PathBuf {
     std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/scores.json")
+}
+
+/// Worst-axis ratios of a 24^3 synthesis of each synthesizable fixture (CPU backend, seed 1).
+fn synthesized() -> BTreeMap<String, serde_json::Value> {
+    use solidsynth::exemplar::Border;
+    use solidsynth::lazy::{Box3, SynthParams, Synthesizer};
+    ["cells32.png", "marble32.png", "cc0_gravel64.png"]
+        .iter()
+        .map(|name| {
+            let ex = common::fixture(name);
+            let a = common::analyze(vec![ex.clone()], Border::Wrap);
+            let params = SynthParams {
+                seed: 1,
+                ..Default::default()
+            };
+            let mut s = Synthesizer::new(&a, params, &solidsynth::backend::Compute::Cpu).unwrap();
+            let v = s
+                .synthesize(Box3::new([0; 3], [24; 3]), &|_, _| {})
+                .unwrap();
+            let r = solidsynth::metrics::evaluate(&v, &[ex], &EvalParams::default()).unwrap();
+            (
+                format!("synth/{name}"),
+                serde_json::to_value(r.worst_ratio).unwrap(),
+            )
+        })
+        .collect()
+}
+
+#[test]
+fn synthesized_fixture_scores_stay_within_recorded_bounds() {
+    let now = synthesized();
+    if std::env::var_os("SOLIDSYNTH_RECORD_SCORES").is_some() {
+        record(now);
+        return;
+    }
+    let recorded = recorded();
+    for (key, value) in &now {
+        let want = recorded
+            .get(key)
+            .unwrap_or_else(|| panic!("{key} not recorded"));
+        for (measure, v) in value.as_object().unwrap() {
+            let (got, bound) = (v.as_f64().unwrap(), want[measure].as_f64().unwrap());
+            assert!(
+                got <= bound * 1.10 + 0.05,
+                "{key} {measure}: {got:.3} worse than recorded {bound:.3}"
+            );
+        }
+    }
+}
+
+fn recorded() -> BTreeMap<String, serde_json::Value> {
+    serde_json::from_str(&std::fs::read_to_string(scores_path()).unwrap()).unwrap()
+}
+
+/// Merge `entries` into the recorded file.
+fn record(entries: BTreeMap<String, serde_json::Value>) {
+    let mut all = std::fs::read_to_string(scores_path())
+        .ok()
+        .and_then(|s| serde_json::from_str::<BTreeMap<String, serde_json::Value>>(&s).ok())
+        .unwrap_or_default();
+    all.extend(entries);
+    std::fs::write(
+        scores_path(),
+        serde_json::to_string_pretty(&all).unwrap() + "\n",
+    )
+    .unwrap();
 }
 
 /// The floor (one half of the exemplar against the other) of every fixture.

@@ -4,8 +4,8 @@ mod common;
 
 use solidsynth::analysis::frame::{pack, unpack};
 use solidsynth::exemplar::Border;
-use solidsynth::kernel_types::CorrectParams;
 use solidsynth::lazy::pack::LevelPack;
+use solidsynth::lazy::CandidateMode;
 
 /// A state in which every voxel's three coordinates are its position along (a+1, a+2) (mod the
 /// exemplar size): each voxel is an exemplar pixel, so the plane of E_a through any voxel IS an
@@ -45,56 +45,18 @@ fn exact_plane_is_kept(axis: usize) {
             }
         }
     }
-    let p = CorrectParams {
-        lo_x: lo[0],
-        lo_y: lo[1],
-        lo_z: lo[2],
-        size_x: n as u32,
-        size_y: n as u32,
-        size_z: n as u32,
-        first_x: lo[0] + 2,
-        first_y: lo[1] + 2,
-        first_z: lo[2] + 2,
-        count_x: 8,
-        count_y: 8,
-        count_z: 8,
-        ex_width: w,
-        ex_height: h,
-        channels: pack.channels,
-        pixel_words: pack.pixel_words,
-        pca_in: pack.pca_in,
-        pca_out: pack.pca_out,
-        shift: pack.shift,
-        proj_words: pack.proj_words,
-        k2d: pack.k2d,
-        k3d_used: 4,
-        k3d_stride: pack.k3d_stride,
-        border: 0,
-        mode: 1,
-        shared_sets: 1,
-        pixels0: o.pixels[0],
-        pixels1: o.pixels[1],
-        pixels2: o.pixels[2],
-        proj0: o.projected[0],
-        proj1: o.projected[1],
-        proj2: o.projected[2],
-        mean0: o.mean[0],
-        mean1: o.mean[1],
-        mean2: o.mean[2],
-        weights0: o.weights[0],
-        weights1: o.weights[1],
-        weights2: o.weights[2],
-        cand2d0: o.cand2d[0],
-        cand2d1: o.cand2d[1],
-        cand2d2: o.cand2d[2],
-        cand3d0: o.cand3d[0],
-        cand3d1: o.cand3d[1],
-        cand3d2: o.cand3d[2],
-        counts0: o.counts[0],
-        counts1: o.counts[1],
-        counts2: o.counts[2],
-        ..Default::default()
-    };
+    let storage = solidsynth::lazy::Box3::new(lo, [lo[0] + n, lo[1] + n, lo[2] + n]);
+    let first = [lo[0] + 2, lo[1] + 2, lo[2] + 2];
+    // 2D mode: exemplar `axis`'s own search decides its coordinate.
+    let p = solidsynth::lazy::correct_params(
+        &pack,
+        storage,
+        first,
+        [8, 8, 8],
+        4,
+        0,
+        CandidateMode::TwoD,
+    );
     let updates = solidsynth::cpu::correct::correct(&p, &pack.words, &state);
     assert_eq!(updates.len(), 512);
     let mut kept = 0;

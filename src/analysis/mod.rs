@@ -194,33 +194,10 @@ impl Analysis {
     }
 }
 
-/// Bring the exemplars to one channel count (the largest): gray is replicated to RGB, RGB gains
-/// an opaque alpha.
+/// Bring the exemplars to one channel count (the largest; see `Image::with_channels`).
 fn unify_channels(images: &[Image]) -> Vec<Image> {
     let target = images.iter().map(|i| i.channels).max().unwrap_or(3);
-    images
-        .iter()
-        .map(|img| {
-            if img.channels == target {
-                return img.clone();
-            }
-            let mut out = Image::new(img.width, img.height, target);
-            for (dst, src) in out
-                .pixels
-                .chunks_exact_mut(target as usize)
-                .zip(img.pixels.chunks_exact(img.channels as usize))
-            {
-                for (k, d) in dst.iter_mut().enumerate() {
-                    *d = match (img.channels, k) {
-                        (1, k) if k < 3 => src[0],
-                        (_, 3) if img.channels < 4 => 255,
-                        (_, k) => src[k],
-                    };
-                }
-            }
-            out
-        })
-        .collect()
+    images.iter().map(|img| img.with_channels(target)).collect()
 }
 
 fn check_input(input: &AnalysisInput) -> Result<()> {

@@ -100,6 +100,30 @@ impl Image {
         }
         out
     }
+    /// The same pixels with `target` channels: gray replicated into RGB, an opaque alpha added,
+    /// surplus channels dropped.
+    pub fn with_channels(&self, target: u32) -> Image {
+        if self.channels == target {
+            return self.clone();
+        }
+        let mut out = Image::new(self.width, self.height, target);
+        for (d, s) in out
+            .pixels
+            .chunks_exact_mut(target as usize)
+            .zip(self.pixels.chunks_exact(self.channels as usize))
+        {
+            for (k, v) in d.iter_mut().enumerate() {
+                *v = match (s.len(), k) {
+                    (1, k) if k < 3 => s[0],
+                    (n, 3) if n < 4 => 255,
+                    (n, k) if k < n => s[k],
+                    (n, _) => s[n - 1],
+                };
+            }
+        }
+        out
+    }
+
     /// Append the channels of `other` (same size) after ours.
     pub fn with_extra_channels(&self, other: &Image) -> Image {
         assert_eq!((self.width, self.height), (other.width, other.height));

@@ -214,6 +214,9 @@ mod tests {
         for _ in 0..3000 {
             let mut b = ok.clone();
             for _ in 0..1 + rng.below(3) {
+                if b.is_empty() {
+                    break;
+                }
                 let at = rng.below(b.len() as u64) as usize;
                 match rng.below(3) {
                     0 => b[at] = rng.below(256) as u8,

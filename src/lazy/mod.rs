@@ -299,61 +299,8 @@ impl Synthesizer {
                 if count.contains(&0) {
                     continue;
                 }
-                let o = &pack.offsets;
-                let p = CorrectParams {
-                    lo_x: lp.storage.lo[0],
-                    lo_y: lp.storage.lo[1],
-                    lo_z: lp.storage.lo[2],
-                    size_x: lp.storage.size()[0],
-                    size_y: lp.storage.size()[1],
-                    size_z: lp.storage.size()[2],
-                    first_x: first[0],
-                    first_y: first[1],
-                    first_z: first[2],
-                    count_x: count[0],
-                    count_y: count[1],
-                    count_z: count[2],
-                    ex_width: pack.width,
-                    ex_height: pack.height,
-                    channels: pack.channels,
-                    pixel_words: pack.pixel_words,
-                    pca_in: pack.pca_in,
-                    pca_out: pack.pca_out,
-                    shift: pack.shift,
-                    proj_words: pack.proj_words,
-                    k2d: pack.k2d,
-                    k3d_used,
-                    k3d_stride: pack.k3d_stride,
-                    border: self.border,
-                    mode: (self.params.candidates == CandidateMode::TwoD) as u32,
-                    shared_sets: pack.shared as u32,
-                    pixels0: o.pixels[0],
-                    pixels1: o.pixels[1],
-                    pixels2: o.pixels[2],
-                    proj0: o.projected[0],
-                    proj1: o.projected[1],
-                    proj2: o.projected[2],
-                    mean0: o.mean[0],
-                    mean1: o.mean[1],
-                    mean2: o.mean[2],
-                    weights0: o.weights[0],
-                    weights1: o.weights[1],
-                    weights2: o.weights[2],
-                    cand2d0: o.cand2d[0],
-                    cand2d1: o.cand2d[1],
-                    cand2d2: o.cand2d[2],
-                    cand3d0: o.cand3d[0],
-                    cand3d1: o.cand3d[1],
-                    cand3d2: o.cand3d[2],
-                    counts0: o.counts[0],
-                    counts1: o.counts[1],
-                    counts2: o.counts[2],
-                    _pad0: 0,
-                    _pad1: 0,
-                    _pad2: 0,
-                    _pad3: 0,
-                    _pad4: 0,
-                };
+                let mode = self.params.candidates;
+                let p = correct_params(pack, lp.storage, first, count, k3d_used, self.border, mode);
                 exec::timed(&mut self.exec, &mut self.times, "correct", |e| {
                     e.correct(level, &p, &mut state)
                 })?;
@@ -386,6 +333,74 @@ impl Synthesizer {
     /// The jitter table (for tests of the warp).
     pub fn jitter_table(&self) -> &[u32] {
         &self.table
+    }
+}
+
+/// The uniforms of one `correct` sub-pass: the class voxels `first + 2 * (0..count)` of a level
+/// whose state covers `storage`.
+pub fn correct_params(
+    pack: &LevelPack,
+    storage: Box3,
+    first: [i32; 3],
+    count: [u32; 3],
+    k3d_used: u32,
+    border: u32,
+    mode: CandidateMode,
+) -> CorrectParams {
+    let o = &pack.offsets;
+    CorrectParams {
+        lo_x: storage.lo[0],
+        lo_y: storage.lo[1],
+        lo_z: storage.lo[2],
+        size_x: storage.size()[0],
+        size_y: storage.size()[1],
+        size_z: storage.size()[2],
+        first_x: first[0],
+        first_y: first[1],
+        first_z: first[2],
+        count_x: count[0],
+        count_y: count[1],
+        count_z: count[2],
+        ex_width: pack.width,
+        ex_height: pack.height,
+        channels: pack.channels,
+        pixel_words: pack.pixel_words,
+        pca_in: pack.pca_in,
+        pca_out: pack.pca_out,
+        shift: pack.shift,
+        proj_words: pack.proj_words,
+        k2d: pack.k2d,
+        k3d_used,
+        k3d_stride: pack.k3d_stride,
+        border: border,
+        mode: (mode == CandidateMode::TwoD) as u32,
+        shared_sets: pack.shared as u32,
+        pixels0: o.pixels[0],
+        pixels1: o.pixels[1],
+        pixels2: o.pixels[2],
+        proj0: o.projected[0],
+        proj1: o.projected[1],
+        proj2: o.projected[2],
+        mean0: o.mean[0],
+        mean1: o.mean[1],
+        mean2: o.mean[2],
+        weights0: o.weights[0],
+        weights1: o.weights[1],
+        weights2: o.weights[2],
+        cand2d0: o.cand2d[0],
+        cand2d1: o.cand2d[1],
+        cand2d2: o.cand2d[2],
+        cand3d0: o.cand3d[0],
+        cand3d1: o.cand3d[1],
+        cand3d2: o.cand3d[2],
+        counts0: o.counts[0],
+        counts1: o.counts[1],
+        counts2: o.counts[2],
+        _pad0: 0,
+        _pad1: 0,
+        _pad2: 0,
+        _pad3: 0,
+        _pad4: 0,
     }
 }
 

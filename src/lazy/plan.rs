@@ -191,6 +191,7 @@ mod tests {
     fn parent_box_covers_children_with_negative_coordinates() {
         let b = Box3::new([-5, -4, 3], [-1, 4, 8]);
         let p = b.parent();
-        assert_eq!(p, Box3::new([-3, -2, 1], [-1, 2, 4]));
+        // Children -5..=-2 have parents -3..=-1 (floor division), so the exclusive bound is 0.
+        assert_eq!(p, Box3::new([-3, -2, 1], [0, 2, 4]));
     }
 }

@@ -105,29 +105,6 @@ pub struct Report {
     pub slices_per_axis: u32,
 }
 
-/// Bring the exemplar to the volume's channel count (gray replicated, alpha added or dropped).
-fn match_channels(img: &Image, channels: u32) -> Image {
-    if img.channels == channels {
-        return img.clone();
-    }
-    let mut out = Image::new(img.width, img.height, channels);
-    for (d, s) in out
-        .pixels
-        .chunks_exact_mut(channels as usize)
-        .zip(img.pixels.chunks_exact(img.channels as usize))
-    {
-        for (k, v) in d.iter_mut().enumerate() {
-            *v = match (s.len(), k) {
-                (1, _) if k < 3 => s[0],
-                (_, 3) if s.len() < 4 => 255,
-                (n, k) if k < n => s[k],
-                (n, _) => s[n - 1],
-            };
-        }
-    }
-    out
-}
-
 /// Score `volume` against one exemplar (all axes) or three (`exemplars[a]` for slices
 /// perpendicular to axis a, in the frame orientation of `analysis::frame`).
 pub fn evaluate(volume: &Volume, exemplars: &[Image], params: &EvalParams) -> Result<Report> {
@@ -146,7 +123,7 @@ pub fn evaluate(volume: &Volume, exemplars: &[Image], params: &EvalParams) -> Re
     }
     let ex: Vec<Image> = exemplars
         .iter()
-        .map(|e| match_channels(e, volume.channels))
+        .map(|e| e.with_channels(volume.channels))
         .collect();
     for e in &ex {
         if e.width < 2 * PATCH || e.height < 2 * PATCH {
