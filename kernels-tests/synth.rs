@@ -7,7 +7,7 @@ use solidsynth::analysis::{self, Analysis, AnalysisInput, AnalysisParams};
 use solidsynth::backend::{BackendChoice, Compute};
 use solidsynth::exemplar::{decode_image, Border};
 use solidsynth::gpu::GpuOptions;
-use solidsynth::lazy::{Box3, CandidateMode, SynthParams, Synthesizer};
+use solidsynth::lazy::{Box3, CandidateMode, ColorSource, SynthParams, Synthesizer};
 
 fn fixture(bytes: &[u8]) -> solidsynth::exemplar::Image {
     decode_image(bytes, "fixture").unwrap()
@@ -68,13 +68,15 @@ fn synthesis_kernels_bit_exact_on_gpu_and_cpu() {
             Box3::new([100, -50, 7], [109, -41, 16]),
         ),
     ];
-    for (three, border, mode, jitter, b) in cases {
+    let colors = [ColorSource::Average, ColorSource::X, ColorSource::Z];
+    for ((three, border, mode, jitter, b), color) in cases.into_iter().zip(colors) {
         let a = analysis(three, border);
         let params = SynthParams {
             seed: 77,
             jitter,
             candidates: mode,
             passes: 2,
+            color,
         };
         let on_cpu = Synthesizer::new(&a, params.clone(), &Compute::Cpu)
             .unwrap()
@@ -84,7 +86,7 @@ fn synthesis_kernels_bit_exact_on_gpu_and_cpu() {
             .unwrap()
             .synthesize(b, &|_, _| {})
             .unwrap();
-        let what = format!("three={three} {border:?} {mode:?} jitter={jitter} {b:?}");
+        let what = format!("three={three} {border:?} {mode:?} jitter={jitter} {color:?} {b:?}");
         words_equal(
             &what,
             &bytes_to_words(&on_cpu.data),

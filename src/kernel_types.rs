@@ -109,8 +109,10 @@ gpu_struct! {
         size_x: u32, size_y: u32, size_z: u32,
         out_lo_x: i32, out_lo_y: i32, out_lo_z: i32,
         out_size_x: u32, out_size_y: u32, out_size_z: u32,
-        color_channels: u32, pixel_words: u32, _pad0: u32, _pad1: u32,
-        _pad2: u32, _pad3: u32, _pad4: u32, _pad5: u32,
+        color_channels: u32, pixel_words: u32,
+        /// 0: the voxel's cached value (mean of its three pixels); a + 1: exemplar a's pixel.
+        source: u32, ex_width: u32,
+        pixels0: u32, pixels1: u32, pixels2: u32, _pad: u32,
     }
 }
 

@@ -1,16 +1,19 @@
-// Voxel colours of an output box: the colour channels of each voxel's cached value (the rounded
-// mean of its three exemplar pixels), packed into one u32. CPU reference: src/cpu/colorize.rs.
+// Voxel colours of an output box, colour channels packed into one u32: the voxel's cached value
+// (the rounded mean of its three exemplar pixels), or, on request, the pixel of one exemplar at
+// the voxel's coordinate in it. CPU reference: src/cpu/colorize.rs.
 
 struct ColorizeParams {
     lo_x: i32, lo_y: i32, lo_z: i32,
     size_x: u32, size_y: u32, size_z: u32,
     out_lo_x: i32, out_lo_y: i32, out_lo_z: i32,
     out_size_x: u32, out_size_y: u32, out_size_z: u32,
-    color_channels: u32, pixel_words: u32, _pad0: u32, _pad1: u32,
-    _pad2: u32, _pad3: u32, _pad4: u32, _pad5: u32,
+    color_channels: u32, pixel_words: u32,
+    source: u32, ex_width: u32,
+    pixels0: u32, pixels1: u32, pixels2: u32, _pad: u32,
 }
 
 @group(0) @binding(0) var<uniform> params: ColorizeParams;
+// (binding 1: level data, declared by the prelude)
 @group(0) @binding(2) var<storage, read> state: array<u32>;
 @group(0) @binding(3) var<storage, read_write> colors: array<u32>;
 
@@ -27,5 +30,12 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (params.color_channels < 4u) {
         mask = (1u << (params.color_channels * 8u)) - 1u;
     }
-    colors[(gid.z * params.out_size_y + gid.y) * params.out_size_x + gid.x] = state[i + 3u] & mask;
+    var word = state[i + 3u];
+    if (params.source != 0u) {
+        let a = params.source - 1u;
+        let pixels = array<u32, 3>(params.pixels0, params.pixels1, params.pixels2);
+        let c = state[i + a];
+        word = level[pixels[a] + (u32(coord_y(c)) * params.ex_width + u32(coord_x(c))) * params.pixel_words];
+    }
+    colors[(gid.z * params.out_size_y + gid.y) * params.out_size_x + gid.x] = word & mask;
 }

@@ -3,7 +3,7 @@
 use super::analyze::{load_or_analyze, InputArgs};
 use clap::Args;
 use solidsynth::io::{atomic, nrrd};
-use solidsynth::lazy::{Box3, CandidateMode, SynthParams, Synthesizer};
+use solidsynth::lazy::{Box3, CandidateMode, ColorSource, SynthParams, Synthesizer};
 use solidsynth::metrics::sheet::contact_sheet;
 use solidsynth::volume::Volume;
 use solidsynth::Error;
@@ -29,6 +29,9 @@ pub struct SynthArgs {
     /// Correction passes per level.
     #[arg(long, default_value_t = 2)]
     pub passes: u32,
+    /// Output colour: the mean of the voxel's three exemplar pixels, or one exemplar's pixel.
+    #[arg(long, value_enum, default_value = "average")]
+    pub color: ColorSource,
     /// Output NRRD volume.
     #[arg(short, long)]
     pub output: PathBuf,
@@ -151,6 +154,7 @@ pub fn run(args: SynthArgs, quiet: bool) -> anyhow::Result<()> {
         jitter: args.jitter,
         candidates: args.candidates,
         passes: args.passes,
+        color: args.color,
     };
     params.validate()?;
     check_size(args.size, 4)?;

@@ -205,14 +205,14 @@ impl GpuSynth {
         )
     }
 
-    pub fn colorize(&mut self, p: &ColorizeParams, s: &GpuState) -> Result<Vec<u32>> {
+    pub fn colorize(&mut self, level: usize, p: &ColorizeParams, s: &GpuState) -> Result<Vec<u32>> {
         let n = p.out_size_x as usize * p.out_size_y as usize * p.out_size_z as usize;
         let out = self.ctx.output_buffer("colours", n, SENTINEL);
         let uniform = self.ctx.uniform_buffer("colorize params", p);
         self.run(
             "colorize",
             &[],
-            &[(0, &uniform), (2, &s.current), (3, &out)],
+            &[(0, &uniform), (1, &self.levels[level]), (2, &s.current), (3, &out)],
             groups([p.out_size_x, p.out_size_y, p.out_size_z]),
             None,
         )?;

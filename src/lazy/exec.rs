@@ -72,10 +72,12 @@ impl Executor {
         }
     }
 
-    pub fn colorize(&mut self, p: &ColorizeParams, state: &State) -> Result<Vec<u32>> {
+    pub fn colorize(&mut self, level: usize, p: &ColorizeParams, state: &State) -> Result<Vec<u32>> {
         match (self, state) {
-            (Executor::Cpu { .. }, State::Cpu(v)) => Ok(crate::cpu::colorize::colorize(p, v)),
-            (Executor::Gpu(g), State::Gpu(s)) => g.colorize(p, s),
+            (Executor::Cpu { levels, .. }, State::Cpu(v)) => {
+                Ok(crate::cpu::colorize::colorize(p, &levels[level], v))
+            }
+            (Executor::Gpu(g), State::Gpu(s)) => g.colorize(level, p, s),
             _ => unreachable!("state from another backend"),
         }
     }

@@ -38,6 +38,19 @@ pub enum CandidateMode {
     TwoD,
 }
 
+/// Where an output voxel's colour comes from (the solid itself, its triples, is the same).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+pub enum ColorSource {
+    /// The mean of the voxel's three exemplar pixels (the paper's rule).
+    #[default]
+    Average,
+    /// The pixel of Ex (resp. Ey, Ez) at the voxel's coordinate in it: sharper, but only as
+    /// consistent across axes as the synthesis made the triple.
+    X,
+    Y,
+    Z,
+}
+
 /// What defines the solid besides the analysis.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SynthParams {
@@ -47,6 +60,8 @@ pub struct SynthParams {
     pub candidates: CandidateMode,
     /// Correction passes per level (the paper uses 2).
     pub passes: u32,
+    /// Output colour rule.
+    pub color: ColorSource,
 }
 
 impl Default for SynthParams {
@@ -56,6 +71,7 @@ impl Default for SynthParams {
             jitter: 1.0,
             candidates: CandidateMode::ThreeD,
             passes: 2,
+            color: ColorSource::Average,
         }
     }
 }
@@ -323,10 +339,15 @@ impl Synthesizer {
             out_size_z: out.size()[2],
             color_channels: pack.color_channels,
             pixel_words: pack.pixel_words,
-            ..Default::default()
+            source: self.params.color as u32,
+            ex_width: pack.width,
+            pixels0: pack.offsets.pixels[0],
+            pixels1: pack.offsets.pixels[1],
+            pixels2: pack.offsets.pixels[2],
+            _pad: 0,
         };
         exec::timed(&mut self.exec, &mut self.times, "colorize", |e| {
-            e.colorize(&c, &state)
+            e.colorize(plans.len() - 1, &c, &state)
         })
     }
 
