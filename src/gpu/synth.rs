@@ -212,7 +212,12 @@ impl GpuSynth {
         self.run(
             "colorize",
             &[],
-            &[(0, &uniform), (1, &self.levels[level]), (2, &s.current), (3, &out)],
+            &[
+                (0, &uniform),
+                (1, &self.levels[level]),
+                (2, &s.current),
+                (3, &out),
+            ],
             groups([p.out_size_x, p.out_size_y, p.out_size_z]),
             None,
         )?;

@@ -72,7 +72,12 @@ impl Executor {
         }
     }
 
-    pub fn colorize(&mut self, level: usize, p: &ColorizeParams, state: &State) -> Result<Vec<u32>> {
+    pub fn colorize(
+        &mut self,
+        level: usize,
+        p: &ColorizeParams,
+        state: &State,
+    ) -> Result<Vec<u32>> {
         match (self, state) {
             (Executor::Cpu { levels, .. }, State::Cpu(v)) => {
                 Ok(crate::cpu::colorize::colorize(p, &levels[level], v))
