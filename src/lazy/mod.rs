@@ -102,7 +102,6 @@ pub struct Synthesizer {
     pub params: SynthParams,
     /// Coarsest (l_start) first.
     packs: Vec<LevelPack>,
-    table: Vec<u32>,
     border: u32,
     exec: exec::Executor,
     /// Upper bound on chunk edges (None: as large as the backend allows).
@@ -123,7 +122,6 @@ impl Synthesizer {
         Ok(Synthesizer {
             params,
             packs,
-            table,
             border: analysis.border.code(),
             exec,
             max_chunk_side: None,
@@ -349,11 +347,6 @@ impl Synthesizer {
         exec::timed(&mut self.exec, &mut self.times, "colorize", |e| {
             e.colorize(plans.len() - 1, &c, &state)
         })
-    }
-
-    /// The jitter table (for tests of the warp).
-    pub fn jitter_table(&self) -> &[u32] {
-        &self.table
     }
 }
 
