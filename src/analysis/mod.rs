@@ -33,7 +33,8 @@ pub struct AnalysisParams {
     pub crossbar_keep: u32,
     /// 3D candidates kept per pixel after the coherence filter.
     pub max_3d: u32,
-    /// Cap on coherence-filter rounds.
+    /// Cap on coherence-filter rounds (the paper: "typically 2 iterations"). 4 keeps the
+    /// synthesis quality of 32 (measured) at 60% of the analysis time at 128^2.
     pub max_filter_rounds: u32,
     /// Weight of the feature-distance channel relative to a colour channel.
     pub feature_weight: f32,
@@ -47,7 +48,7 @@ impl Default for AnalysisParams {
             strips_per_axis: 65,
             crossbar_keep: 100,
             max_3d: 12,
-            max_filter_rounds: 32,
+            max_filter_rounds: 4,
             feature_weight: 1.0,
         }
     }
