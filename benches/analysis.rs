@@ -1,4 +1,5 @@
-//! `cargo bench`: kernel `project` on the CPU reference vs the GPU adapter, and the whole analysis.
+//! `cargo bench`: kernel `project` on the CPU reference vs the GPU adapter, the whole analysis, and
+//! end-to-end synthesis on both backends.
 //! Wall-clock tables per exemplar size with peak memory come from `solidsynth bench analyze`.
 
 use criterion::{criterion_group, criterion_main, Criterion};
@@ -61,5 +62,28 @@ fn whole_analysis(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, project_kernel, whole_analysis);
+/// End-to-end synthesis of a 24^3 box (every kernel) on the CPU backend and on the GPU adapter;
+/// `solidsynth bench synth` has the per-kernel split.
+fn synthesis(c: &mut Criterion) {
+    use solidsynth::lazy::{Box3, SynthParams, Synthesizer};
+    let input = AnalysisInput {
+        exemplars: vec![procedural::cobblestone(64, 8, 7)],
+        masks: vec![],
+        border: Border::Wrap,
+        names: vec!["cobblestone".into()],
+    };
+    let a = analysis::analyze(&input, &AnalysisParams::default(), &Compute::Cpu, &|_, _| {}).unwrap();
+    let b = Box3::new([0; 3], [24; 3]);
+    let mut group = c.benchmark_group("synthesize 24^3");
+    group.sample_size(10);
+    let mut cpu = Synthesizer::new(&a, SynthParams::default(), &Compute::Cpu).unwrap();
+    group.bench_function("cpu", |bench| bench.iter(|| cpu.synthesize(b, &|_, _| {}).unwrap()));
+    if let Ok(gpu) = Compute::open(solidsynth::backend::BackendChoice::Gpu, &GpuOptions::from_env()) {
+        let mut g = Synthesizer::new(&a, SynthParams::default(), &gpu).unwrap();
+        group.bench_function("gpu", |bench| bench.iter(|| g.synthesize(b, &|_, _| {}).unwrap()));
+    }
+    group.finish();
+}
+
+criterion_group!(benches, project_kernel, whole_analysis, synthesis);
 criterion_main!(benches);
