@@ -72,15 +72,28 @@ fn synthesis(c: &mut Criterion) {
         border: Border::Wrap,
         names: vec!["cobblestone".into()],
     };
-    let a = analysis::analyze(&input, &AnalysisParams::default(), &Compute::Cpu, &|_, _| {}).unwrap();
+    let a = analysis::analyze(
+        &input,
+        &AnalysisParams::default(),
+        &Compute::Cpu,
+        &|_, _| {},
+    )
+    .unwrap();
     let b = Box3::new([0; 3], [24; 3]);
     let mut group = c.benchmark_group("synthesize 24^3");
     group.sample_size(10);
     let mut cpu = Synthesizer::new(&a, SynthParams::default(), &Compute::Cpu).unwrap();
-    group.bench_function("cpu", |bench| bench.iter(|| cpu.synthesize(b, &|_, _| {}).unwrap()));
-    if let Ok(gpu) = Compute::open(solidsynth::backend::BackendChoice::Gpu, &GpuOptions::from_env()) {
+    group.bench_function("cpu", |bench| {
+        bench.iter(|| cpu.synthesize(b, &|_, _| {}).unwrap())
+    });
+    if let Ok(gpu) = Compute::open(
+        solidsynth::backend::BackendChoice::Gpu,
+        &GpuOptions::from_env(),
+    ) {
         let mut g = Synthesizer::new(&a, SynthParams::default(), &gpu).unwrap();
-        group.bench_function("gpu", |bench| bench.iter(|| g.synthesize(b, &|_, _| {}).unwrap()));
+        group.bench_function("gpu", |bench| {
+            bench.iter(|| g.synthesize(b, &|_, _| {}).unwrap())
+        });
     }
     group.finish();
 }

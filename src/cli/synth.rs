@@ -41,6 +41,9 @@ pub struct SynthArgs {
     /// Also write all z slices in one grid PNG (the layout Unity and Unreal import as a 3D texture).
     #[arg(long)]
     pub flipbook: Option<PathBuf>,
+    /// Also write the finest-level coordinate triples (format in the README).
+    #[arg(long)]
+    pub triples: Option<PathBuf>,
     /// Also write a contact sheet (exemplar beside orthogonal slices).
     #[arg(long)]
     pub sheet: Option<PathBuf>,
@@ -51,6 +54,10 @@ pub struct SynthArgs {
     #[arg(long)]
     pub profile: bool,
 }
+
+/// Magic of the `--triples` file: then version (1), nx, ny, nz, exemplar width and height (u32
+/// LE), then per voxel (x fastest) three u32: packed coordinates x | y << 16 in Ex, Ey, Ez.
+pub const TRIPLES_MAGIC: &[u8; 8] = b"SSTRIPLE";
 
 /// Largest --size accepted before the memory estimate is even computed.
 pub const MAX_SIZE: u32 = 2048;
@@ -141,7 +148,11 @@ fn z_slice(v: &Volume, z: u32) -> image::RgbaImage {
 
 pub fn run(args: SynthArgs, quiet: bool) -> anyhow::Result<()> {
     atomic::check_output_path(&args.output, "-o")?;
-    for (flag, p) in [("--flipbook", &args.flipbook), ("--sheet", &args.sheet)] {
+    for (flag, p) in [
+        ("--flipbook", &args.flipbook),
+        ("--sheet", &args.sheet),
+        ("--triples", &args.triples),
+    ] {
         if let Some(p) = p {
             atomic::check_output_path(p, flag)?;
         }
@@ -173,10 +184,27 @@ pub fn run(args: SynthArgs, quiet: bool) -> anyhow::Result<()> {
         synth.enable_profiling();
     }
     let n = args.size as i32;
-    let volume = synth.synthesize(Box3::new([0; 3], [n; 3]), &report)?;
+    let (volume, triples) = synth.synthesize_with_triples(Box3::new([0; 3], [n; 3]), &report)?;
     let synth_s = synth_start.elapsed().as_secs_f64();
     bar.finish_and_clear();
     nrrd::save(&volume, &args.output)?;
+    if let Some(p) = &args.triples {
+        let finest = &analysis.exemplar(0).levels[0].image;
+        let mut bytes = Vec::with_capacity(32 + triples.len() * 4);
+        bytes.extend_from_slice(TRIPLES_MAGIC);
+        for v in [
+            1u32,
+            volume.nx,
+            volume.ny,
+            volume.nz,
+            finest.width,
+            finest.height,
+        ] {
+            bytes.extend_from_slice(&v.to_le_bytes());
+        }
+        bytes.extend(triples.iter().flat_map(|t| t.to_le_bytes()));
+        atomic::write_file(p, &bytes)?;
+    }
     if let Some(p) = &args.flipbook {
         atomic::save_png(p, &flipbook(&volume))?;
     }

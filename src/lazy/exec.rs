@@ -33,6 +33,15 @@ impl Executor {
     }
 
     /// Largest state (one triple buffer) a chunk may use.
+    /// The state's words (triples and values), copied to the host.
+    pub fn read_state(&self, state: &State) -> Result<Vec<u32>> {
+        match (self, state) {
+            (Executor::Cpu { .. }, State::Cpu(v)) => Ok(v.clone()),
+            (Executor::Gpu(g), State::Gpu(s)) => g.read_state(s),
+            _ => unreachable!("state from another backend"),
+        }
+    }
+
     pub fn max_state_bytes(&self) -> u64 {
         match self {
             Executor::Cpu { .. } => 1 << 31,

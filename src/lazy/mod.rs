@@ -144,14 +144,39 @@ impl Synthesizer {
 
     /// Synthesize the box `out` (finest-level voxel coordinates, half-open).
     pub fn synthesize(&mut self, out: Box3, progress: Progress) -> Result<Volume> {
+        Ok(self.synthesize_inner(out, progress, false)?.0)
+    }
+
+    /// Like [`Self::synthesize`], also returning the finest-level triples of the box: 3 packed
+    /// coordinates (x | y << 16, in Ex, Ey, Ez) per voxel, x fastest.
+    pub fn synthesize_with_triples(
+        &mut self,
+        out: Box3,
+        progress: Progress,
+    ) -> Result<(Volume, Vec<u32>)> {
+        self.synthesize_inner(out, progress, true)
+    }
+
+    fn synthesize_inner(
+        &mut self,
+        out: Box3,
+        progress: Progress,
+        want_triples: bool,
+    ) -> Result<(Volume, Vec<u32>)> {
         let size = out.size();
+        let mut triples = if want_triples {
+            vec![0u32; out.voxels() as usize * 3]
+        } else {
+            Vec::new()
+        };
         let channels = self.color_channels();
         let mut volume = Volume::new(size[0], size[1], size[2], channels);
         let chunks = self.chunks(out);
         for (i, chunk) in chunks.iter().enumerate() {
             let base = i as f32 / chunks.len() as f32;
             let scale = 1.0 / chunks.len() as f32;
-            let colors = self.synthesize_chunk(*chunk, &|m, f| progress(m, base + scale * f))?;
+            let (colors, chunk_triples) =
+                self.synthesize_chunk(*chunk, &|m, f| progress(m, base + scale * f), want_triples)?;
             let cs = chunk.size();
             for z in 0..cs[2] {
                 for y in 0..cs[1] {
@@ -165,12 +190,17 @@ impl Synthesizer {
                         volume
                             .at_mut(vx, vy, vz)
                             .copy_from_slice(&word[..channels as usize]);
+                        if want_triples {
+                            let src = ((z * cs[1] + y) * cs[0] + x) as usize * 3;
+                            let dst = ((vz * size[1] + vy) * size[0] + vx) as usize * 3;
+                            triples[dst..dst + 3].copy_from_slice(&chunk_triples[src..src + 3]);
+                        }
                     }
                 }
             }
         }
         progress("done", 1.0);
-        Ok(volume)
+        Ok((volume, triples))
     }
 
     /// Time every kernel (waiting for the device after each, so totals grow slightly).
@@ -215,7 +245,13 @@ impl Synthesizer {
         chunks
     }
 
-    fn synthesize_chunk(&mut self, out: Box3, progress: Progress) -> Result<Vec<u32>> {
+    /// Colours of `out` (one packed word per voxel) and, when asked, its triples.
+    fn synthesize_chunk(
+        &mut self,
+        out: Box3,
+        progress: Progress,
+        want_triples: bool,
+    ) -> Result<(Vec<u32>, Vec<u32>)> {
         let plans = plan::plan(out, ANALYSED_LEVELS, self.params.passes as usize);
         let seed_lo = self.params.seed as u32;
         let seed_hi = (self.params.seed >> 32) as u32;
@@ -344,9 +380,24 @@ impl Synthesizer {
             pixels2: pack.offsets.pixels[2],
             _pad: 0,
         };
-        exec::timed(&mut self.exec, &mut self.times, "colorize", |e| {
+        let colors = exec::timed(&mut self.exec, &mut self.times, "colorize", |e| {
             e.colorize(plans.len() - 1, &c, &state)
-        })
+        })?;
+        let mut triples = Vec::new();
+        if want_triples {
+            let words = self.exec.read_state(&state)?;
+            let stride = 3 + pack.pixel_words as usize;
+            triples.reserve(out.voxels() as usize * 3);
+            for z in out.lo[2]..out.hi[2] {
+                for y in out.lo[1]..out.hi[1] {
+                    for x in out.lo[0]..out.hi[0] {
+                        let i = finest.storage.index([x, y, z]) * stride;
+                        triples.extend_from_slice(&words[i..i + 3]);
+                    }
+                }
+            }
+        }
+        Ok((colors, triples))
     }
 }
 
