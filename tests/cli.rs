@@ -470,3 +470,92 @@ fn synth_bad_inputs_exit_2_and_write_nothing() {
     );
     assert_eq!(std::fs::read(d.join("full/keep.png")).unwrap(), b"x");
 }
+
+#[test]
+fn region_is_the_same_solid_as_synth_and_checks_its_box() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let ssa = d.join("c.ssa");
+    let o = run(&[
+        "analyze",
+        "--backend",
+        "cpu",
+        "--periodic",
+        fixture_path("cells32.png").to_str().unwrap(),
+        "-o",
+        ssa.to_str().unwrap(),
+    ]);
+    assert!(o.status.success());
+    let (a, b) = (d.join("a.nrrd"), d.join("b.nrrd"));
+    let o = run(&[
+        "synth",
+        ssa.to_str().unwrap(),
+        "--size",
+        "10",
+        "--seed",
+        "2",
+        "--backend",
+        "cpu",
+        "-o",
+        a.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = run(&[
+        "region",
+        ssa.to_str().unwrap(),
+        "--box",
+        "0,0,0,10,10,10",
+        "--seed",
+        "2",
+        "--backend",
+        "cpu",
+        "-o",
+        b.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(
+        std::fs::read(&a).unwrap() == std::fs::read(&b).unwrap(),
+        "synth --size N != region --box 0,0,0,N,N,N"
+    );
+    // A box with negative coordinates holds the same voxels where it overlaps.
+    let c = d.join("c.nrrd");
+    let o = run(&[
+        "region",
+        ssa.to_str().unwrap(),
+        "--box",
+        "-4,3,5,6,9,12",
+        "--seed",
+        "2",
+        "--backend",
+        "cpu",
+        "-o",
+        c.to_str().unwrap(),
+    ]);
+    assert!(o.status.success());
+    let (va, vc) = (
+        solidsynth::io::nrrd::load(&a).unwrap(),
+        solidsynth::io::nrrd::load(&c).unwrap(),
+    );
+    for (x, y, z) in [(0u32, 3u32, 5u32), (5, 8, 9), (3, 4, 9)] {
+        assert_eq!(va.at(x, y, z), vc.at(x + 4, y - 3, z - 5));
+    }
+    let keep = ["c.ssa", "a.nrrd", "b.nrrd", "c.nrrd"];
+    for (bad, needle) in [
+        ("1,1,1,1,2,2", "X1 must be greater"),
+        ("0,0,0,5,5", "six integers"),
+        ("0,0,0,5,5,x", "six integers"),
+        ("0,0,0,9000,1,1", "at most"),
+    ] {
+        let o = run(&[
+            "region",
+            ssa.to_str().unwrap(),
+            "--box",
+            bad,
+            "--backend",
+            "cpu",
+            "-o",
+            d.join("bad.nrrd").to_str().unwrap(),
+        ]);
+        assert_user_error(&o, needle, d, &keep);
+    }
+}

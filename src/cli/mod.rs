@@ -33,6 +33,8 @@ pub enum Command {
     Eval(eval::EvalArgs),
     /// Synthesize the solid texture box [0, N)^3 (NRRD, optional PNG slices, flipbook, sheet).
     Synth(synth::SynthArgs),
+    /// Synthesize any box of the infinite solid (same voxels as in any larger box).
+    Region(synth::RegionArgs),
     /// Describe a .ssa file and write its candidate slab as a PNG.
     Inspect(inspect::InspectArgs),
     /// Benchmarks printed as tables.
@@ -71,6 +73,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Inspect(a) => inspect::run(a),
         Command::Eval(a) => eval::run(a),
         Command::Synth(a) => synth::run(a, cli.quiet),
+        Command::Region(a) => synth::run_region(a, cli.quiet),
         Command::Bench(b) => bench::run(b),
         Command::Adapters => {
             let list = solidsynth::gpu::context::list_adapters();

@@ -12,11 +12,33 @@ use std::time::Instant;
 
 #[derive(Args, Debug)]
 pub struct SynthArgs {
-    #[command(flatten)]
-    pub input: InputArgs,
     /// Edge of the cube [0, N)^3 to synthesize, in finest-level voxels.
     #[arg(long)]
     pub size: u32,
+    #[command(flatten)]
+    pub solid: SolidArgs,
+}
+
+/// `solidsynth region`: any box of the infinite solid.
+#[derive(Args, Debug)]
+pub struct RegionArgs {
+    /// Half-open box X0,Y0,Z0,X1,Y1,Z1 in finest-level voxels (negative coordinates allowed):
+    /// `synth --size N` is `region --box 0,0,0,N,N,N`.
+    #[arg(
+        long = "box",
+        value_name = "X0,Y0,Z0,X1,Y1,Z1",
+        allow_hyphen_values = true
+    )]
+    pub region: String,
+    #[command(flatten)]
+    pub solid: SolidArgs,
+}
+
+/// What defines the solid, and the outputs: shared by `synth` and `region`.
+#[derive(Args, Debug)]
+pub struct SolidArgs {
+    #[command(flatten)]
+    pub input: InputArgs,
     /// Seed of the jitter field and the tiling offsets.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
@@ -147,6 +169,70 @@ fn z_slice(v: &Volume, z: u32) -> image::RgbaImage {
 }
 
 pub fn run(args: SynthArgs, quiet: bool) -> anyhow::Result<()> {
+    check_size(args.size, 4)?;
+    let n = args.size as i32;
+    run_box(&args.solid, Box3::new([0; 3], [n; 3]), quiet)
+}
+
+/// Parse and check `--box X0,Y0,Z0,X1,Y1,Z1`.
+pub fn parse_box(text: &str) -> solidsynth::Result<Box3> {
+    let what = format!("--box {text}");
+    let v: Vec<i64> = text
+        .split(',')
+        .map(|t| t.trim().parse::<i64>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| Error::invalid(&what, "expected six integers X0,Y0,Z0,X1,Y1,Z1"))?;
+    if v.len() != 6 {
+        return Err(Error::invalid(
+            &what,
+            "expected six integers X0,Y0,Z0,X1,Y1,Z1",
+        ));
+    }
+    const LIMIT: i64 = 1 << 28;
+    if v.iter().any(|c| c.abs() > LIMIT) {
+        return Err(Error::invalid(
+            &what,
+            format!("coordinates must lie within +-{LIMIT}"),
+        ));
+    }
+    for a in 0..3 {
+        if v[a + 3] <= v[a] {
+            return Err(Error::invalid(
+                &what,
+                format!("{0}1 must be greater than {0}0", ["X", "Y", "Z"][a]),
+            ));
+        }
+        if v[a + 3] - v[a] > MAX_SIZE as i64 {
+            return Err(Error::invalid(
+                &what,
+                format!("each side must be at most {MAX_SIZE} voxels"),
+            ));
+        }
+    }
+    let b = Box3::new(
+        [v[0] as i32, v[1] as i32, v[2] as i32],
+        [v[3] as i32, v[4] as i32, v[5] as i32],
+    );
+    let bytes =
+        b.voxels() * 4 * 2 + Synthesizer::chunk_bytes(b.size().into_iter().max().unwrap().min(256));
+    if bytes > available_memory() {
+        return Err(Error::invalid(
+            &what,
+            format!(
+                "needs about {:.1} GiB of memory, more than is available",
+                bytes as f64 / (1u64 << 30) as f64
+            ),
+        ));
+    }
+    Ok(b)
+}
+
+pub fn run_region(args: RegionArgs, quiet: bool) -> anyhow::Result<()> {
+    let b = parse_box(&args.region)?;
+    run_box(&args.solid, b, quiet)
+}
+
+fn run_box(args: &SolidArgs, region: Box3, quiet: bool) -> anyhow::Result<()> {
     atomic::check_output_path(&args.output, "-o")?;
     for (flag, p) in [
         ("--flipbook", &args.flipbook),
@@ -168,7 +254,6 @@ pub fn run(args: SynthArgs, quiet: bool) -> anyhow::Result<()> {
         color: args.color,
     };
     params.validate()?;
-    check_size(args.size, 4)?;
     let start = Instant::now();
     let compute = args.input.backend.open()?;
     let analysis = load_or_analyze(&args.input, &compute, quiet || args.json)?;
@@ -183,8 +268,7 @@ pub fn run(args: SynthArgs, quiet: bool) -> anyhow::Result<()> {
     if args.profile {
         synth.enable_profiling();
     }
-    let n = args.size as i32;
-    let (volume, triples) = synth.synthesize_with_triples(Box3::new([0; 3], [n; 3]), &report)?;
+    let (volume, triples) = synth.synthesize_with_triples(region, &report)?;
     let synth_s = synth_start.elapsed().as_secs_f64();
     bar.finish_and_clear();
     nrrd::save(&volume, &args.output)?;
@@ -241,7 +325,7 @@ pub fn run(args: SynthArgs, quiet: bool) -> anyhow::Result<()> {
         println!(
             "{}",
             serde_json::json!({
-                "output": args.output, "size": args.size, "seed": args.seed, "jitter": args.jitter,
+                "output": args.output, "box": [region.lo, region.hi], "seed": args.seed, "jitter": args.jitter,
                 "candidates": args.candidates, "passes": args.passes,
                 "analysis_seconds": analysis_s, "synthesis_seconds": synth_s,
                 "peak_rss_bytes": solidsynth::util::memory::peak_rss_bytes(),
@@ -257,9 +341,13 @@ pub fn run(args: SynthArgs, quiet: bool) -> anyhow::Result<()> {
                 v["calls"]
             );
         }
+        let d = region.size();
         eprintln!(
-            "synthesized {0}^3 in {synth_s:.2} s (analysis {analysis_s:.2} s) -> {1}",
-            args.size,
+            "synthesized {}x{}x{} at {:?} in {synth_s:.2} s (analysis {analysis_s:.2} s) -> {}",
+            d[0],
+            d[1],
+            d[2],
+            region.lo,
             args.output.display()
         );
     }
