@@ -559,3 +559,121 @@ fn region_is_the_same_solid_as_synth_and_checks_its_box() {
         assert_user_error(&o, needle, d, &keep);
     }
 }
+
+#[test]
+fn cuts_equal_the_same_voxels_of_a_region() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let ssa = d.join("c.ssa");
+    let o = run(&[
+        "analyze",
+        "--backend",
+        "cpu",
+        "--periodic",
+        fixture_path("cells32.png").to_str().unwrap(),
+        "-o",
+        ssa.to_str().unwrap(),
+    ]);
+    assert!(o.status.success());
+    let s = ssa.to_str().unwrap();
+    let vol = d.join("r.nrrd");
+    let o = run(&[
+        "region",
+        s,
+        "--box",
+        "0,0,0,16,16,16",
+        "--seed",
+        "7",
+        "--backend",
+        "cpu",
+        "-o",
+        vol.to_str().unwrap(),
+    ]);
+    assert!(o.status.success());
+    let v = solidsynth::io::nrrd::load(&vol).unwrap();
+    // The convention: `cut --origin 8,8,5 --normal 0,0,1 --size 16` is z-slice 5.
+    let png = d.join("cut.png");
+    let o = run(&[
+        "cut",
+        s,
+        "--origin",
+        "8,8,5",
+        "--normal",
+        "0,0,1",
+        "--size",
+        "16",
+        "--seed",
+        "7",
+        "--backend",
+        "cpu",
+        "-o",
+        png.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let img = image::open(&png).unwrap().to_rgba8();
+    for y in 0..16 {
+        for x in 0..16 {
+            assert_eq!(&img.get_pixel(x, y).0[..3], v.at(x, y, 5), "pixel {x},{y}");
+        }
+    }
+    // An oblique cut inside the box samples the box's voxels.
+    let spec = solidsynth::lazy::cut::CutSpec {
+        origin: [8.0, 7.5, 8.2],
+        normal: [1.0, 2.0, -0.7],
+        up: Some([0.0, 0.0, 1.0]),
+        size: 8,
+        spacing: 1.3,
+    };
+    let o = run(&[
+        "cut",
+        s,
+        "--origin",
+        "8,7.5,8.2",
+        "--normal",
+        "1,2,-0.7",
+        "--up",
+        "0,0,1",
+        "--size",
+        "8",
+        "--spacing",
+        "1.3",
+        "--seed",
+        "7",
+        "--backend",
+        "cpu",
+        "-o",
+        png.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let img = image::open(&png).unwrap().to_rgba8();
+    for (k, p) in spec.voxels().unwrap().into_iter().enumerate() {
+        let (x, y) = (k as u32 % 8, k as u32 / 8);
+        assert_eq!(
+            &img.get_pixel(x, y).0[..3],
+            v.at(p[0] as u32, p[1] as u32, p[2] as u32)
+        );
+    }
+    let keep = ["c.ssa", "r.nrrd", "cut.png"];
+    for (args, needle) in [
+        (vec!["--normal", "0,0,0"], "--normal"),
+        (vec!["--normal", "0,0,1", "--up", "0,0,2"], "parallel"),
+        (vec!["--normal", "0,x,1"], "three numbers"),
+        (vec!["--normal", "0,0,1", "--spacing", "0"], "--spacing"),
+    ] {
+        let mut a = vec![
+            "cut",
+            s,
+            "--origin",
+            "1,2,3",
+            "--size",
+            "8",
+            "--backend",
+            "cpu",
+            "-o",
+        ];
+        let out = d.join("bad.png");
+        a.push(out.to_str().unwrap());
+        a.extend(args);
+        assert_user_error(&run(&a), needle, d, &keep);
+    }
+}

@@ -2,6 +2,7 @@
 
 pub mod analyze;
 pub mod bench;
+pub mod cut;
 pub mod eval;
 pub mod inspect;
 pub mod synth;
@@ -35,6 +36,8 @@ pub enum Command {
     Synth(synth::SynthArgs),
     /// Synthesize any box of the infinite solid (same voxels as in any larger box).
     Region(synth::RegionArgs),
+    /// A planar cut of the solid (any orientation) as a PNG; --repeat measures warm latency.
+    Cut(cut::CutArgs),
     /// Describe a .ssa file and write its candidate slab as a PNG.
     Inspect(inspect::InspectArgs),
     /// Benchmarks printed as tables.
@@ -74,6 +77,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Eval(a) => eval::run(a),
         Command::Synth(a) => synth::run(a, cli.quiet),
         Command::Region(a) => synth::run_region(a, cli.quiet),
+        Command::Cut(a) => cut::run(a, cli.quiet),
         Command::Bench(b) => bench::run(b),
         Command::Adapters => {
             let list = solidsynth::gpu::context::list_adapters();

@@ -34,9 +34,9 @@ pub struct RegionArgs {
     pub solid: SolidArgs,
 }
 
-/// What defines the solid, and the outputs: shared by `synth` and `region`.
+/// What defines the solid: shared by `synth`, `region` and `cut`.
 #[derive(Args, Debug)]
-pub struct SolidArgs {
+pub struct SolidParams {
     #[command(flatten)]
     pub input: InputArgs,
     /// Seed of the jitter field and the tiling offsets.
@@ -54,6 +54,25 @@ pub struct SolidArgs {
     /// Output colour: the mean of the voxel's three exemplar pixels, or one exemplar's pixel.
     #[arg(long, value_enum, default_value = "average")]
     pub color: ColorSource,
+}
+
+impl SolidParams {
+    pub fn synth_params(&self) -> SynthParams {
+        SynthParams {
+            seed: self.seed,
+            jitter: self.jitter,
+            candidates: self.candidates,
+            passes: self.passes,
+            color: self.color,
+        }
+    }
+}
+
+/// The solid and the volume outputs: shared by `synth` and `region`.
+#[derive(Args, Debug)]
+pub struct SolidArgs {
+    #[command(flatten)]
+    pub solid: SolidParams,
     /// Output NRRD volume.
     #[arg(short, long)]
     pub output: PathBuf,
@@ -246,17 +265,11 @@ fn run_box(args: &SolidArgs, region: Box3, quiet: bool) -> anyhow::Result<()> {
     if let Some(d) = &args.slices {
         check_slices_dir(d)?;
     }
-    let params = SynthParams {
-        seed: args.seed,
-        jitter: args.jitter,
-        candidates: args.candidates,
-        passes: args.passes,
-        color: args.color,
-    };
+    let params = args.solid.synth_params();
     params.validate()?;
     let start = Instant::now();
-    let compute = args.input.backend.open()?;
-    let analysis = load_or_analyze(&args.input, &compute, quiet || args.json)?;
+    let compute = args.solid.input.backend.open()?;
+    let analysis = load_or_analyze(&args.solid.input, &compute, quiet || args.json)?;
     let analysis_s = start.elapsed().as_secs_f64();
     let bar = super::progress_bar(quiet || args.json);
     let report = |m: &str, f: f32| {
@@ -325,8 +338,8 @@ fn run_box(args: &SolidArgs, region: Box3, quiet: bool) -> anyhow::Result<()> {
         println!(
             "{}",
             serde_json::json!({
-                "output": args.output, "box": [region.lo, region.hi], "seed": args.seed, "jitter": args.jitter,
-                "candidates": args.candidates, "passes": args.passes,
+                "output": args.output, "box": [region.lo, region.hi], "seed": args.solid.seed, "jitter": args.solid.jitter,
+                "candidates": args.solid.candidates, "passes": args.solid.passes,
                 "analysis_seconds": analysis_s, "synthesis_seconds": synth_s,
                 "peak_rss_bytes": solidsynth::util::memory::peak_rss_bytes(),
                 "backend": compute.describe(),

@@ -8,6 +8,7 @@
 //! average exemplar colours (kernel `colorize`). Large boxes are split into chunks, each
 //! synthesized independently: determinism makes the seams invisible by construction.
 
+pub mod cut;
 pub mod exec;
 pub mod jitter;
 pub mod pack;

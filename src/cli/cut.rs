@@ -1,0 +1,107 @@
+//! `solidsynth cut`: a planar cut of the solid as a PNG, optionally repeated through one warm
+//! session to measure interactive latency.
+
+use super::analyze::load_or_analyze;
+use super::synth::SolidParams;
+use clap::Args;
+use solidsynth::io::atomic;
+use solidsynth::lazy::cut::{CutSession, CutSpec};
+use solidsynth::lazy::Synthesizer;
+use solidsynth::Error;
+use std::path::PathBuf;
+use std::time::Instant;
+
+#[derive(Args, Debug)]
+pub struct CutArgs {
+    #[command(flatten)]
+    pub solid: SolidParams,
+    /// Centre of the cut, X,Y,Z in finest-level voxels.
+    #[arg(long, allow_hyphen_values = true)]
+    pub origin: String,
+    /// Normal of the cut plane, NX,NY,NZ (any length but zero).
+    #[arg(long, allow_hyphen_values = true)]
+    pub normal: String,
+    /// Up direction, projected onto the plane (default +y, or +z when the normal is along y).
+    #[arg(long, allow_hyphen_values = true)]
+    pub up: Option<String>,
+    /// Pixels per side of the (square) cut.
+    #[arg(long, default_value_t = 256)]
+    pub size: u32,
+    /// Voxels per pixel.
+    #[arg(long, default_value_t = 1.0)]
+    pub spacing: f64,
+    /// Run the cut K times through one warm session and print the median and p95 latency.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=10000))]
+    pub repeat: u32,
+    /// Output PNG.
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Print a JSON summary on stdout.
+    #[arg(long)]
+    pub json: bool,
+}
+
+fn triple(text: &str, flag: &str) -> solidsynth::Result<[f64; 3]> {
+    let v: Vec<f64> = text
+        .split(',')
+        .map(|t| t.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| Error::invalid(format!("{flag} {text}"), "expected three numbers A,B,C"))?;
+    match v.as_slice() {
+        [a, b, c] if v.iter().all(|x| x.is_finite()) => Ok([*a, *b, *c]),
+        [_, _, _] => Err(Error::invalid(
+            format!("{flag} {text}"),
+            "numbers must be finite",
+        )),
+        _ => Err(Error::invalid(
+            format!("{flag} {text}"),
+            "expected three numbers A,B,C",
+        )),
+    }
+}
+
+pub fn run(args: CutArgs, quiet: bool) -> anyhow::Result<()> {
+    atomic::check_output_path(&args.output, "-o")?;
+    let spec = CutSpec {
+        origin: triple(&args.origin, "--origin")?,
+        normal: triple(&args.normal, "--normal")?,
+        up: args.up.as_deref().map(|u| triple(u, "--up")).transpose()?,
+        size: args.size,
+        spacing: args.spacing,
+    };
+    spec.frame()?;
+    let params = args.solid.synth_params();
+    params.validate()?;
+    let compute = args.solid.input.backend.open()?;
+    let analysis = load_or_analyze(&args.solid.input, &compute, quiet || args.json)?;
+    let mut session = CutSession::new(Synthesizer::new(&analysis, params, &compute)?);
+    let mut latencies = Vec::new();
+    let mut image = None;
+    for _ in 0..args.repeat {
+        let start = Instant::now();
+        image = Some(session.cut(&spec)?);
+        latencies.push(start.elapsed().as_secs_f64() * 1000.0);
+    }
+    atomic::save_png(&args.output, &image.expect("repeat >= 1").to_rgba8())?;
+    let mut sorted = latencies.clone();
+    sorted.sort_by(f64::total_cmp);
+    let median = sorted[sorted.len() / 2];
+    let p95 = sorted[((sorted.len() as f64 * 0.95).ceil() as usize).clamp(1, sorted.len()) - 1];
+    if args.json {
+        println!(
+            "{}",
+            serde_json::json!({"output": args.output, "size": args.size, "repeat": args.repeat,
+                "median_ms": median, "p95_ms": p95, "first_ms": latencies[0],
+                "peak_rss_bytes": solidsynth::util::memory::peak_rss_bytes(), "backend": compute.describe()})
+        );
+    } else if !quiet {
+        eprintln!(
+            "cut {0}x{0} -> {1}: median {median:.1} ms, p95 {p95:.1} ms over {2} run(s) (first {3:.1} ms)",
+            args.size,
+            args.output.display(),
+            args.repeat,
+            latencies[0]
+        );
+    }
+    Ok(())
+}
