@@ -112,28 +112,43 @@ impl GpuSynth {
         })
     }
 
-    pub fn init(&mut self, level: usize, p: &InitParams) -> Result<GpuState> {
-        let words =
-            p.size_x as u64 * p.size_y as u64 * p.size_z as u64 * (3 + p.pixel_words as u64);
+    /// Run a kernel that fills a fresh state of `size` voxels: uniform at binding 0, level data at
+    /// 1, `input` at 2, the new state at 3 (the layout of `init` and `upsample`).
+    fn fill_state<T: bytemuck::Pod>(
+        &self,
+        kernel: &'static str,
+        params: &T,
+        level: usize,
+        input: &wgpu::Buffer,
+        size: [u32; 3],
+        pixel_words: u32,
+    ) -> Result<GpuState> {
+        let words = size.iter().map(|&s| s as u64).product::<u64>() * (3 + pixel_words as u64);
         let out = self.state_buffer(words);
-        let uniform = self.ctx.uniform_buffer("init params", p);
-        self.run(
-            "init",
-            &[],
-            &[
-                (0, &uniform),
-                (1, &self.levels[level]),
-                (2, &self.table),
-                (3, &out),
-            ],
-            groups([p.size_x, p.size_y, p.size_z]),
-            None,
-        )?;
+        let uniform = self.ctx.uniform_buffer(kernel, params);
+        let buffers = [
+            (0, &uniform),
+            (1, &self.levels[level]),
+            (2, input),
+            (3, &out),
+        ];
+        self.run(kernel, &[], &buffers, groups(size), None)?;
         Ok(GpuState {
             current: out,
             scratch: None,
             words,
         })
+    }
+
+    pub fn init(&mut self, level: usize, p: &InitParams) -> Result<GpuState> {
+        self.fill_state(
+            "init",
+            p,
+            level,
+            &self.table,
+            [p.size_x, p.size_y, p.size_z],
+            p.pixel_words,
+        )
     }
 
     /// `level`: the child level.
@@ -143,29 +158,8 @@ impl GpuSynth {
         p: &UpsampleParams,
         parent: GpuState,
     ) -> Result<GpuState> {
-        let words = p.child_size_x as u64
-            * p.child_size_y as u64
-            * p.child_size_z as u64
-            * (3 + p.pixel_words as u64);
-        let out = self.state_buffer(words);
-        let uniform = self.ctx.uniform_buffer("upsample params", p);
-        self.run(
-            "upsample",
-            &[],
-            &[
-                (0, &uniform),
-                (1, &self.levels[level]),
-                (2, &parent.current),
-                (3, &out),
-            ],
-            groups([p.child_size_x, p.child_size_y, p.child_size_z]),
-            None,
-        )?;
-        Ok(GpuState {
-            current: out,
-            scratch: None,
-            words,
-        })
+        let size = [p.child_size_x, p.child_size_y, p.child_size_z];
+        self.fill_state("upsample", p, level, &parent.current, size, p.pixel_words)
     }
 
     pub fn correct(&mut self, level: usize, p: &CorrectParams, s: &mut GpuState) -> Result<()> {
