@@ -118,13 +118,19 @@ fn each_synthesis_kernel_matches_its_reference() {
     let table = jitter::table();
     let amps = jitter::amplitudes(3.0);
     let sig = jitter::sigma2_fixed();
+    // The parent level: the bricks of a box straddling zero, in a shuffled order (slots need not
+    // be sorted).
+    use solidsynth::lazy::bricks;
+    let mut parent_bricks = bricks::bricks_of_box(solidsynth::lazy::Box3::new([-9, -2, 5], [2, 4, 12]));
+    parent_bricks.reverse();
+    let parent_grid = bricks::BrickGrid::new(&parent_bricks);
+    let mut parent_index = parent_grid.table.clone();
+    let parent_list = bricks::push_list(&mut parent_index, &parent_bricks);
+    let count = parent_bricks.len() as u32;
     let init = InitParams {
-        lo_x: -9,
-        lo_y: -2,
-        lo_z: 5,
-        size_x: 11,
-        size_y: 6,
-        size_z: 7,
+        list_offset: parent_list,
+        list_count: count,
+        grid_stride: solidsynth::gpu::context::dispatch_grid(count * 64).2,
         ex_width: pack.width,
         ex_height: pack.height,
         border: 0,
@@ -150,12 +156,13 @@ fn each_synthesis_kernel_matches_its_reference() {
         pixels2: o.pixels[2],
         ..Default::default()
     };
-    let cpu_init = solidsynth::cpu::init::init(&init, &table, &pack.words);
+    let cpu_init = solidsynth::cpu::init::init(&init, &table, &pack.words, &parent_index);
     let ctx = solidsynth::gpu::GpuContext::new(&GpuOptions::from_env()).unwrap();
     let mut g =
         solidsynth::gpu::synth::GpuSynth::new(std::sync::Arc::new(ctx), &[pack.clone()], &table)
             .unwrap();
-    let gpu_state = g.init(0, &init).unwrap();
+    let gpu_parent_index = g.upload_index(&parent_index);
+    let gpu_state = g.init(0, &init, &gpu_parent_index).unwrap();
     words_equal("init", &cpu_init, &g.read_state(&gpu_state).unwrap()).unwrap();
     // The jitter moves voxels: with it off, the same box differs.
     let flat = solidsynth::cpu::init::init(
@@ -165,23 +172,32 @@ fn each_synthesis_kernel_matches_its_reference() {
         },
         &table,
         &pack.words,
+        &parent_index,
     );
     assert!(words_equal("jitter matters", &cpu_init, &flat).is_err());
 
     // Upsampling into a child box (the same level's data serves for the values).
+    // The child bricks: some of the parents' children, and one whose parent is absent (reads as
+    // coordinate 0 on both backends).
+    let mut child_bricks = bricks::bricks_of_box(solidsynth::lazy::Box3::new([-17, -3, 11], [3, 6, 14]));
+    child_bricks.push([40, 40, 40]);
+    let child_grid = bricks::BrickGrid::new(&child_bricks);
+    let mut child_index = child_grid.table.clone();
+    let child_list = bricks::push_list(&mut child_index, &child_bricks);
+    let parent_table = child_index.len() as u32;
+    child_index.extend_from_slice(&parent_grid.table);
+    let count = child_bricks.len() as u32;
     let up = UpsampleParams {
-        parent_lo_x: -9,
-        parent_lo_y: -2,
-        parent_lo_z: 5,
-        parent_size_x: 11,
-        parent_size_y: 6,
-        parent_size_z: 7,
-        child_lo_x: -17,
-        child_lo_y: -3,
-        child_lo_z: 11,
-        child_size_x: 20,
-        child_size_y: 9,
-        child_size_z: 3,
+        parent_grid_lo_x: parent_grid.lo[0],
+        parent_grid_lo_y: parent_grid.lo[1],
+        parent_grid_lo_z: parent_grid.lo[2],
+        parent_grid_x: parent_grid.dims[0],
+        parent_grid_y: parent_grid.dims[1],
+        parent_grid_z: parent_grid.dims[2],
+        parent_table,
+        list_offset: child_list,
+        list_count: count,
+        grid_stride: solidsynth::gpu::context::dispatch_grid(count * 64).2,
         ex_width: pack.width,
         ex_height: pack.height,
         border: 0,
@@ -190,8 +206,10 @@ fn each_synthesis_kernel_matches_its_reference() {
         pixels0: o.pixels[0],
         pixels1: o.pixels[1],
         pixels2: o.pixels[2],
+        ..Default::default()
     };
-    let cpu_up = solidsynth::cpu::upsample::upsample(&up, &pack.words, &cpu_init);
-    let gpu_up = g.upsample(0, &up, gpu_state).unwrap();
+    let cpu_up = solidsynth::cpu::upsample::upsample(&up, &pack.words, &cpu_init, &child_index);
+    let gpu_child_index = g.upload_index(&child_index);
+    let gpu_up = g.upsample(0, &up, gpu_state, &gpu_child_index).unwrap();
     words_equal("upsample", &cpu_up, &g.read_state(&gpu_up).unwrap()).unwrap();
 }

@@ -46,8 +46,10 @@ gpu_struct! {
 gpu_struct! {
     /// Uniforms of `wgsl/init.wgsl`: tiling of the candidate slab, warped by the jitter field.
     InitParams size 128 {
-        lo_x: i32, lo_y: i32, lo_z: i32,
-        size_x: u32, size_y: u32, size_z: u32,
+        /// The level's stored bricks (word offset of the brick list in the brick index, count)
+        /// and the threads per row of the 2D dispatch grid (one thread per voxel).
+        list_offset: u32, list_count: u32, grid_stride: u32,
+        _r0: u32, _r1: u32, _r2: u32,
         ex_width: u32, ex_height: u32, border: u32,
         seed_lo: u32, seed_hi: u32,
         /// 0: no jitter.
@@ -66,24 +68,32 @@ gpu_struct! {
 gpu_struct! {
     /// Uniforms of `wgsl/upsample.wgsl`: coordinate inheritance from the coarser level.
     UpsampleParams size 80 {
-        parent_lo_x: i32, parent_lo_y: i32, parent_lo_z: i32,
-        parent_size_x: u32, parent_size_y: u32, parent_size_z: u32,
-        child_lo_x: i32, child_lo_y: i32, child_lo_z: i32,
-        child_size_x: u32, child_size_y: u32, child_size_z: u32,
+        /// The parent level's brick grid (origin and size in bricks) and the word offset of its
+        /// table, copied into the child's brick index.
+        parent_grid_lo_x: i32, parent_grid_lo_y: i32, parent_grid_lo_z: i32,
+        parent_grid_x: u32, parent_grid_y: u32, parent_grid_z: u32,
+        parent_table: u32,
+        /// The child's stored bricks (one thread per voxel).
+        list_offset: u32, list_count: u32, grid_stride: u32,
         ex_width: u32, ex_height: u32, border: u32,
         /// For the cached voxel value (child level).
         channels: u32, pixel_words: u32, pixels0: u32, pixels1: u32, pixels2: u32,
+        _r0: u32, _r1: u32,
     }
 }
 
 gpu_struct! {
-    /// Uniforms of `wgsl/correct.wgsl`: one sub-pass over the voxels of one parity class.
+    /// Uniforms of `wgsl/correct.wgsl`: one sub-pass over the voxels of one parity class in a
+    /// list of bricks.
     CorrectParams size 208 {
-        lo_x: i32, lo_y: i32, lo_z: i32,
-        size_x: u32, size_y: u32, size_z: u32,
-        /// First voxel of the class inside the sub-pass box, and voxel counts (stride 2).
-        first_x: i32, first_y: i32, first_z: i32,
-        count_x: u32, count_y: u32, count_z: u32,
+        /// The level's brick grid (origin and size in bricks) and the word offset of its table.
+        grid_lo_x: i32, grid_lo_y: i32, grid_lo_z: i32,
+        grid_x: u32, grid_y: u32, grid_z: u32,
+        table_offset: u32,
+        /// The sub-pass's bricks (8 threads per brick: its voxels of the class).
+        list_offset: u32, list_count: u32,
+        /// The parity class (x, y, z mod 2) of the voxels updated.
+        class_x: u32, class_y: u32, class_z: u32,
         ex_width: u32, ex_height: u32, channels: u32, pixel_words: u32,
         pca_in: u32, pca_out: u32, shift: u32, proj_words: u32,
         k2d: u32, k3d_used: u32, k3d_stride: u32, border: u32,
@@ -98,17 +108,20 @@ gpu_struct! {
         cand2d0: u32, cand2d1: u32, cand2d2: u32,
         cand3d0: u32, cand3d1: u32, cand3d2: u32,
         counts0: u32, counts1: u32, counts2: u32,
-        _pad0: u32, _pad1: u32, _pad2: u32, _pad3: u32, _pad4: u32,
+        grid_stride: u32, _pad1: u32, _pad2: u32, _pad3: u32, _pad4: u32,
     }
 }
 
 gpu_struct! {
-    /// Uniforms of `wgsl/colorize.wgsl`: voxel colours of an output box.
+    /// Uniforms of `wgsl/colorize.wgsl`: voxel colours of a list of bricks.
     ColorizeParams size 80 {
-        lo_x: i32, lo_y: i32, lo_z: i32,
-        size_x: u32, size_y: u32, size_z: u32,
-        out_lo_x: i32, out_lo_y: i32, out_lo_z: i32,
-        out_size_x: u32, out_size_y: u32, out_size_z: u32,
+        /// The finest level's brick grid and table (as in CorrectParams).
+        grid_lo_x: i32, grid_lo_y: i32, grid_lo_z: i32,
+        grid_x: u32, grid_y: u32, grid_z: u32,
+        table_offset: u32,
+        /// The output bricks (one thread per voxel; colours in list order, 64 per brick).
+        list_offset: u32, list_count: u32, grid_stride: u32,
+        _r0: u32, _r1: u32,
         color_channels: u32, pixel_words: u32,
         /// 0: the voxel's cached value (mean of its three pixels); a + 1: exemplar a's pixel.
         source: u32, ex_width: u32,

@@ -5,7 +5,7 @@ mod common;
 use solidsynth::analysis::frame::{pack, unpack};
 use solidsynth::exemplar::Border;
 use solidsynth::lazy::pack::LevelPack;
-use solidsynth::lazy::CandidateMode;
+use solidsynth::lazy::{bricks, Box3, CandidateMode};
 
 /// A state in which every voxel's three coordinates are its position along (a+1, a+2) (mod the
 /// exemplar size): each voxel is an exemplar pixel, so the plane of E_a through any voxel IS an
@@ -24,14 +24,16 @@ fn exact_plane_is_kept(axis: usize) {
     let (w, h) = (pack.width, pack.height);
     let n = 20i32;
     let lo = [-3, 5, -7];
+    let stored = bricks::bricks_of_box(Box3::new(lo, [lo[0] + n, lo[1] + n, lo[2] + n]));
+    let grid = bricks::BrickGrid::new(&stored);
     let stride = 3 + pack.pixel_words as usize;
     let o = &pack.offsets;
-    let mut state = vec![0u32; (n * n * n) as usize * stride];
-    for z in 0..n {
-        for y in 0..n {
-            for x in 0..n {
-                let i = ((z * n + y) * n + x) as usize * stride;
-                let pos = [lo[0] + x, lo[1] + y, lo[2] + z];
+    let mut state = vec![0u32; stored.len() * 64 * stride];
+    for b in &stored {
+        for l in 0..64 {
+            {
+                let pos = bricks::voxel_of(*b, l);
+                let i = grid.voxel_index(pos).unwrap() * stride;
                 let c = pack_coord(pos[(axis + 1) % 3], pos[(axis + 2) % 3], w, h);
                 solidsynth::cpu::synth_common::write_voxel(
                     &mut state[i..i + stride],
@@ -45,20 +47,28 @@ fn exact_plane_is_kept(axis: usize) {
             }
         }
     }
-    let storage = solidsynth::lazy::Box3::new(lo, [lo[0] + n, lo[1] + n, lo[2] + n]);
-    let first = [lo[0] + 2, lo[1] + 2, lo[2] + 2];
+    // Bricks whose voxels' reads (two voxels away) stay inside the stored ones: the interior.
+    let interior: Vec<_> = stored
+        .iter()
+        .copied()
+        .filter(|b| (0..27).all(|k| grid.slot([b[0] + k % 3 - 1, b[1] + (k / 3) % 3 - 1, b[2] + k / 9 - 1]).is_some()))
+        .collect();
+    assert!(interior.len() >= 8);
+    let mut index = grid.table.clone();
+    let list = bricks::push_list(&mut index, &interior);
     // 2D mode: exemplar `axis`'s own search decides its coordinate.
+    for class in [0, 5] {
     let p = solidsynth::lazy::correct_params(
         &pack,
-        storage,
-        first,
-        [8, 8, 8],
+        &grid,
+        (list, interior.len() as u32),
+        class,
         4,
         0,
         CandidateMode::TwoD,
     );
-    let updates = solidsynth::cpu::correct::correct(&p, &pack.words, &state);
-    assert_eq!(updates.len(), 512);
+    let updates = solidsynth::cpu::correct::correct(&p, &pack.words, &state, &index);
+    assert_eq!(updates.len(), interior.len() * 8);
     let mut kept = 0;
     for (i, t) in &updates {
         if t[axis] == state[i * stride + axis] {
@@ -70,6 +80,7 @@ fn exact_plane_is_kept(axis: usize) {
         updates.len(),
         "exemplar {axis}: the exact plane match was not kept everywhere"
     );
+    }
 }
 
 fn pack_coord(u: i32, v: i32, w: u32, h: u32) -> u32 {
@@ -139,8 +150,34 @@ mod determinism {
         ] {
             assert_contained(&v, big, &synth(&a, &params, small, None), small);
         }
-        // Chunking (seams at multiples of 7 voxels) changes nothing.
-        assert_eq!(synth(&a, &params, big, Some(7)), v);
+        // Grouping (seams at multiples of 12 voxels) changes nothing.
+        assert_eq!(synth(&a, &params, big, Some(12)), v);
+        // Scattered voxels (sparse bricks, each with its own dependency set) equal the box's.
+        let mut s = Synthesizer::new(&a, params.clone(), &Compute::Cpu).unwrap();
+        let mut rng = solidsynth::util::hash::SeededRng::new(3);
+        let points: Vec<[i32; 3]> = (0..40)
+            .map(|_| {
+                [0, 1, 2].map(|i| big.lo[i] + rng.below((big.hi[i] - big.lo[i]) as u64) as i32)
+            })
+            .collect();
+        let colors = s.sample(&points).unwrap();
+        let stats = s.last_stats().unwrap().clone();
+        for (p, c) in points.iter().zip(&colors) {
+            let want = v.at(
+                (p[0] - big.lo[0]) as u32,
+                (p[1] - big.lo[1]) as u32,
+                (p[2] - big.lo[2]) as u32,
+            );
+            assert_eq!(&c.to_le_bytes()[..want.len()], want, "voxel {p:?}");
+        }
+        // Storage follows the request: scattered points cost less than the box around them.
+        let mut dense = Synthesizer::new(&a, params.clone(), &Compute::Cpu).unwrap();
+        dense.synthesize(big, &|_, _| {}).unwrap();
+        let dense_stats = dense.last_stats().unwrap();
+        assert!(
+            stats.voxels_per_level[3] < dense_stats.voxels_per_level[3],
+            "{stats:?} vs {dense_stats:?}"
+        );
     }
 
     #[test]
@@ -157,7 +194,7 @@ mod determinism {
             ..Default::default()
         };
         let big = Box3::new([30, -20, 0], [46, -6, 12]);
-        let v = synth(&a, &params, big, Some(6));
+        let v = synth(&a, &params, big, Some(8));
         let small = Box3::new([33, -15, 4], [40, -9, 12]);
         assert_contained(&v, big, &synth(&a, &params, small, None), small);
     }
@@ -225,7 +262,7 @@ fn triples_explain_the_colours() {
         &Compute::Cpu,
     )
     .unwrap();
-    s.set_max_chunk_side(5);
+    s.set_max_chunk_side(8);
     let b = Box3::new([-3, 2, 7], [7, 11, 15]);
     let (v, triples) = s.synthesize_with_triples(b, &|_, _| {}).unwrap();
     assert_eq!(triples.len() as u64, b.voxels() * 3);

@@ -3,10 +3,11 @@
 // the voxel's coordinate in it. CPU reference: src/cpu/colorize.rs.
 
 struct ColorizeParams {
-    lo_x: i32, lo_y: i32, lo_z: i32,
-    size_x: u32, size_y: u32, size_z: u32,
-    out_lo_x: i32, out_lo_y: i32, out_lo_z: i32,
-    out_size_x: u32, out_size_y: u32, out_size_z: u32,
+    grid_lo_x: i32, grid_lo_y: i32, grid_lo_z: i32,
+    grid_x: u32, grid_y: u32, grid_z: u32,
+    table_offset: u32,
+    list_offset: u32, list_count: u32, grid_stride: u32,
+    _r0: u32, _r1: u32,
     color_channels: u32, pixel_words: u32,
     source: u32, ex_width: u32,
     pixels0: u32, pixels1: u32, pixels2: u32, _pad: u32,
@@ -16,15 +17,22 @@ struct ColorizeParams {
 // (binding 1: level data, declared by the prelude)
 @group(0) @binding(2) var<storage, read> state: array<u32>;
 @group(0) @binding(3) var<storage, read_write> colors: array<u32>;
+// (binding 4: the level's brick index, declared by the prelude)
 
-@compute @workgroup_size(4, 4, 4)
+@compute @workgroup_size(64)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
-    if (gid.x >= params.out_size_x || gid.y >= params.out_size_y || gid.z >= params.out_size_z) {
+    let tid = gid.x + gid.y * params.grid_stride;
+    if (tid >= params.list_count * 64u) {
         return;
     }
-    let pos = vec3<i32>(params.out_lo_x, params.out_lo_y, params.out_lo_z) + vec3<i32>(gid);
-    let i = box_index(pos, vec3<i32>(params.lo_x, params.lo_y, params.lo_z),
-        vec3<u32>(params.size_x, params.size_y, params.size_z)) * (3u + params.pixel_words);
+    let pos = voxel_of(brick_at(params.list_offset, tid / 64u), tid % 64u);
+    let slot = voxel_index(pos, vec3<i32>(params.grid_lo_x, params.grid_lo_y, params.grid_lo_z),
+        vec3<u32>(params.grid_x, params.grid_y, params.grid_z), params.table_offset);
+    if (slot == ABSENT) {
+        colors[tid] = 0u; // never expected: output bricks are stored
+        return;
+    }
+    let i = slot * (3u + params.pixel_words);
     // Colour channels are the first ones (at most 4: one word).
     var mask = 0xFFFFFFFFu;
     if (params.color_channels < 4u) {
@@ -37,5 +45,5 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         let c = state[i + a];
         word = level[pixels[a] + (u32(coord_y(c)) * params.ex_width + u32(coord_x(c))) * params.pixel_words];
     }
-    colors[(gid.z * params.out_size_y + gid.y) * params.out_size_x + gid.x] = word & mask;
+    colors[tid] = word & mask;
 }

@@ -3,10 +3,11 @@
 // description of each step: src/cpu/correct.rs.
 
 struct CorrectParams {
-    lo_x: i32, lo_y: i32, lo_z: i32,
-    size_x: u32, size_y: u32, size_z: u32,
-    first_x: i32, first_y: i32, first_z: i32,
-    count_x: u32, count_y: u32, count_z: u32,
+    grid_lo_x: i32, grid_lo_y: i32, grid_lo_z: i32,
+    grid_x: u32, grid_y: u32, grid_z: u32,
+    table_offset: u32,
+    list_offset: u32, list_count: u32,
+    class_x: u32, class_y: u32, class_z: u32,
     ex_width: u32, ex_height: u32, channels: u32, pixel_words: u32,
     pca_in: u32, pca_out: u32, shift: u32, proj_words: u32,
     k2d: u32, k3d_used: u32, k3d_stride: u32, border: u32,
@@ -19,7 +20,7 @@ struct CorrectParams {
     cand2d0: u32, cand2d1: u32, cand2d2: u32,
     cand3d0: u32, cand3d1: u32, cand3d2: u32,
     counts0: u32, counts1: u32, counts2: u32,
-    _pad0: u32, _pad1: u32, _pad2: u32, _pad3: u32, _pad4: u32,
+    grid_stride: u32, _pad1: u32, _pad2: u32, _pad3: u32, _pad4: u32,
 }
 
 const MAX_PCA_OUT: u32 = 16u;
@@ -34,28 +35,26 @@ override K2D: u32 = 2u;
 // (binding 1: level data, declared by the prelude)
 @group(0) @binding(2) var<storage, read> state: array<u32>;
 @group(0) @binding(3) var<storage, read_write> next_state: array<u32>;
+// (binding 4: the level's brick index, declared by the prelude)
 
-fn lo() -> vec3<i32> {
-    return vec3<i32>(params.lo_x, params.lo_y, params.lo_z);
-}
-
-fn size() -> vec3<u32> {
-    return vec3<u32>(params.size_x, params.size_y, params.size_z);
+// Index of voxel p in the state (ABSENT when its brick is not stored).
+fn state_index(p: vec3<i32>) -> u32 {
+    return voxel_index(p, vec3<i32>(params.grid_lo_x, params.grid_lo_y, params.grid_lo_z),
+        vec3<u32>(params.grid_x, params.grid_y, params.grid_z), params.table_offset);
 }
 
 fn stride() -> u32 {
     return 3u + params.pixel_words;
 }
 
+// Voxels outside the stored bricks read as zero (only voxels the plan does not need read them).
 fn triple(p: vec3<i32>) -> vec3<u32> {
-    let i = box_index(p, lo(), size()) * stride();
+    let s = state_index(p);
+    if (s == ABSENT) {
+        return vec3<u32>(0u);
+    }
+    let i = s * stride();
     return vec3<u32>(state[i], state[i + 1u], state[i + 2u]);
-}
-
-// Channel `ch` of the cached value of voxel p.
-fn voxel_channel(p: vec3<i32>, ch: u32) -> u32 {
-    let i = box_index(p, lo(), size()) * stride() + 3u + ch / 4u;
-    return (state[i] >> ((ch % 4u) * 8u)) & 0xFFu;
 }
 
 // Unit vector along volume axis `a`.
@@ -75,9 +74,14 @@ fn project_plane(pos: vec3<i32>, a: u32) -> array<i32, MAX_PCA_OUT> {
     var i = 0u;
     for (var dv = -2; dv <= 2; dv++) {
         for (var du = -2; du <= 2; du++) {
-            let n = pos + du * eu + dv * ev;
+            // One brick lookup per neighbour; absent voxels read as zero.
+            let s = state_index(pos + du * eu + dv * ev);
             for (var ch = 0u; ch < CHANNELS; ch++) {
-                let centred = i32(voxel_channel(n, ch)) - bitcast<i32>(level[mean + i]);
+                var byte = 0u;
+                if (s != ABSENT) {
+                    byte = (state[s * stride() + 3u + ch / 4u] >> ((ch % 4u) * 8u)) & 0xFFu;
+                }
+                let centred = i32(byte) - bitcast<i32>(level[mean + i]);
                 for (var j = 0u; j < PCA_OUT; j++) {
                     acc[j] += centred * bitcast<i32>(level[weights + j * params.pca_in + i]);
                 }
@@ -148,15 +152,19 @@ fn rotate(t: vec3<u32>, a: u32) -> vec3<u32> {
     return t;
 }
 
-@compute @workgroup_size(4, 4, 4)
+@compute @workgroup_size(64)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
-    if (gid.x >= params.count_x || gid.y >= params.count_y || gid.z >= params.count_z) {
+    let tid = gid.x + gid.y * params.grid_stride;
+    if (tid >= params.list_count * 8u) {
         return;
     }
     if (CHANNELS != params.channels || PCA_OUT != params.pca_out || K2D != params.k2d) {
         return; // a pipeline built for other constants: leave the voxel unwritten (sentinel shows)
     }
-    let pos = vec3<i32>(params.first_x, params.first_y, params.first_z) + 2 * vec3<i32>(gid);
+    let k = tid % 8u;
+    let cls = vec3<u32>(params.class_x, params.class_y, params.class_z);
+    let pos = brick_at(params.list_offset, tid / 8u) * 4
+        + vec3<i32>(cls + 2u * vec3<u32>(k & 1u, (k >> 1u) & 1u, k >> 2u));
     var q0 = project_plane(pos, 0u);
     var q1 = project_plane(pos, 1u);
     var q2 = project_plane(pos, 2u);
@@ -189,7 +197,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             }
         }
     }
-    let i = box_index(pos, lo(), size()) * stride();
+    let i = state_index(pos) * stride(); // active bricks are stored
     next_state[i] = best.x;
     next_state[i + 1u] = best.y;
     next_state[i + 2u] = best.z;

@@ -2,8 +2,8 @@
 // along x), warped by the jitter field. CPU reference: src/cpu/init.rs and src/lazy/jitter.rs.
 
 struct InitParams {
-    lo_x: i32, lo_y: i32, lo_z: i32,
-    size_x: u32, size_y: u32, size_z: u32,
+    list_offset: u32, list_count: u32, grid_stride: u32,
+    _r0: u32, _r1: u32, _r2: u32,
     ex_width: u32, ex_height: u32, border: u32,
     seed_lo: u32, seed_hi: u32,
     jitter_on: u32,
@@ -24,6 +24,7 @@ const WEIGHT_ENTRIES: i32 = 144;
 // 144 Gaussian weights, then 64 unit directions (xyz, 1/256 units, as i32 bits).
 @group(0) @binding(2) var<storage, read> table: array<u32>;
 @group(0) @binding(3) var<storage, read_write> out_state: array<u32>;
+// (binding 4: the level's brick index, declared by the prelude)
 
 fn cell_hash(c: vec3<i32>) -> u32 {
     var h = hash32(params.seed_lo ^ 0x9E3779B9u);
@@ -70,12 +71,13 @@ fn jitter_offset(p: vec3<i32>) -> vec3<i32> {
     return (disp + vec3<i32>(32768)) >> vec3<u32>(16u);
 }
 
-@compute @workgroup_size(4, 4, 4)
+@compute @workgroup_size(64)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
-    if (gid.x >= params.size_x || gid.y >= params.size_y || gid.z >= params.size_z) {
+    let tid = gid.x + gid.y * params.grid_stride;
+    if (tid >= params.list_count * 64u) {
         return;
     }
-    let pos = vec3<i32>(params.lo_x, params.lo_y, params.lo_z) + vec3<i32>(gid);
+    let pos = voxel_of(brick_at(params.list_offset, tid / 64u), tid % 64u);
     var warp = vec3<i32>(0);
     if (params.jitter_on != 0u) {
         warp = jitter_offset(pos);
@@ -98,7 +100,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         pack_resolved(coord_x(c2) + depth, coord_y(c2), w, h, params.border),
     );
     let stride = 3u + params.pixel_words;
-    let i = ((gid.z * params.size_y + gid.y) * params.size_x + gid.x) * stride;
+    let i = tid * stride;
     out_state[i] = t.x;
     out_state[i + 1u] = t.y;
     out_state[i + 2u] = t.z;

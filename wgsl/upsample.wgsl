@@ -2,36 +2,43 @@
 // along axis a+1, offset along axis a+2). CPU reference: src/cpu/upsample.rs.
 
 struct UpsampleParams {
-    parent_lo_x: i32, parent_lo_y: i32, parent_lo_z: i32,
-    parent_size_x: u32, parent_size_y: u32, parent_size_z: u32,
-    child_lo_x: i32, child_lo_y: i32, child_lo_z: i32,
-    child_size_x: u32, child_size_y: u32, child_size_z: u32,
+    parent_grid_lo_x: i32, parent_grid_lo_y: i32, parent_grid_lo_z: i32,
+    parent_grid_x: u32, parent_grid_y: u32, parent_grid_z: u32,
+    parent_table: u32,
+    list_offset: u32, list_count: u32, grid_stride: u32,
     ex_width: u32, ex_height: u32, border: u32,
     channels: u32, pixel_words: u32, pixels0: u32, pixels1: u32, pixels2: u32,
+    _r0: u32, _r1: u32,
 }
 
 @group(0) @binding(0) var<uniform> params: UpsampleParams;
 // (binding 1: the child level's data, declared by the prelude)
 @group(0) @binding(2) var<storage, read> parent: array<u32>;
 @group(0) @binding(3) var<storage, read_write> child: array<u32>;
+// (binding 4: the child level's brick index, with a copy of the parent's table)
 
-@compute @workgroup_size(4, 4, 4)
+@compute @workgroup_size(64)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
-    if (gid.x >= params.child_size_x || gid.y >= params.child_size_y || gid.z >= params.child_size_z) {
+    let tid = gid.x + gid.y * params.grid_stride;
+    if (tid >= params.list_count * 64u) {
         return;
     }
-    let c = vec3<i32>(params.child_lo_x, params.child_lo_y, params.child_lo_z) + vec3<i32>(gid);
+    let c = voxel_of(brick_at(params.list_offset, tid / 64u), tid % 64u);
     let par = c >> vec3<u32>(1u);
     let o = c - 2 * par;
-    let plo = vec3<i32>(params.parent_lo_x, params.parent_lo_y, params.parent_lo_z);
-    let psize = vec3<u32>(params.parent_size_x, params.parent_size_y, params.parent_size_z);
+    let plo = vec3<i32>(params.parent_grid_lo_x, params.parent_grid_lo_y, params.parent_grid_lo_z);
+    let pdims = vec3<u32>(params.parent_grid_x, params.parent_grid_y, params.parent_grid_z);
     let stride = 3u + params.pixel_words;
-    let pi = box_index(par, plo, psize) * stride;
+    // The plan stores every parent; a missing one (never expected) reads as coordinate 0.
+    let pslot = voxel_index(par, plo, pdims, params.parent_table);
     var offsets = array<vec2<i32>, 3>(vec2<i32>(o.y, o.z), vec2<i32>(o.z, o.x), vec2<i32>(o.x, o.y));
-    let ci = ((gid.z * params.child_size_y + gid.y) * params.child_size_x + gid.x) * stride;
+    let ci = tid * stride;
     var t: vec3<u32>;
     for (var a = 0u; a < 3u; a++) {
-        let pc = parent[pi + a];
+        var pc = 0u;
+        if (pslot != ABSENT) {
+            pc = parent[pslot * stride + a];
+        }
         t[a] = pack_resolved(
             2 * coord_x(pc) + offsets[a].x,
             2 * coord_y(pc) + offsets[a].y,

@@ -344,6 +344,7 @@ fn run_box(args: &SolidArgs, region: Box3, quiet: bool) -> anyhow::Result<()> {
                 "peak_rss_bytes": solidsynth::util::memory::peak_rss_bytes(),
                 "backend": compute.describe(),
                 "kernels": kernels,
+                "stats": synth.last_stats(),
             })
         );
     } else if !quiet {
@@ -352,6 +353,13 @@ fn run_box(args: &SolidArgs, region: Box3, quiet: bool) -> anyhow::Result<()> {
                 "  kernel {k:<9} {:>8.3} s in {} calls",
                 v["seconds"].as_f64().unwrap_or(0.0),
                 v["calls"]
+            );
+        }
+        if let Some(st) = synth.last_stats() {
+            eprintln!(
+                "  voxels synthesized per level (coarsest first): {:?}; peak state {:.1} MiB",
+                st.voxels_per_level,
+                st.peak_state_bytes as f64 / (1 << 20) as f64
             );
         }
         let d = region.size();

@@ -2,30 +2,31 @@
 //! one u32: its cached value (the rounded mean of its three exemplar pixels), or, on request, the
 //! pixel of one exemplar at the voxel's coordinate in it.
 
-use super::synth_common::box_index;
+use super::synth_common::{brick_at, voxel_index};
+use crate::lazy::bricks::voxel_of;
 use crate::kernel_types::ColorizeParams;
 use rayon::prelude::*;
 
-pub fn colorize(p: &ColorizeParams, level: &[u32], state: &[u32]) -> Vec<u32> {
-    let (sx, sy, sz) = (
-        p.out_size_x as usize,
-        p.out_size_y as usize,
-        p.out_size_z as usize,
-    );
-    let lo = [p.lo_x, p.lo_y, p.lo_z];
-    let size = [p.size_x, p.size_y, p.size_z];
+/// Colours of the bricks of the list in `p`: 64 per brick (x fastest), list order.
+pub fn colorize(p: &ColorizeParams, level: &[u32], state: &[u32], bricks: &[u32]) -> Vec<u32> {
+    let lo = [p.grid_lo_x, p.grid_lo_y, p.grid_lo_z];
+    let dims = [p.grid_x, p.grid_y, p.grid_z];
     let stride = 3 + p.pixel_words as usize;
     let mask = if p.color_channels < 4 {
         (1u32 << (p.color_channels * 8)) - 1
     } else {
         u32::MAX
     };
-    let mut out = vec![0u32; sx * sy * sz];
-    out.par_chunks_mut(sx).enumerate().for_each(|(row, dst)| {
-        let (y, z) = ((row % sy) as i32, (row / sy) as i32);
-        for (x, word) in dst.iter_mut().enumerate() {
-            let pos = [p.out_lo_x + x as i32, p.out_lo_y + y, p.out_lo_z + z];
-            let i = box_index(pos, lo, size) * stride;
+    let mut out = vec![0u32; p.list_count as usize * 64];
+    out.par_chunks_mut(64).enumerate().for_each(|(b, dst)| {
+        let brick = brick_at(bricks, p.list_offset, b as u32);
+        for (local, word) in dst.iter_mut().enumerate() {
+            let pos = voxel_of(brick, local as u32);
+            let Some(slot) = voxel_index(bricks, pos, lo, dims, p.table_offset) else {
+                *word = 0; // never expected: output bricks are stored
+                continue;
+            };
+            let i = slot * stride;
             let value = if p.source == 0 {
                 state[i + 3]
             } else {

@@ -18,7 +18,7 @@
 //! Reads come from `state`; results are returned, not written in place, so a sub-pass never reads
 //! a value it produced (the GPU ping-pongs two buffers for the same reason).
 
-use super::synth_common::{box_index, coord, pack_resolved, write_voxel};
+use super::synth_common::{brick_at, coord, pack_resolved, voxel_index, write_voxel};
 use crate::analysis::frame::rotate_from_shared;
 use crate::kernel_types::CorrectParams;
 use rayon::prelude::*;
@@ -32,8 +32,10 @@ struct Ctx<'a> {
     /// The level data as bytes (little-endian words), for reading projections directly.
     level_bytes: &'a [u8],
     state: &'a [u32],
-    lo: [i32; 3],
-    size: [u32; 3],
+    /// The level's brick index.
+    bricks: &'a [u32],
+    grid_lo: [i32; 3],
+    grid_dims: [u32; 3],
     /// Per exemplar: the PCA weights transposed to input-major (input_dims x MAX_PCA_OUT, zero
     /// padded) and the mean, so the inner loop is contiguous. Integer sums do not depend on the
     /// order of accumulation, so the results equal the shader's bit for bit.
@@ -46,15 +48,24 @@ impl Ctx<'_> {
         3 + self.p.pixel_words as usize
     }
 
-    fn triple(&self, pos: [i32; 3]) -> [u32; 3] {
-        let i = box_index(pos, self.lo, self.size) * self.stride();
-        [self.state[i], self.state[i + 1], self.state[i + 2]]
+    fn state_index(&self, pos: [i32; 3]) -> Option<usize> {
+        voxel_index(
+            self.bricks,
+            pos,
+            self.grid_lo,
+            self.grid_dims,
+            self.p.table_offset,
+        )
     }
 
-    /// Channel `ch` of the cached value of voxel `pos`.
-    fn voxel_channel(&self, pos: [i32; 3], ch: u32) -> u32 {
-        let i = box_index(pos, self.lo, self.size) * self.stride() + 3 + ch as usize / 4;
-        (self.state[i] >> ((ch % 4) * 8)) & 0xFF
+    /// Voxels outside the stored bricks read as zero (only voxels the plan does not need read
+    /// them).
+    fn triple(&self, pos: [i32; 3]) -> [u32; 3] {
+        let Some(s) = self.state_index(pos) else {
+            return [0; 3];
+        };
+        let i = s * self.stride();
+        [self.state[i], self.state[i + 1], self.state[i + 2]]
     }
 
     /// Projection of the plane of exemplar `a` through voxel `pos`.
@@ -69,8 +80,13 @@ impl Ctx<'_> {
                 let mut n = pos;
                 n[ua] += du;
                 n[va] += dv;
+                // One brick lookup per neighbour; absent voxels read as zero.
+                let value = self.state_index(n).map(|s| s * self.stride() + 3);
                 for ch in 0..p.channels {
-                    let centred = self.voxel_channel(n, ch) as i32 - mean[i];
+                    let byte = value.map_or(0, |v| {
+                        (self.state[v + ch as usize / 4] >> ((ch % 4) * 8)) & 0xFF
+                    });
+                    let centred = byte as i32 - mean[i];
                     let row: &[i32; MAX_PCA_OUT] = wt[i * MAX_PCA_OUT..(i + 1) * MAX_PCA_OUT]
                         .try_into()
                         .unwrap();
@@ -186,8 +202,14 @@ impl Ctx<'_> {
     }
 }
 
-/// Run one sub-pass: returns (box-local index, new triple) for every voxel of the class.
-pub fn correct(p: &CorrectParams, level: &[u32], state: &[u32]) -> Vec<(usize, [u32; 3])> {
+/// Run one sub-pass: returns (state index, new triple) for every voxel of the class in the
+/// bricks of the list in `p`.
+pub fn correct(
+    p: &CorrectParams,
+    level: &[u32],
+    state: &[u32],
+    bricks: &[u32],
+) -> Vec<(usize, [u32; 3])> {
     let transpose = |a: usize| {
         let (w0, m0) = (
             [p.weights0, p.weights1, p.weights2][a] as usize,
@@ -218,19 +240,23 @@ pub fn correct(p: &CorrectParams, level: &[u32], state: &[u32]) -> Vec<(usize, [
         weights_t: [t0, t1, t2],
         means: [m0, m1, m2],
         state,
-        lo: [p.lo_x, p.lo_y, p.lo_z],
-        size: [p.size_x, p.size_y, p.size_z],
+        bricks,
+        grid_lo: [p.grid_lo_x, p.grid_lo_y, p.grid_lo_z],
+        grid_dims: [p.grid_x, p.grid_y, p.grid_z],
     };
-    let (cx, cy, cz) = (p.count_x as usize, p.count_y as usize, p.count_z as usize);
-    (0..cx * cy * cz)
+    let class = [p.class_x as i32, p.class_y as i32, p.class_z as i32];
+    (0..p.list_count * 8)
         .into_par_iter()
-        .map(|i| {
+        .map(|t| {
+            let b = brick_at(bricks, p.list_offset, t / 8);
+            let k = (t % 8) as i32;
             let pos = [
-                p.first_x + 2 * (i % cx) as i32,
-                p.first_y + 2 * ((i / cx) % cy) as i32,
-                p.first_z + 2 * (i / (cx * cy)) as i32,
+                b[0] * 4 + class[0] + 2 * (k & 1),
+                b[1] * 4 + class[1] + 2 * ((k >> 1) & 1),
+                b[2] * 4 + class[2] + 2 * (k >> 2),
             ];
-            (box_index(pos, ctx.lo, ctx.size), ctx.correct_voxel(pos))
+            let index = ctx.state_index(pos).expect("active bricks are stored");
+            (index, ctx.correct_voxel(pos))
         })
         .collect()
 }

@@ -1,27 +1,28 @@
 //! CPU reference of `wgsl/init.wgsl`: the l_start level as a tiling of exemplar 0's candidate slab
 //! (5 voxels thick along x), warped by the jitter field.
 
-use super::synth_common::{coord, pack_resolved, write_voxel};
+use super::synth_common::{brick_at, coord, pack_resolved, write_voxel};
+use crate::lazy::bricks::voxel_of;
 use crate::analysis::frame::pack;
 use crate::kernel_types::InitParams;
 use crate::lazy::jitter;
 use crate::util::hash::hash32;
 use rayon::prelude::*;
 
-/// The state (triple and value per voxel, x fastest) of the box in `p`.
-pub fn init(p: &InitParams, table: &[u32], level: &[u32]) -> Vec<u32> {
-    let (sx, sy, sz) = (p.size_x as usize, p.size_y as usize, p.size_z as usize);
+/// The state (triple and value per voxel, 64 voxels per brick in list order) of the bricks of
+/// the list in `p` (brick index `bricks`).
+pub fn init(p: &InitParams, table: &[u32], level: &[u32], bricks: &[u32]) -> Vec<u32> {
     let stride = 3 + p.pixel_words as usize;
     let pixels = [p.pixels0, p.pixels1, p.pixels2];
-    let mut out = vec![0u32; sx * sy * sz * stride];
-    out.par_chunks_mut(sx * stride)
+    let mut out = vec![0u32; p.list_count as usize * 64 * stride];
+    out.par_chunks_mut(64 * stride)
         .enumerate()
-        .for_each(|(row, dst)| {
-            let (y, z) = ((row % sy) as i32, (row / sy) as i32);
-            for x in 0..sx {
-                let pos = [p.lo_x + x as i32, p.lo_y + y, p.lo_z + z];
+        .for_each(|(slot, dst)| {
+            let brick = brick_at(bricks, p.list_offset, slot as u32);
+            for local in 0..64usize {
+                let pos = voxel_of(brick, local as u32);
                 let t = init_voxel(p, table, level, pos);
-                let voxel = &mut dst[x * stride..(x + 1) * stride];
+                let voxel = &mut dst[local * stride..(local + 1) * stride];
                 write_voxel(
                     voxel,
                     level,

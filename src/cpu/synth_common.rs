@@ -30,11 +30,32 @@ pub fn coord(c: u32) -> (i32, i32) {
     (x as i32, y as i32)
 }
 
-/// Box-local index of absolute voxel `p` in a box at `lo` of `size`.
+/// Brick `i` of the list starting at word `list` of a brick index (`brick_at` in WGSL).
 #[inline]
-pub fn box_index(p: [i32; 3], lo: [i32; 3], size: [u32; 3]) -> usize {
-    ((((p[2] - lo[2]) as u32 * size[1]) + (p[1] - lo[1]) as u32) * size[0] + (p[0] - lo[0]) as u32)
-        as usize
+pub fn brick_at(bricks: &[u32], list: u32, i: u32) -> [i32; 3] {
+    let e = (list + 3 * i) as usize;
+    [bricks[e] as i32, bricks[e + 1] as i32, bricks[e + 2] as i32]
+}
+
+/// Index of voxel `p` in a state whose brick table (over the bricks `grid_lo + [0, dims)`)
+/// starts at word `table`; None when its brick is not stored (`voxel_index` in WGSL).
+#[inline]
+pub fn voxel_index(
+    bricks: &[u32],
+    p: [i32; 3],
+    grid_lo: [i32; 3],
+    dims: [u32; 3],
+    table: u32,
+) -> Option<usize> {
+    let d = [0, 1, 2].map(|i| (p[i] >> 2) - grid_lo[i]);
+    if (0..3).any(|i| d[i] < 0 || d[i] as u32 >= dims[i]) {
+        return None;
+    }
+    let cell = (d[2] as u32 * dims[1] + d[1] as u32) * dims[0] + d[0] as u32;
+    let slot = bricks[(table + cell) as usize];
+    (slot != crate::lazy::bricks::ABSENT).then(|| {
+        slot as usize * 64 + crate::lazy::bricks::local_index(p) as usize
+    })
 }
 
 /// Byte `ch` of an exemplar pixel stored `pixel_words` words per pixel at word `base`.

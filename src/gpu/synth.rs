@@ -35,8 +35,10 @@ fn entries<'a>(buffers: &[(u32, &'a wgpu::Buffer)]) -> Vec<wgpu::BindGroupEntry<
         .collect()
 }
 
-fn groups(n: [u32; 3]) -> (u32, u32, u32) {
-    (n[0].div_ceil(4), n[1].div_ceil(4), n[2].div_ceil(4))
+/// Workgroups for `threads` threads of a 64-wide kernel (the params carry the grid stride).
+fn groups(threads: u64) -> (u32, u32, u32) {
+    let (x, y, _) = super::context::dispatch_grid(threads as u32);
+    (x, y, 1)
 }
 
 impl GpuSynth {
@@ -112,18 +114,27 @@ impl GpuSynth {
         })
     }
 
-    /// Run a kernel that fills a fresh state of `size` voxels: uniform at binding 0, level data at
-    /// 1, `input` at 2, the new state at 3 (the layout of `init` and `upsample`).
+    /// A brick index (tables and brick lists) on the device.
+    pub fn upload_index(&self, words: &[u32]) -> wgpu::Buffer {
+        self.ctx
+            .storage_buffer("brick index", bytemuck::cast_slice(words))
+    }
+
+    /// Run a kernel that fills a fresh state of `bricks` bricks: uniform at binding 0, level data
+    /// at 1, `input` at 2, the new state at 3, the brick index at 4 (`init` and `upsample`).
+    #[allow(clippy::too_many_arguments)]
     fn fill_state<T: bytemuck::Pod>(
         &self,
         kernel: &'static str,
         params: &T,
         level: usize,
         input: &wgpu::Buffer,
-        size: [u32; 3],
+        index: &wgpu::Buffer,
+        bricks: u32,
         pixel_words: u32,
     ) -> Result<GpuState> {
-        let words = size.iter().map(|&s| s as u64).product::<u64>() * (3 + pixel_words as u64);
+        let voxels = bricks as u64 * 64;
+        let words = voxels * (3 + pixel_words as u64);
         let out = self.state_buffer(words);
         let uniform = self.ctx.uniform_buffer(kernel, params);
         let buffers = [
@@ -131,8 +142,9 @@ impl GpuSynth {
             (1, &self.levels[level]),
             (2, input),
             (3, &out),
+            (4, index),
         ];
-        self.run(kernel, &[], &buffers, groups(size), None)?;
+        self.run(kernel, &[], &buffers, groups(voxels), None)?;
         Ok(GpuState {
             current: out,
             scratch: None,
@@ -140,13 +152,14 @@ impl GpuSynth {
         })
     }
 
-    pub fn init(&mut self, level: usize, p: &InitParams) -> Result<GpuState> {
+    pub fn init(&mut self, level: usize, p: &InitParams, index: &wgpu::Buffer) -> Result<GpuState> {
         self.fill_state(
             "init",
             p,
             level,
             &self.table,
-            [p.size_x, p.size_y, p.size_z],
+            index,
+            p.list_count,
             p.pixel_words,
         )
     }
@@ -157,12 +170,26 @@ impl GpuSynth {
         level: usize,
         p: &UpsampleParams,
         parent: GpuState,
+        index: &wgpu::Buffer,
     ) -> Result<GpuState> {
-        let size = [p.child_size_x, p.child_size_y, p.child_size_z];
-        self.fill_state("upsample", p, level, &parent.current, size, p.pixel_words)
+        self.fill_state(
+            "upsample",
+            p,
+            level,
+            &parent.current,
+            index,
+            p.list_count,
+            p.pixel_words,
+        )
     }
 
-    pub fn correct(&mut self, level: usize, p: &CorrectParams, s: &mut GpuState) -> Result<()> {
+    pub fn correct(
+        &mut self,
+        level: usize,
+        p: &CorrectParams,
+        s: &mut GpuState,
+        index: &wgpu::Buffer,
+    ) -> Result<()> {
         let bytes = s.words * 4;
         if s.scratch.is_none() {
             let scratch = self.state_buffer(s.words);
@@ -193,14 +220,21 @@ impl GpuSynth {
                 (1, &self.levels[level]),
                 (2, &s.current),
                 (3, scratch),
+                (4, index),
             ],
-            groups([p.count_x, p.count_y, p.count_z]),
+            groups(p.list_count as u64 * 8),
             Some((scratch, &s.current, bytes)),
         )
     }
 
-    pub fn colorize(&mut self, level: usize, p: &ColorizeParams, s: &GpuState) -> Result<Vec<u32>> {
-        let n = p.out_size_x as usize * p.out_size_y as usize * p.out_size_z as usize;
+    pub fn colorize(
+        &mut self,
+        level: usize,
+        p: &ColorizeParams,
+        s: &GpuState,
+        index: &wgpu::Buffer,
+    ) -> Result<Vec<u32>> {
+        let n = p.list_count as usize * 64;
         let out = self.ctx.output_buffer("colours", n, SENTINEL);
         let uniform = self.ctx.uniform_buffer("colorize params", p);
         self.run(
@@ -211,8 +245,9 @@ impl GpuSynth {
                 (1, &self.levels[level]),
                 (2, &s.current),
                 (3, &out),
+                (4, index),
             ],
-            groups([p.out_size_x, p.out_size_y, p.out_size_z]),
+            groups(n as u64),
             None,
         )?;
         self.ctx.read_words(&out, n)

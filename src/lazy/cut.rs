@@ -6,11 +6,11 @@
 //! the normal is along y); u = v x n; pixel (column i, row j) samples
 //! origin + (i + 0.5 - N/2) s u + (j + 0.5 - N/2) s v, row 0 first.
 //!
-//! [`CutSession`] keeps a [`Synthesizer`] warm (pipelines, level data) for interactive use. This
-//! version synthesizes the bounding box of the sampled voxels (exact, and cheap for axis-aligned
-//! cuts); the sparse masks of the paper's 5.2, which make oblique cuts cheap too, are future work.
+//! [`CutSession`] keeps a [`Synthesizer`] warm (pipelines, level data) for interactive use. Only
+//! the bricks holding sampled voxels are requested ([`Synthesizer::synthesize_bricks`]), so an
+//! oblique cut costs about what an axis-aligned one does.
 
-use super::{Box3, Synthesizer};
+use super::{bricks, Synthesizer};
 use crate::error::{Error, Result};
 use crate::exemplar::Image;
 use glam::DVec3;
@@ -114,22 +114,19 @@ impl CutSession {
     /// The cut image (colour channels of the solid).
     pub fn cut(&mut self, spec: &CutSpec) -> Result<Image> {
         let voxels = spec.voxels()?;
-        let mut b = Box3::new(voxels[0], voxels[0].map(|c| c + 1));
-        for p in &voxels {
-            b = b.hull(&Box3::new(*p, p.map(|c| c + 1)));
-        }
-        let volume = self.synth.synthesize(b, &|_, _| {})?;
-        let channels = volume.channels;
-        let mut img = Image::new(spec.size, spec.size, channels);
-        for (k, p) in voxels.iter().enumerate() {
-            let v = volume.at(
-                (p[0] - b.lo[0]) as u32,
-                (p[1] - b.lo[1]) as u32,
-                (p[2] - b.lo[2]) as u32,
-            );
-            img.pixels[k * channels as usize..(k + 1) * channels as usize].copy_from_slice(v);
+        let samples = self.synth.sample(&voxels)?;
+        let channels = self.synth.color_channels() as usize;
+        let mut img = Image::new(spec.size, spec.size, channels as u32);
+        for (k, word) in samples.iter().enumerate() {
+            img.pixels[k * channels..(k + 1) * channels]
+                .copy_from_slice(&word.to_le_bytes()[..channels]);
         }
         Ok(img)
+    }
+
+    /// The synthesizer (e.g. for its statistics).
+    pub fn synthesizer(&self) -> &Synthesizer {
+        &self.synth
     }
 }
 

@@ -7,6 +7,27 @@ use crate::error::Result;
 use crate::gpu::synth::GpuSynth;
 use crate::kernel_types::{ColorizeParams, CorrectParams, InitParams, UpsampleParams};
 
+/// A level's brick index (tables and brick lists, `lazy::bricks`) on the backend.
+pub enum IndexBuf {
+    Cpu(Vec<u32>),
+    Gpu(wgpu::Buffer),
+}
+
+impl IndexBuf {
+    fn cpu(&self) -> &[u32] {
+        match self {
+            IndexBuf::Cpu(v) => v,
+            IndexBuf::Gpu(_) => unreachable!("index from another backend"),
+        }
+    }
+    fn gpu(&self) -> &wgpu::Buffer {
+        match self {
+            IndexBuf::Gpu(b) => b,
+            IndexBuf::Cpu(_) => unreachable!("index from another backend"),
+        }
+    }
+}
+
 /// A level's triples on the backend.
 pub enum State {
     Cpu(Vec<u32>),
@@ -49,34 +70,58 @@ impl Executor {
         }
     }
 
-    pub fn init(&mut self, level: usize, p: &InitParams) -> Result<State> {
+    pub fn upload_index(&self, words: Vec<u32>) -> IndexBuf {
         match self {
-            Executor::Cpu { levels, table } => {
-                Ok(State::Cpu(crate::cpu::init::init(p, table, &levels[level])))
-            }
-            Executor::Gpu(g) => Ok(State::Gpu(g.init(level, p)?)),
+            Executor::Cpu { .. } => IndexBuf::Cpu(words),
+            Executor::Gpu(g) => IndexBuf::Gpu(g.upload_index(&words)),
         }
     }
 
-    /// `level` is the child level.
-    pub fn upsample(&mut self, level: usize, p: &UpsampleParams, parent: State) -> Result<State> {
+    pub fn init(&mut self, level: usize, p: &InitParams, index: &IndexBuf) -> Result<State> {
+        match self {
+            Executor::Cpu { levels, table } => Ok(State::Cpu(crate::cpu::init::init(
+                p,
+                table,
+                &levels[level],
+                index.cpu(),
+            ))),
+            Executor::Gpu(g) => Ok(State::Gpu(g.init(level, p, index.gpu())?)),
+        }
+    }
+
+    /// `level` is the child level, `index` its brick index.
+    pub fn upsample(
+        &mut self,
+        level: usize,
+        p: &UpsampleParams,
+        parent: State,
+        index: &IndexBuf,
+    ) -> Result<State> {
         match (self, parent) {
             (Executor::Cpu { levels, .. }, State::Cpu(v)) => Ok(State::Cpu(
-                crate::cpu::upsample::upsample(p, &levels[level], &v),
+                crate::cpu::upsample::upsample(p, &levels[level], &v, index.cpu()),
             )),
-            (Executor::Gpu(g), State::Gpu(s)) => Ok(State::Gpu(g.upsample(level, p, s)?)),
+            (Executor::Gpu(g), State::Gpu(s)) => {
+                Ok(State::Gpu(g.upsample(level, p, s, index.gpu())?))
+            }
             _ => unreachable!("state from another backend"),
         }
     }
 
-    pub fn correct(&mut self, level: usize, p: &CorrectParams, state: &mut State) -> Result<()> {
+    pub fn correct(
+        &mut self,
+        level: usize,
+        p: &CorrectParams,
+        state: &mut State,
+        index: &IndexBuf,
+    ) -> Result<()> {
         match (self, state) {
             (Executor::Cpu { levels, .. }, State::Cpu(v)) => {
-                let updates = crate::cpu::correct::correct(p, &levels[level], v);
+                let updates = crate::cpu::correct::correct(p, &levels[level], v, index.cpu());
                 crate::cpu::correct::apply(p, &levels[level], v, &updates);
                 Ok(())
             }
-            (Executor::Gpu(g), State::Gpu(s)) => g.correct(level, p, s),
+            (Executor::Gpu(g), State::Gpu(s)) => g.correct(level, p, s, index.gpu()),
             _ => unreachable!("state from another backend"),
         }
     }
@@ -86,12 +131,16 @@ impl Executor {
         level: usize,
         p: &ColorizeParams,
         state: &State,
+        index: &IndexBuf,
     ) -> Result<Vec<u32>> {
         match (self, state) {
-            (Executor::Cpu { levels, .. }, State::Cpu(v)) => {
-                Ok(crate::cpu::colorize::colorize(p, &levels[level], v))
-            }
-            (Executor::Gpu(g), State::Gpu(s)) => g.colorize(level, p, s),
+            (Executor::Cpu { levels, .. }, State::Cpu(v)) => Ok(crate::cpu::colorize::colorize(
+                p,
+                &levels[level],
+                v,
+                index.cpu(),
+            )),
+            (Executor::Gpu(g), State::Gpu(s)) => g.colorize(level, p, s, index.gpu()),
             _ => unreachable!("state from another backend"),
         }
     }

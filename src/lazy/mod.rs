@@ -8,6 +8,7 @@
 //! average exemplar colours (kernel `colorize`). Large boxes are split into chunks, each
 //! synthesized independently: determinism makes the seams invisible by construction.
 
+pub mod bricks;
 pub mod cut;
 pub mod exec;
 pub mod jitter;
@@ -21,6 +22,7 @@ use crate::kernel_types::{ColorizeParams, CorrectParams, InitParams, UpsamplePar
 use crate::util::hash::hash32;
 use crate::volume::Volume;
 use pack::LevelPack;
+pub use bricks::{Brick, BrickGrid, SparseLevel};
 pub use plan::Box3;
 
 /// Order of the parity classes (bit 0 = x, 1 = y, 2 = z) within a pass. Chosen (exhaustively,
@@ -109,6 +111,7 @@ pub struct Synthesizer {
     max_chunk_side: Option<u32>,
     /// Per-kernel times when profiling (each kernel then waits for the device).
     times: Option<exec::KernelTimes>,
+    last_stats: Option<SynthStats>,
 }
 
 impl Synthesizer {
@@ -127,6 +130,7 @@ impl Synthesizer {
             exec,
             max_chunk_side: None,
             times: None,
+            last_stats: None,
         })
     }
 
@@ -165,43 +169,99 @@ impl Synthesizer {
         want_triples: bool,
     ) -> Result<(Volume, Vec<u32>)> {
         let size = out.size();
-        let mut triples = if want_triples {
-            vec![0u32; out.voxels() as usize * 3]
+        let result = self.synthesize_bricks(&bricks::bricks_of_box(out), progress, want_triples)?;
+        let channels = self.color_channels() as usize;
+        let mut volume = Volume::new(size[0], size[1], size[2], channels as u32);
+        let mut triples = Vec::with_capacity(if want_triples {
+            out.voxels() as usize * 3
         } else {
-            Vec::new()
-        };
-        let channels = self.color_channels();
-        let mut volume = Volume::new(size[0], size[1], size[2], channels);
-        let chunks = self.chunks(out);
-        for (i, chunk) in chunks.iter().enumerate() {
-            let base = i as f32 / chunks.len() as f32;
-            let scale = 1.0 / chunks.len() as f32;
-            let (colors, chunk_triples) =
-                self.synthesize_chunk(*chunk, &|m, f| progress(m, base + scale * f), want_triples)?;
-            let cs = chunk.size();
-            for z in 0..cs[2] {
-                for y in 0..cs[1] {
-                    for x in 0..cs[0] {
-                        let word = colors[((z * cs[1] + y) * cs[0] + x) as usize].to_le_bytes();
-                        let (vx, vy, vz) = (
-                            (chunk.lo[0] - out.lo[0]) as u32 + x,
-                            (chunk.lo[1] - out.lo[1]) as u32 + y,
-                            (chunk.lo[2] - out.lo[2]) as u32 + z,
-                        );
-                        volume
-                            .at_mut(vx, vy, vz)
-                            .copy_from_slice(&word[..channels as usize]);
-                        if want_triples {
-                            let src = ((z * cs[1] + y) * cs[0] + x) as usize * 3;
-                            let dst = ((vz * size[1] + vy) * size[0] + vx) as usize * 3;
-                            triples[dst..dst + 3].copy_from_slice(&chunk_triples[src..src + 3]);
-                        }
+            0
+        });
+        for z in out.lo[2]..out.hi[2] {
+            for y in out.lo[1]..out.hi[1] {
+                for x in out.lo[0]..out.hi[0] {
+                    let i = result.index([x, y, z]).expect("requested voxel");
+                    let word = result.colors[i].to_le_bytes();
+                    let (vx, vy, vz) = (
+                        (x - out.lo[0]) as u32,
+                        (y - out.lo[1]) as u32,
+                        (z - out.lo[2]) as u32,
+                    );
+                    volume
+                        .at_mut(vx, vy, vz)
+                        .copy_from_slice(&word[..channels]);
+                    if want_triples {
+                        triples.extend_from_slice(&result.triples[i * 3..i * 3 + 3]);
                     }
                 }
             }
         }
-        progress("done", 1.0);
         Ok((volume, triples))
+    }
+
+    /// Synthesize every voxel of the finest-level bricks `requested` (4^3 voxels each, see
+    /// [`bricks`]), computing only what they depend on. Large requests are split into groups of
+    /// nearby bricks, each synthesized independently (determinism makes that invisible).
+    pub fn synthesize_bricks(
+        &mut self,
+        requested: &[Brick],
+        progress: Progress,
+        want_triples: bool,
+    ) -> Result<BrickColors> {
+        let mut all = requested.to_vec();
+        bricks::normalize(&mut all);
+        let grid = BrickGrid::new(&all);
+        let mut colors = vec![0u32; all.len() * 64];
+        let mut triples = vec![0u32; if want_triples { all.len() * 64 * 3 } else { 0 }];
+        let groups = self.groups(&all);
+        let mut stats = SynthStats {
+            voxels_per_level: vec![0; ANALYSED_LEVELS],
+            peak_state_bytes: 0,
+            groups: groups.len(),
+        };
+        for (g, group) in groups.iter().enumerate() {
+            let base = g as f32 / groups.len() as f32;
+            let scale = 1.0 / groups.len() as f32;
+            let (c, t) = self.synthesize_group(
+                group,
+                &|m, f| progress(m, base + scale * f),
+                want_triples,
+                &mut stats,
+            )?;
+            for (j, b) in group.iter().enumerate() {
+                let slot = grid.slot(*b).expect("requested brick") as usize;
+                colors[slot * 64..(slot + 1) * 64].copy_from_slice(&c[j * 64..(j + 1) * 64]);
+                if want_triples {
+                    triples[slot * 192..(slot + 1) * 192]
+                        .copy_from_slice(&t[j * 192..(j + 1) * 192]);
+                }
+            }
+        }
+        progress("done", 1.0);
+        self.last_stats = Some(stats);
+        Ok(BrickColors {
+            bricks: all,
+            grid,
+            colors,
+            triples,
+        })
+    }
+
+    /// The packed colours of arbitrary voxels (any order, repeats allowed): only the bricks
+    /// holding them are synthesized.
+    pub fn sample(&mut self, voxels: &[[i32; 3]]) -> Result<Vec<u32>> {
+        let mut wanted: Vec<Brick> = voxels.iter().map(|p| bricks::brick_of(*p)).collect();
+        bricks::normalize(&mut wanted);
+        let result = self.synthesize_bricks(&wanted, &|_, _| {}, false)?;
+        Ok(voxels
+            .iter()
+            .map(|p| result.color(*p).expect("requested voxel"))
+            .collect())
+    }
+
+    /// Voxels synthesized per level and peak state memory of the last synthesis.
+    pub fn last_stats(&self) -> Option<&SynthStats> {
+        self.last_stats.as_ref()
     }
 
     /// Time every kernel (waiting for the device after each, so totals grow slightly).
@@ -214,59 +274,71 @@ impl Synthesizer {
         self.times.as_ref()
     }
 
-    /// Cap the chunk edge (the result is the same whatever the chunking; tests prove it).
+    /// Cap the group edge in voxels, rounded down to whole bricks (at least one); the result is
+    /// the same whatever the grouping (tests prove it).
     pub fn set_max_chunk_side(&mut self, side: u32) {
         self.max_chunk_side = Some(side.max(1));
     }
 
-    /// Split `out` into cubes whose finest-level working set fits the backend's limit.
-    fn chunks(&self, out: Box3) -> Vec<Box3> {
+    /// Split sorted bricks into groups (cubes of bricks) whose working set fits the backend.
+    fn groups(&self, all: &[Brick]) -> Vec<Vec<Brick>> {
         let limit = self.exec.max_state_bytes();
         let mut side = self.max_chunk_side.unwrap_or(512).min(512);
         while side > 8 && Self::chunk_bytes(side) / 2 > limit {
             side -= 8;
         }
-        let mut chunks = Vec::new();
-        let mut z = out.lo[2];
-        while z < out.hi[2] {
-            let z1 = (z + side as i32).min(out.hi[2]);
-            let mut y = out.lo[1];
-            while y < out.hi[1] {
-                let y1 = (y + side as i32).min(out.hi[1]);
-                let mut x = out.lo[0];
-                while x < out.hi[0] {
-                    let x1 = (x + side as i32).min(out.hi[0]);
-                    chunks.push(Box3::new([x, y, z], [x1, y1, z1]));
-                    x = x1;
-                }
-                y = y1;
-            }
-            z = z1;
+        let cube = (side as i32 / bricks::BRICK).max(1);
+        let mut map: std::collections::BTreeMap<[i32; 3], Vec<Brick>> = Default::default();
+        for b in all {
+            let key = b.map(|v| v.div_euclid(cube));
+            map.entry([key[2], key[1], key[0]]).or_default().push(*b);
         }
-        chunks
+        map.into_values().collect()
     }
 
-    /// Colours of `out` (one packed word per voxel) and, when asked, its triples.
-    fn synthesize_chunk(
+    /// Colours (64 per brick, `group` order) and, when asked, triples of one group of bricks.
+    fn synthesize_group(
         &mut self,
-        out: Box3,
+        group: &[Brick],
         progress: Progress,
         want_triples: bool,
+        stats: &mut SynthStats,
     ) -> Result<(Vec<u32>, Vec<u32>)> {
-        let plans = plan::plan(out, ANALYSED_LEVELS, self.params.passes as usize);
+        let levels = bricks::plan_sparse(group, ANALYSED_LEVELS, self.params.passes as usize);
+        let layouts: Vec<IndexLayout> = (0..levels.len())
+            .map(|l| {
+                IndexLayout::new(
+                    &levels[l],
+                    l.checked_sub(1).map(|p| &levels[p]),
+                    (l + 1 == levels.len()).then_some(group),
+                )
+            })
+            .collect();
+        let mut state_bytes = 0u64;
+        for (l, lv) in levels.iter().enumerate() {
+            stats.voxels_per_level[l] += lv.voxels();
+            let words = lv.voxels() * (3 + self.packs[l].pixel_words as u64);
+            state_bytes = state_bytes.max(words * 4);
+        }
+        let gpu_copies = if matches!(self.exec, exec::Executor::Gpu(_)) { 2 } else { 1 };
+        stats.peak_state_bytes = stats.peak_state_bytes.max(state_bytes * gpu_copies);
+        let indices: Vec<exec::IndexBuf> = layouts
+            .iter()
+            .map(|l| self.exec.upload_index(l.words.clone()))
+            .collect();
         let seed_lo = self.params.seed as u32;
         let seed_hi = (self.params.seed >> 32) as u32;
         let coarse = &self.packs[0];
         let amps = jitter::amplitudes(self.params.jitter);
         let sig = jitter::sigma2_fixed();
-        let s0 = plans[0].storage;
+        let count0 = levels[0].bricks.len() as u32;
         let init = InitParams {
-            lo_x: s0.lo[0],
-            lo_y: s0.lo[1],
-            lo_z: s0.lo[2],
-            size_x: s0.size()[0],
-            size_y: s0.size()[1],
-            size_z: s0.size()[2],
+            list_offset: layouts[0].storage_list,
+            list_count: count0,
+            grid_stride: stride_for(count0 as u64 * 64),
+            _r0: 0,
+            _r1: 0,
+            _r2: 0,
             ex_width: coarse.width,
             ex_height: coarse.height,
             border: self.border,
@@ -296,26 +368,25 @@ impl Synthesizer {
         };
         progress("level 0: init", 0.0);
         let mut state = exec::timed(&mut self.exec, &mut self.times, "init", |e| {
-            e.init(0, &init)
+            e.init(0, &init, &indices[0])
         })?;
-        for (level, lp) in plans.iter().enumerate() {
+        for (level, lv) in levels.iter().enumerate() {
             let pack = &self.packs[level];
+            let layout = &layouts[level];
             if level > 0 {
-                let parent = plans[level - 1].storage;
-                let child = lp.storage;
+                let parent = &levels[level - 1].grid;
+                let count = lv.bricks.len() as u32;
                 let up = UpsampleParams {
-                    parent_lo_x: parent.lo[0],
-                    parent_lo_y: parent.lo[1],
-                    parent_lo_z: parent.lo[2],
-                    parent_size_x: parent.size()[0],
-                    parent_size_y: parent.size()[1],
-                    parent_size_z: parent.size()[2],
-                    child_lo_x: child.lo[0],
-                    child_lo_y: child.lo[1],
-                    child_lo_z: child.lo[2],
-                    child_size_x: child.size()[0],
-                    child_size_y: child.size()[1],
-                    child_size_z: child.size()[2],
+                    parent_grid_lo_x: parent.lo[0],
+                    parent_grid_lo_y: parent.lo[1],
+                    parent_grid_lo_z: parent.lo[2],
+                    parent_grid_x: parent.dims[0],
+                    parent_grid_y: parent.dims[1],
+                    parent_grid_z: parent.dims[2],
+                    parent_table: layout.parent_table,
+                    list_offset: layout.storage_list,
+                    list_count: count,
+                    grid_stride: stride_for(count as u64 * 64),
                     ex_width: pack.width,
                     ex_height: pack.height,
                     border: self.border,
@@ -324,54 +395,59 @@ impl Synthesizer {
                     pixels0: pack.offsets.pixels[0],
                     pixels1: pack.offsets.pixels[1],
                     pixels2: pack.offsets.pixels[2],
+                    _r0: 0,
+                    _r1: 0,
                 };
                 state = exec::timed(&mut self.exec, &mut self.times, "upsample", |e| {
-                    e.upsample(level, &up, state)
+                    e.upsample(level, &up, state, &indices[level])
                 })?;
             }
             progress(
                 &format!("level {level}: correction"),
-                (level as f32 + 0.1) / plans.len() as f32,
+                (level as f32 + 0.1) / levels.len() as f32,
             );
             // The paper's reduced search at the finest level: 4 of the 3D candidates.
-            let k3d_used = if level + 1 == plans.len() {
+            let k3d_used = if level + 1 == levels.len() {
                 4
             } else {
                 pack.k3d_stride
             }
             .min(pack.k3d_stride);
-            for (class, b) in &lp.subpasses {
-                if b.is_empty() {
+            for (s, (class, list)) in lv.subpasses.iter().enumerate() {
+                if list.is_empty() {
                     continue;
                 }
-                let par = [class & 1, (class >> 1) & 1, (class >> 2) & 1].map(|v| v as i32);
-                let first = [0, 1, 2].map(|i| b.lo[i] + (par[i] - b.lo[i]).rem_euclid(2));
-                let count = [0, 1, 2].map(|i| ((b.hi[i] - first[i]).max(0) as u32).div_ceil(2));
-                if count.contains(&0) {
-                    continue;
-                }
-                let mode = self.params.candidates;
-                let p = correct_params(pack, lp.storage, first, count, k3d_used, self.border, mode);
+                let p = correct_params(
+                    pack,
+                    &lv.grid,
+                    (layout.subpass_lists[s], list.len() as u32),
+                    *class,
+                    k3d_used,
+                    self.border,
+                    self.params.candidates,
+                );
                 exec::timed(&mut self.exec, &mut self.times, "correct", |e| {
-                    e.correct(level, &p, &mut state)
+                    e.correct(level, &p, &mut state, &indices[level])
                 })?;
             }
         }
-        let finest = plans.last().unwrap();
+        let finest = levels.last().unwrap();
+        let layout = layouts.last().unwrap();
         let pack = self.packs.last().unwrap();
+        let count = group.len() as u32;
         let c = ColorizeParams {
-            lo_x: finest.storage.lo[0],
-            lo_y: finest.storage.lo[1],
-            lo_z: finest.storage.lo[2],
-            size_x: finest.storage.size()[0],
-            size_y: finest.storage.size()[1],
-            size_z: finest.storage.size()[2],
-            out_lo_x: out.lo[0],
-            out_lo_y: out.lo[1],
-            out_lo_z: out.lo[2],
-            out_size_x: out.size()[0],
-            out_size_y: out.size()[1],
-            out_size_z: out.size()[2],
+            grid_lo_x: finest.grid.lo[0],
+            grid_lo_y: finest.grid.lo[1],
+            grid_lo_z: finest.grid.lo[2],
+            grid_x: finest.grid.dims[0],
+            grid_y: finest.grid.dims[1],
+            grid_z: finest.grid.dims[2],
+            table_offset: 0,
+            list_offset: layout.output_list,
+            list_count: count,
+            grid_stride: stride_for(count as u64 * 64),
+            _r0: 0,
+            _r1: 0,
             color_channels: pack.color_channels,
             pixel_words: pack.pixel_words,
             source: self.params.color as u32,
@@ -381,20 +457,23 @@ impl Synthesizer {
             pixels2: pack.offsets.pixels[2],
             _pad: 0,
         };
+        let last = levels.len() - 1;
         let colors = exec::timed(&mut self.exec, &mut self.times, "colorize", |e| {
-            e.colorize(plans.len() - 1, &c, &state)
+            e.colorize(last, &c, &state, &indices[last])
         })?;
         let mut triples = Vec::new();
         if want_triples {
             let words = self.exec.read_state(&state)?;
             let stride = 3 + pack.pixel_words as usize;
-            triples.reserve(out.voxels() as usize * 3);
-            for z in out.lo[2]..out.hi[2] {
-                for y in out.lo[1]..out.hi[1] {
-                    for x in out.lo[0]..out.hi[0] {
-                        let i = finest.storage.index([x, y, z]) * stride;
-                        triples.extend_from_slice(&words[i..i + 3]);
-                    }
+            triples.reserve(group.len() * 64 * 3);
+            for b in group {
+                for l in 0..64 {
+                    let i = finest
+                        .grid
+                        .voxel_index(bricks::voxel_of(*b, l))
+                        .expect("output bricks are stored")
+                        * stride;
+                    triples.extend_from_slice(&words[i..i + 3]);
                 }
             }
         }
@@ -402,31 +481,105 @@ impl Synthesizer {
     }
 }
 
-/// The uniforms of one `correct` sub-pass: the class voxels `first + 2 * (0..count)` of a level
-/// whose state covers `storage`.
+/// Threads per row of the 2D dispatch grid for `threads` threads (see `gpu::context`).
+fn stride_for(threads: u64) -> u32 {
+    crate::gpu::context::dispatch_grid(threads as u32).2
+}
+
+/// Where a level's brick tables and lists sit in its brick index (words).
+struct IndexLayout {
+    words: Vec<u32>,
+    storage_list: u32,
+    subpass_lists: Vec<u32>,
+    parent_table: u32,
+    output_list: u32,
+}
+
+impl IndexLayout {
+    /// The level's table first (offset 0), then its stored bricks, each sub-pass's bricks, a
+    /// copy of the parent level's table (for `upsample`) and the output bricks (finest level).
+    fn new(level: &SparseLevel, parent: Option<&SparseLevel>, output: Option<&[Brick]>) -> Self {
+        let mut words = level.grid.table.clone();
+        let push = bricks::push_list;
+        let storage_list = push(&mut words, &level.bricks);
+        let subpass_lists = level
+            .subpasses
+            .iter()
+            .map(|(_, list)| push(&mut words, list))
+            .collect();
+        let parent_table = words.len() as u32;
+        if let Some(p) = parent {
+            words.extend_from_slice(&p.grid.table);
+        }
+        let output_list = push(&mut words, output.unwrap_or(&[]));
+        IndexLayout {
+            words,
+            storage_list,
+            subpass_lists,
+            parent_table,
+            output_list,
+        }
+    }
+}
+
+/// Voxels synthesized per level (coarsest first) and the peak state memory of one synthesis.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct SynthStats {
+    pub voxels_per_level: Vec<u64>,
+    /// Largest state of one level (both ping-pong buffers on the GPU), bytes.
+    pub peak_state_bytes: u64,
+    /// Groups of bricks synthesized independently.
+    pub groups: usize,
+}
+
+/// The colours (and, when asked, triples) of a set of finest-level bricks.
+pub struct BrickColors {
+    /// The bricks, sorted; `grid` maps a brick to its position in this list.
+    pub bricks: Vec<Brick>,
+    pub grid: BrickGrid,
+    /// 64 packed colours per brick (x fastest inside the brick).
+    pub colors: Vec<u32>,
+    /// 3 packed coordinates per voxel, when asked.
+    pub triples: Vec<u32>,
+}
+
+impl BrickColors {
+    /// Position of voxel `p` in `colors` (None when its brick was not requested).
+    pub fn index(&self, p: [i32; 3]) -> Option<usize> {
+        self.grid.voxel_index(p)
+    }
+
+    /// Packed colour of voxel `p`.
+    pub fn color(&self, p: [i32; 3]) -> Option<u32> {
+        self.index(p).map(|i| self.colors[i])
+    }
+}
+
+/// The uniforms of one `correct` sub-pass: the class voxels of the bricks of the list at word
+/// `list.0` (`list.1` bricks) of a level's brick index, whose table (offset 0) describes `grid`.
 pub fn correct_params(
     pack: &LevelPack,
-    storage: Box3,
-    first: [i32; 3],
-    count: [u32; 3],
+    grid: &BrickGrid,
+    list: (u32, u32),
+    class: usize,
     k3d_used: u32,
     border: u32,
     mode: CandidateMode,
 ) -> CorrectParams {
     let o = &pack.offsets;
     CorrectParams {
-        lo_x: storage.lo[0],
-        lo_y: storage.lo[1],
-        lo_z: storage.lo[2],
-        size_x: storage.size()[0],
-        size_y: storage.size()[1],
-        size_z: storage.size()[2],
-        first_x: first[0],
-        first_y: first[1],
-        first_z: first[2],
-        count_x: count[0],
-        count_y: count[1],
-        count_z: count[2],
+        grid_lo_x: grid.lo[0],
+        grid_lo_y: grid.lo[1],
+        grid_lo_z: grid.lo[2],
+        grid_x: grid.dims[0],
+        grid_y: grid.dims[1],
+        grid_z: grid.dims[2],
+        table_offset: 0,
+        list_offset: list.0,
+        list_count: list.1,
+        class_x: (class & 1) as u32,
+        class_y: ((class >> 1) & 1) as u32,
+        class_z: ((class >> 2) & 1) as u32,
         ex_width: pack.width,
         ex_height: pack.height,
         channels: pack.channels,
@@ -462,7 +615,7 @@ pub fn correct_params(
         counts0: o.counts[0],
         counts1: o.counts[1],
         counts2: o.counts[2],
-        _pad0: 0,
+        grid_stride: stride_for(list.1 as u64 * 8),
         _pad1: 0,
         _pad2: 0,
         _pad3: 0,

@@ -6,6 +6,11 @@
 // its value, the mean of its three exemplar pixels (pixel_words words): stride 3 + pixel_words.
 
 @group(0) @binding(1) var<storage, read> level: array<u32>;
+// The level's brick index (src/lazy/bricks.rs): brick tables (one word per brick of a grid's
+// bounding box: its slot, or ABSENT) and brick lists (three i32 words per brick).
+@group(0) @binding(4) var<storage, read> bricks: array<u32>;
+
+const ABSENT: u32 = 0xFFFFFFFFu;
 
 // Border::resolve: 0 = wrap, 1 = mirror (reflect-101).
 fn resolve(c: i32, len: u32, border: u32) -> u32 {
@@ -40,9 +45,34 @@ fn coord_y(c: u32) -> i32 {
     return i32(c >> 16u);
 }
 
-fn box_index(p: vec3<i32>, lo: vec3<i32>, size: vec3<u32>) -> u32 {
-    let d = vec3<u32>(p - lo);
-    return (d.z * size.y + d.y) * size.x + d.x;
+// Brick `i` of the list starting at word `list`.
+fn brick_at(list: u32, i: u32) -> vec3<i32> {
+    let e = list + 3u * i;
+    return vec3<i32>(bitcast<i32>(bricks[e]), bitcast<i32>(bricks[e + 1u]), bitcast<i32>(bricks[e + 2u]));
+}
+
+// The voxel at `local` (x fastest) in brick `b`.
+fn voxel_of(b: vec3<i32>, local: u32) -> vec3<i32> {
+    return b * 4 + vec3<i32>(i32(local & 3u), i32((local >> 2u) & 3u), i32(local >> 4u));
+}
+
+// Index of voxel p in a state whose brick table (over the bricks grid_lo + [0, dims)) starts at
+// word `table`; ABSENT when its brick is not stored.
+fn voxel_index(p: vec3<i32>, grid_lo: vec3<i32>, dims: vec3<u32>, table: u32) -> u32 {
+    let d = (p >> vec3<u32>(2u)) - grid_lo;
+    if (d.x < 0 || d.y < 0 || d.z < 0) {
+        return ABSENT;
+    }
+    let du = vec3<u32>(d);
+    if (du.x >= dims.x || du.y >= dims.y || du.z >= dims.z) {
+        return ABSENT;
+    }
+    let slot = bricks[table + (du.z * dims.y + du.y) * dims.x + du.x];
+    if (slot == ABSENT) {
+        return ABSENT;
+    }
+    let l = p & vec3<i32>(3);
+    return slot * 64u + u32(l.z * 16 + l.y * 4 + l.x);
 }
 
 fn rem_euclid(a: i32, n: i32) -> i32 {
