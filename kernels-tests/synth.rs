@@ -121,7 +121,8 @@ fn each_synthesis_kernel_matches_its_reference() {
     // The parent level: the bricks of a box straddling zero, in a shuffled order (slots need not
     // be sorted).
     use solidsynth::lazy::bricks;
-    let mut parent_bricks = bricks::bricks_of_box(solidsynth::lazy::Box3::new([-9, -2, 5], [2, 4, 12]));
+    let mut parent_bricks =
+        bricks::bricks_of_box(solidsynth::lazy::Box3::new([-9, -2, 5], [2, 4, 12]));
     parent_bricks.reverse();
     let parent_grid = bricks::BrickGrid::new(&parent_bricks);
     let mut parent_index = parent_grid.table.clone();
@@ -179,7 +180,8 @@ fn each_synthesis_kernel_matches_its_reference() {
     // Upsampling into a child box (the same level's data serves for the values).
     // The child bricks: some of the parents' children, and one whose parent is absent (reads as
     // coordinate 0 on both backends).
-    let mut child_bricks = bricks::bricks_of_box(solidsynth::lazy::Box3::new([-17, -3, 11], [3, 6, 14]));
+    let mut child_bricks =
+        bricks::bricks_of_box(solidsynth::lazy::Box3::new([-17, -3, 11], [3, 6, 14]));
     child_bricks.push([40, 40, 40]);
     let child_grid = bricks::BrickGrid::new(&child_bricks);
     let mut child_index = child_grid.table.clone();

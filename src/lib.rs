@@ -13,6 +13,7 @@ pub mod gpu;
 pub mod io;
 pub mod kernel_types;
 pub mod lazy;
+pub mod mesh;
 pub mod metrics;
 pub mod util;
 pub mod volume;

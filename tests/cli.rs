@@ -677,3 +677,106 @@ fn cuts_equal_the_same_voxels_of_a_region() {
         assert_user_error(&run(&a), needle, d, &keep);
     }
 }
+
+#[test]
+fn surface_bakes_the_solid_at_each_texel_and_refuses_bad_meshes() {
+    use solidsynth::mesh::{bake::Atlas, Placement};
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let obj_text = "v 0 0 0\nv 2 0 0\nv 0 2 0\nv 0 0 2\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n";
+    let mesh_path = d.join("tetra.obj");
+    std::fs::write(&mesh_path, obj_text).unwrap();
+    let ssa = d.join("c.ssa");
+    let o = run(&[
+        "analyze",
+        "--backend",
+        "cpu",
+        "--periodic",
+        fixture_path("cells32.png").to_str().unwrap(),
+        "-o",
+        ssa.to_str().unwrap(),
+    ]);
+    assert!(o.status.success());
+    let s = ssa.to_str().unwrap();
+    let common = [
+        "--seed",
+        "3",
+        "--backend",
+        "cpu",
+        "--resolution",
+        "16",
+        "--texels",
+        "5",
+    ];
+    let out = d.join("baked.obj");
+    let mut args = vec!["surface", s, "--mesh", mesh_path.to_str().unwrap()];
+    args.extend_from_slice(&common);
+    args.extend_from_slice(&["-o", out.to_str().unwrap()]);
+    let o = run(&args);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(std::fs::read_to_string(d.join("baked.mtl"))
+        .unwrap()
+        .contains("map_Kd baked.png"));
+    let img = image::open(d.join("baked.png")).unwrap().to_rgba8();
+    // Every texel is the solid's voxel at its 3D point: compare with a region holding the mesh.
+    let vol = d.join("r.nrrd");
+    let o = run(&[
+        "region",
+        s,
+        "--box",
+        "0,0,0,16,16,16",
+        "--seed",
+        "3",
+        "--backend",
+        "cpu",
+        "-o",
+        vol.to_str().unwrap(),
+    ]);
+    assert!(o.status.success());
+    let v = solidsynth::io::nrrd::load(&vol).unwrap();
+    let mesh = solidsynth::mesh::parse_obj(obj_text.as_bytes(), "t").unwrap();
+    let atlas = Atlas::new(mesh.triangles.len(), 5).unwrap();
+    assert_eq!((img.width(), img.height()), (atlas.width, atlas.height));
+    let voxels = atlas.texel_voxels(&mesh, &Placement::fit(&mesh, 16));
+    for (k, p) in voxels.iter().enumerate() {
+        let (x, y) = (k as u32 % atlas.width, k as u32 / atlas.width);
+        let want = v.at(p[0] as u32, p[1] as u32, p[2] as u32);
+        assert_eq!(
+            &img.get_pixel(x, y).0[..3],
+            want,
+            "texel {x},{y} voxel {p:?}"
+        );
+    }
+    // Binary glTF.
+    let glb = d.join("baked.glb");
+    let mut args = vec!["surface", s, "--mesh", mesh_path.to_str().unwrap()];
+    args.extend_from_slice(&common);
+    args.extend_from_slice(&["-o", glb.to_str().unwrap()]);
+    assert!(run(&args).status.success());
+    let bytes = std::fs::read(&glb).unwrap();
+    assert_eq!(&bytes[..4], b"glTF");
+
+    // Bad input: non-finite coordinates, an empty mesh, an unknown output type.
+    let bad = tempfile::tempdir().unwrap();
+    let b = bad.path();
+    std::fs::write(b.join("nan.obj"), "v 0 0 0\nv nan 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
+    std::fs::write(b.join("empty.obj"), "v 0 0 0\n").unwrap();
+    for (mesh, output, needle) in [
+        ("nan.obj", "o.glb", "non-finite"),
+        ("empty.obj", "o.glb", "no triangles"),
+        ("missing.ply", "o.glb", "missing.ply"),
+        ("nan.obj", "o.txt", ".glb or .obj"),
+    ] {
+        let o = run(&[
+            "surface",
+            s,
+            "--mesh",
+            b.join(mesh).to_str().unwrap(),
+            "--backend",
+            "cpu",
+            "-o",
+            b.join(output).to_str().unwrap(),
+        ]);
+        assert_user_error(&o, needle, b, &["nan.obj", "empty.obj"]);
+    }
+}

@@ -51,35 +51,40 @@ fn exact_plane_is_kept(axis: usize) {
     let interior: Vec<_> = stored
         .iter()
         .copied()
-        .filter(|b| (0..27).all(|k| grid.slot([b[0] + k % 3 - 1, b[1] + (k / 3) % 3 - 1, b[2] + k / 9 - 1]).is_some()))
+        .filter(|b| {
+            (0..27).all(|k| {
+                grid.slot([b[0] + k % 3 - 1, b[1] + (k / 3) % 3 - 1, b[2] + k / 9 - 1])
+                    .is_some()
+            })
+        })
         .collect();
     assert!(interior.len() >= 8);
     let mut index = grid.table.clone();
     let list = bricks::push_list(&mut index, &interior);
     // 2D mode: exemplar `axis`'s own search decides its coordinate.
     for class in [0, 5] {
-    let p = solidsynth::lazy::correct_params(
-        &pack,
-        &grid,
-        (list, interior.len() as u32),
-        class,
-        4,
-        0,
-        CandidateMode::TwoD,
-    );
-    let updates = solidsynth::cpu::correct::correct(&p, &pack.words, &state, &index);
-    assert_eq!(updates.len(), interior.len() * 8);
-    let mut kept = 0;
-    for (i, t) in &updates {
-        if t[axis] == state[i * stride + axis] {
-            kept += 1;
+        let p = solidsynth::lazy::correct_params(
+            &pack,
+            &grid,
+            (list, interior.len() as u32),
+            class,
+            4,
+            0,
+            CandidateMode::TwoD,
+        );
+        let updates = solidsynth::cpu::correct::correct(&p, &pack.words, &state, &index);
+        assert_eq!(updates.len(), interior.len() * 8);
+        let mut kept = 0;
+        for (i, t) in &updates {
+            if t[axis] == state[i * stride + axis] {
+                kept += 1;
+            }
         }
-    }
-    assert_eq!(
-        kept,
-        updates.len(),
-        "exemplar {axis}: the exact plane match was not kept everywhere"
-    );
+        assert_eq!(
+            kept,
+            updates.len(),
+            "exemplar {axis}: the exact plane match was not kept everywhere"
+        );
     }
 }
 
@@ -160,7 +165,7 @@ mod determinism {
                 [0, 1, 2].map(|i| big.lo[i] + rng.below((big.hi[i] - big.lo[i]) as u64) as i32)
             })
             .collect();
-        let colors = s.sample(&points).unwrap();
+        let colors = s.sample(&points, &|_, _| {}).unwrap();
         let stats = s.last_stats().unwrap().clone();
         for (p, c) in points.iter().zip(&colors) {
             let want = v.at(

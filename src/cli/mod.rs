@@ -5,6 +5,7 @@ pub mod bench;
 pub mod cut;
 pub mod eval;
 pub mod inspect;
+pub mod surface;
 pub mod synth;
 
 use clap::{Args, Parser, Subcommand};
@@ -38,6 +39,8 @@ pub enum Command {
     Region(synth::RegionArgs),
     /// A planar cut of the solid (any orientation) as a PNG; --repeat measures warm latency.
     Cut(cut::CutArgs),
+    /// The solid baked onto a mesh surface: a UV atlas texture (binary glTF, or OBJ + MTL + PNG).
+    Surface(surface::SurfaceArgs),
     /// Describe a .ssa file and write its candidate slab as a PNG.
     Inspect(inspect::InspectArgs),
     /// Benchmarks printed as tables.
@@ -78,6 +81,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Synth(a) => synth::run(a, cli.quiet),
         Command::Region(a) => synth::run_region(a, cli.quiet),
         Command::Cut(a) => cut::run(a, cli.quiet),
+        Command::Surface(a) => surface::run(a, cli.quiet),
         Command::Bench(b) => bench::run(b),
         Command::Adapters => {
             let list = solidsynth::gpu::context::list_adapters();

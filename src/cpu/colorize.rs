@@ -3,8 +3,8 @@
 //! pixel of one exemplar at the voxel's coordinate in it.
 
 use super::synth_common::{brick_at, voxel_index};
-use crate::lazy::bricks::voxel_of;
 use crate::kernel_types::ColorizeParams;
+use crate::lazy::bricks::voxel_of;
 use rayon::prelude::*;
 
 /// Colours of the bricks of the list in `p`: 64 per brick (x fastest), list order.

@@ -2,9 +2,9 @@
 //! (5 voxels thick along x), warped by the jitter field.
 
 use super::synth_common::{brick_at, coord, pack_resolved, write_voxel};
-use crate::lazy::bricks::voxel_of;
 use crate::analysis::frame::pack;
 use crate::kernel_types::InitParams;
+use crate::lazy::bricks::voxel_of;
 use crate::lazy::jitter;
 use crate::util::hash::hash32;
 use rayon::prelude::*;

@@ -53,9 +53,8 @@ pub fn voxel_index(
     }
     let cell = (d[2] as u32 * dims[1] + d[1] as u32) * dims[0] + d[0] as u32;
     let slot = bricks[(table + cell) as usize];
-    (slot != crate::lazy::bricks::ABSENT).then(|| {
-        slot as usize * 64 + crate::lazy::bricks::local_index(p) as usize
-    })
+    (slot != crate::lazy::bricks::ABSENT)
+        .then(|| slot as usize * 64 + crate::lazy::bricks::local_index(p) as usize)
 }
 
 /// Byte `ch` of an exemplar pixel stored `pixel_words` words per pixel at word `base`.

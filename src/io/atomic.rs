@@ -53,8 +53,13 @@ pub fn write_with(
 
 /// Save an RGBA image as PNG atomically.
 pub fn save_png(path: &Path, img: &image::RgbaImage) -> Result<()> {
+    write_file(path, &png_bytes(img)?)
+}
+
+/// An RGBA image encoded as PNG.
+pub fn png_bytes(img: &image::RgbaImage) -> Result<Vec<u8>> {
     let mut buf = Vec::new();
     img.write_to(&mut std::io::Cursor::new(&mut buf), image::ImageFormat::Png)
         .map_err(|e| Error::Gpu(format!("PNG encoding failed: {e}")))?;
-    write_file(path, &buf)
+    Ok(buf)
 }

@@ -37,7 +37,11 @@ pub fn local_index(p: [i32; 3]) -> u32 {
 /// The voxel at `local` in brick `b`.
 pub fn voxel_of(b: Brick, local: u32) -> [i32; 3] {
     let l = local as i32;
-    [b[0] * BRICK + (l & 3), b[1] * BRICK + ((l >> 2) & 3), b[2] * BRICK + (l >> 4)]
+    [
+        b[0] * BRICK + (l & 3),
+        b[1] * BRICK + ((l >> 2) & 3),
+        b[2] * BRICK + (l >> 4),
+    ]
 }
 
 /// Sort (z, then y, then x) and remove duplicates.
@@ -91,7 +95,11 @@ impl BrickGrid {
         }
         let dims = [0, 1, 2].map(|i| (hi[i] - lo[i] + 1) as u32);
         let mut table = vec![ABSENT; dims.iter().map(|&d| d as usize).product()];
-        let mut grid = BrickGrid { lo, dims, table: Vec::new() };
+        let mut grid = BrickGrid {
+            lo,
+            dims,
+            table: Vec::new(),
+        };
         for (slot, b) in bricks.iter().enumerate() {
             table[grid.cell(*b).unwrap()] = slot as u32;
         }
@@ -246,7 +254,9 @@ pub fn plan_sparse(output: &[Brick], levels: usize, passes: usize) -> Vec<Sparse
         let subpasses = ranges
             .iter()
             .map(|(class, r)| {
-                let set = r.map(|(lo, hi)| dilate(&deliver, lo, hi)).unwrap_or_default();
+                let set = r
+                    .map(|(lo, hi)| dilate(&deliver, lo, hi))
+                    .unwrap_or_default();
                 (*class, set)
             })
             .collect();
@@ -295,7 +305,11 @@ mod tests {
             ([-4, -4, -4], [4, 4, 4]),
             ([1, 2, -3], [2, 2, -1]),
         ] {
-            assert_eq!(dilate(&set, lo, hi), brute_dilate(&set, lo, hi), "{lo:?} {hi:?}");
+            assert_eq!(
+                dilate(&set, lo, hi),
+                brute_dilate(&set, lo, hi),
+                "{lo:?} {hi:?}"
+            );
         }
     }
 

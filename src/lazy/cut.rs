@@ -10,7 +10,7 @@
 //! the bricks holding sampled voxels are requested ([`Synthesizer::synthesize_bricks`]), so an
 //! oblique cut costs about what an axis-aligned one does.
 
-use super::{bricks, Synthesizer};
+use super::Synthesizer;
 use crate::error::{Error, Result};
 use crate::exemplar::Image;
 use glam::DVec3;
@@ -114,7 +114,7 @@ impl CutSession {
     /// The cut image (colour channels of the solid).
     pub fn cut(&mut self, spec: &CutSpec) -> Result<Image> {
         let voxels = spec.voxels()?;
-        let samples = self.synth.sample(&voxels)?;
+        let samples = self.synth.sample(&voxels, &|_, _| {})?;
         let channels = self.synth.color_channels() as usize;
         let mut img = Image::new(spec.size, spec.size, channels as u32);
         for (k, word) in samples.iter().enumerate() {

@@ -21,8 +21,8 @@ use crate::error::{Error, Result};
 use crate::kernel_types::{ColorizeParams, CorrectParams, InitParams, UpsampleParams};
 use crate::util::hash::hash32;
 use crate::volume::Volume;
-use pack::LevelPack;
 pub use bricks::{Brick, BrickGrid, SparseLevel};
+use pack::LevelPack;
 pub use plan::Box3;
 
 /// Order of the parity classes (bit 0 = x, 1 = y, 2 = z) within a pass. Chosen (exhaustively,
@@ -187,9 +187,7 @@ impl Synthesizer {
                         (y - out.lo[1]) as u32,
                         (z - out.lo[2]) as u32,
                     );
-                    volume
-                        .at_mut(vx, vy, vz)
-                        .copy_from_slice(&word[..channels]);
+                    volume.at_mut(vx, vy, vz).copy_from_slice(&word[..channels]);
                     if want_triples {
                         triples.extend_from_slice(&result.triples[i * 3..i * 3 + 3]);
                     }
@@ -249,10 +247,10 @@ impl Synthesizer {
 
     /// The packed colours of arbitrary voxels (any order, repeats allowed): only the bricks
     /// holding them are synthesized.
-    pub fn sample(&mut self, voxels: &[[i32; 3]]) -> Result<Vec<u32>> {
+    pub fn sample(&mut self, voxels: &[[i32; 3]], progress: Progress) -> Result<Vec<u32>> {
         let mut wanted: Vec<Brick> = voxels.iter().map(|p| bricks::brick_of(*p)).collect();
         bricks::normalize(&mut wanted);
-        let result = self.synthesize_bricks(&wanted, &|_, _| {}, false)?;
+        let result = self.synthesize_bricks(&wanted, progress, false)?;
         Ok(voxels
             .iter()
             .map(|p| result.color(*p).expect("requested voxel"))
@@ -320,7 +318,11 @@ impl Synthesizer {
             let words = lv.voxels() * (3 + self.packs[l].pixel_words as u64);
             state_bytes = state_bytes.max(words * 4);
         }
-        let gpu_copies = if matches!(self.exec, exec::Executor::Gpu(_)) { 2 } else { 1 };
+        let gpu_copies = if matches!(self.exec, exec::Executor::Gpu(_)) {
+            2
+        } else {
+            1
+        };
         stats.peak_state_bytes = stats.peak_state_bytes.max(state_bytes * gpu_copies);
         let indices: Vec<exec::IndexBuf> = layouts
             .iter()

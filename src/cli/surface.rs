@@ -1,0 +1,128 @@
+//! `solidsynth surface`: the solid baked onto a mesh surface (binary glTF, or OBJ + MTL + PNG).
+
+use super::analyze::load_or_analyze;
+use super::synth::SolidParams;
+use clap::Args;
+use solidsynth::io::atomic;
+use solidsynth::lazy::Synthesizer;
+use solidsynth::mesh::{self, bake, Placement};
+use solidsynth::Error;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+#[derive(Args, Debug)]
+pub struct SurfaceArgs {
+    #[command(flatten)]
+    pub solid: SolidParams,
+    /// Mesh (.obj, .ply or .ply.gz); open or non-manifold meshes are fine.
+    #[arg(long)]
+    pub mesh: PathBuf,
+    /// The mesh is scaled so its longest side spans this many finest-level voxels.
+    #[arg(long, default_value_t = 256, value_parser = clap::value_parser!(u32).range(1..=1048576))]
+    pub resolution: u32,
+    /// Texels per triangle cell side in the atlas (default: about one texel per voxel along the
+    /// median edge).
+    #[arg(long)]
+    pub texels: Option<u32>,
+    /// Output: .glb (texture embedded) or .obj (writes .mtl and .png beside it).
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Print a JSON summary on stdout.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// The files an output path stands for: (main, Some((mtl, png)) for OBJ).
+fn outputs(path: &Path) -> solidsynth::Result<Option<(PathBuf, PathBuf)>> {
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(|e| e.to_ascii_lowercase());
+    match ext.as_deref() {
+        Some("glb") => Ok(None),
+        Some("obj") => Ok(Some((
+            path.with_extension("mtl"),
+            path.with_extension("png"),
+        ))),
+        _ => Err(Error::invalid(
+            format!("-o {}", path.display()),
+            "the output must end in .glb or .obj",
+        )),
+    }
+}
+
+pub fn run(args: SurfaceArgs, quiet: bool) -> anyhow::Result<()> {
+    atomic::check_output_path(&args.output, "-o")?;
+    let extra = outputs(&args.output)?;
+    if let Some((mtl, png)) = &extra {
+        atomic::check_output_path(mtl, "-o (its .mtl)")?;
+        atomic::check_output_path(png, "-o (its .png)")?;
+    }
+    let params = args.solid.synth_params();
+    params.validate()?;
+    let mesh = mesh::load(&args.mesh)?;
+    let place = Placement::fit(&mesh, args.resolution);
+    let texels = args
+        .texels
+        .unwrap_or_else(|| bake::auto_texels(&mesh, &place));
+    let atlas = bake::Atlas::new(mesh.triangles.len(), texels)?;
+    let compute = args.solid.input.backend.open()?;
+    let analysis = load_or_analyze(&args.solid.input, &compute, quiet || args.json)?;
+    let start = Instant::now();
+    let voxels = atlas.texel_voxels(&mesh, &place);
+    let bar = super::progress_bar(quiet || args.json);
+    let report = |m: &str, f: f32| {
+        bar.set_position((f * 1000.0) as u64);
+        bar.set_message(m.to_string());
+    };
+    let mut synth = Synthesizer::new(&analysis, params, &compute)?;
+    let colors = synth.sample(&voxels, &report)?;
+    bar.finish_and_clear();
+    let seconds = start.elapsed().as_secs_f64();
+    let image = bake::atlas_image(&atlas, &colors, synth.color_channels()).to_rgba8();
+    let png = atomic::png_bytes(&image)?;
+    match &extra {
+        None => atomic::write_file(&args.output, &mesh::glb::glb_bytes(&mesh, &atlas, &png))?,
+        Some((mtl, png_path)) => {
+            let name = |p: &Path| p.file_name().unwrap().to_string_lossy().into_owned();
+            atomic::write_file(png_path, &png)?;
+            atomic::write_file(mtl, bake::mtl_text(&name(png_path)).as_bytes())?;
+            atomic::write_file(
+                &args.output,
+                bake::obj_text(&mesh, &atlas, &name(mtl)).as_bytes(),
+            )?;
+        }
+    }
+    let stats = synth.last_stats().cloned().unwrap_or_default();
+    let finest = stats.voxels_per_level.last().copied().unwrap_or(0);
+    let fraction = finest as f64 / (args.resolution as f64).powi(3);
+    if args.json {
+        println!(
+            "{}",
+            serde_json::json!({
+                "output": args.output, "triangles": mesh.triangles.len(), "resolution": args.resolution,
+                "texels": texels, "atlas": [atlas.width, atlas.height],
+                "synthesis_seconds": seconds, "stats": stats,
+                "finest_fraction_of_volume": fraction,
+                "peak_rss_bytes": solidsynth::util::memory::peak_rss_bytes(),
+                "backend": compute.describe(),
+            })
+        );
+    } else if !quiet {
+        eprintln!(
+            "surface of {} triangles at {}^3: atlas {}x{} ({} texels per cell) in {seconds:.2} s; \
+             finest voxels synthesized {finest} ({:.3}% of the volume), per level {:?}, peak state \
+             {:.1} MiB -> {}",
+            mesh.triangles.len(),
+            args.resolution,
+            atlas.width,
+            atlas.height,
+            texels,
+            fraction * 100.0,
+            stats.voxels_per_level,
+            stats.peak_state_bytes as f64 / (1 << 20) as f64,
+            args.output.display()
+        );
+    }
+    Ok(())
+}
