@@ -108,7 +108,11 @@ gpu_struct! {
         cand2d0: u32, cand2d1: u32, cand2d2: u32,
         cand3d0: u32, cand3d1: u32, cand3d2: u32,
         counts0: u32, counts1: u32, counts2: u32,
-        grid_stride: u32, _pad1: u32, _pad2: u32, _pad3: u32, _pad4: u32,
+        grid_stride: u32,
+        /// Word offset of the sub-pass's voxel masks: one byte per listed brick (bit k: its
+        /// class voxel k is needed), four per word.
+        mask_offset: u32,
+        _pad2: u32, _pad3: u32, _pad4: u32,
     }
 }
 

@@ -61,6 +61,9 @@ fn exact_plane_is_kept(axis: usize) {
     assert!(interior.len() >= 8);
     let mut index = grid.table.clone();
     let list = bricks::push_list(&mut index, &interior);
+    // Every class voxel of every listed brick is needed.
+    let masks = index.len() as u32;
+    index.extend(std::iter::repeat_n(u32::MAX, interior.len().div_ceil(4)));
     // 2D mode: exemplar `axis`'s own search decides its coordinate.
     for class in [0, 5] {
         let p = solidsynth::lazy::correct_params(
@@ -72,6 +75,10 @@ fn exact_plane_is_kept(axis: usize) {
             0,
             CandidateMode::TwoD,
         );
+        let p = solidsynth::kernel_types::CorrectParams {
+            mask_offset: masks,
+            ..p
+        };
         let updates = solidsynth::cpu::correct::correct(&p, &pack.words, &state, &index);
         assert_eq!(updates.len(), interior.len() * 8);
         let mut kept = 0;

@@ -20,7 +20,7 @@ struct CorrectParams {
     cand2d0: u32, cand2d1: u32, cand2d2: u32,
     cand3d0: u32, cand3d1: u32, cand3d2: u32,
     counts0: u32, counts1: u32, counts2: u32,
-    grid_stride: u32, _pad1: u32, _pad2: u32, _pad3: u32, _pad4: u32,
+    grid_stride: u32, mask_offset: u32, _pad2: u32, _pad3: u32, _pad4: u32,
 }
 
 const MAX_PCA_OUT: u32 = 16u;
@@ -162,6 +162,10 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         return; // a pipeline built for other constants: leave the voxel unwritten (sentinel shows)
     }
     let k = tid % 8u;
+    let b = tid / 8u;
+    if (((bricks[params.mask_offset + b / 4u] >> ((b % 4u) * 8u + k)) & 1u) == 0u) {
+        return; // a voxel the plan does not need
+    }
     let cls = vec3<u32>(params.class_x, params.class_y, params.class_z);
     let pos = brick_at(params.list_offset, tid / 8u) * 4
         + vec3<i32>(cls + 2u * vec3<u32>(k & 1u, (k >> 1u) & 1u, k >> 2u));

@@ -245,8 +245,13 @@ pub fn correct(
         grid_dims: [p.grid_x, p.grid_y, p.grid_z],
     };
     let class = [p.class_x as i32, p.class_y as i32, p.class_z as i32];
+    let needed = |t: u32| {
+        let b = t / 8;
+        (bricks[(p.mask_offset + b / 4) as usize] >> ((b % 4) * 8 + t % 8)) & 1 != 0
+    };
     (0..p.list_count * 8)
         .into_par_iter()
+        .filter(|&t| needed(t))
         .map(|t| {
             let b = brick_at(bricks, p.list_offset, t / 8);
             let k = (t % 8) as i32;

@@ -218,14 +218,124 @@ fn offset_range(b: Box3) -> Option<([i32; 3], [i32; 3])> {
     ))
 }
 
+/// Answers "is any brick of a set inside this box of bricks?" in constant time (a 3D summed
+/// area table over the set's bounding box).
+struct Presence {
+    lo: Brick,
+    dims: [i32; 3],
+    sat: Vec<u32>,
+}
+
+impl Presence {
+    fn new(set: &[Brick]) -> Presence {
+        let grid = BrickGrid::new(set);
+        let dims = grid.dims.map(|d| d as i32);
+        let n = |d: i32| (d + 1) as usize;
+        let at = |x: i32, y: i32, z: i32| {
+            (z as usize * n(dims[1]) + y as usize) * n(dims[0]) + x as usize
+        };
+        let mut sat = vec![0u32; n(dims[0]) * n(dims[1]) * n(dims[2])];
+        for z in 1..=dims[2] {
+            for y in 1..=dims[1] {
+                for x in 1..=dims[0] {
+                    let b = [grid.lo[0] + x - 1, grid.lo[1] + y - 1, grid.lo[2] + z - 1];
+                    let own = grid.slot(b).is_some() as u32;
+                    sat[at(x, y, z)] = own
+                        .wrapping_add(sat[at(x - 1, y, z)])
+                        .wrapping_add(sat[at(x, y - 1, z)])
+                        .wrapping_add(sat[at(x, y, z - 1)])
+                        .wrapping_sub(sat[at(x - 1, y - 1, z)])
+                        .wrapping_sub(sat[at(x - 1, y, z - 1)])
+                        .wrapping_sub(sat[at(x, y - 1, z - 1)])
+                        .wrapping_add(sat[at(x - 1, y - 1, z - 1)]);
+                }
+            }
+        }
+        Presence {
+            lo: grid.lo,
+            dims,
+            sat,
+        }
+    }
+
+    /// Whether a brick of the set lies in [lo, hi] (inclusive).
+    fn any(&self, lo: Brick, hi: Brick) -> bool {
+        let a = [0, 1, 2].map(|i| (lo[i] - self.lo[i]).max(0));
+        let b = [0, 1, 2].map(|i| (hi[i] - self.lo[i] + 1).min(self.dims[i]));
+        if (0..3).any(|i| a[i] >= b[i]) {
+            return false;
+        }
+        let n = |d: i32| (d + 1) as usize;
+        let at = |x: i32, y: i32, z: i32| {
+            self.sat[(z as usize * n(self.dims[1]) + y as usize) * n(self.dims[0]) + x as usize]
+        };
+        let sum = at(b[0], b[1], b[2])
+            .wrapping_sub(at(a[0], b[1], b[2]))
+            .wrapping_sub(at(b[0], a[1], b[2]))
+            .wrapping_sub(at(b[0], b[1], a[2]))
+            .wrapping_add(at(a[0], a[1], b[2]))
+            .wrapping_add(at(a[0], b[1], a[2]))
+            .wrapping_add(at(b[0], a[1], a[2]))
+            .wrapping_sub(at(a[0], a[1], a[2]));
+        sum != 0
+    }
+}
+
+/// One correction sub-pass of a sparse level.
+#[derive(Clone, Debug)]
+pub struct SubpassPlan {
+    /// Parity class (bit 0 x, 1 y, 2 z) of the voxels updated.
+    pub class: usize,
+    /// Bricks with at least one needed voxel of the class.
+    pub bricks: Vec<Brick>,
+    /// Per brick, bit k: whether its class voxel k (offset 2 * (k & 1, k >> 1 & 1, k >> 2)) is
+    /// needed. Voxel-exact, so bricks cost only the voxels the plan needs.
+    pub masks: Vec<u8>,
+}
+
+/// The needed class voxels of the bricks near `deliver` for a sub-pass whose per-brick plan box
+/// is `needed` (relative to a brick at the origin): voxel v is needed when some delivered brick
+/// b has v - 4b inside the box.
+fn subpass_plan(class: usize, needed: Box3, deliver: &[Brick], presence: &Presence) -> SubpassPlan {
+    let mut plan = SubpassPlan {
+        class,
+        bricks: Vec::new(),
+        masks: Vec::new(),
+    };
+    let Some((lo, hi)) = offset_range(needed) else {
+        return plan;
+    };
+    let c = [
+        (class & 1) as i32,
+        ((class >> 1) & 1) as i32,
+        ((class >> 2) & 1) as i32,
+    ];
+    for a in dilate(deliver, lo, hi) {
+        let mut mask = 0u8;
+        for k in 0..8 {
+            let v = [0, 1, 2].map(|i| a[i] * BRICK + c[i] + 2 * ((k >> i) & 1));
+            let blo = [0, 1, 2].map(|i| (v[i] - needed.hi[i] + 1 + BRICK - 1).div_euclid(BRICK));
+            let bhi = [0, 1, 2].map(|i| (v[i] - needed.lo[i]).div_euclid(BRICK));
+            if presence.any(blo, bhi) {
+                mask |= 1 << k;
+            }
+        }
+        if mask != 0 {
+            plan.bricks.push(a);
+            plan.masks.push(mask);
+        }
+    }
+    plan
+}
+
 /// What one level of a sparse synthesis computes.
 #[derive(Clone, Debug)]
 pub struct SparseLevel {
     /// Stored bricks, in slot order.
     pub bricks: Vec<Brick>,
     pub grid: BrickGrid,
-    /// Per correction sub-pass in execution order: parity class and the bricks to compute.
-    pub subpasses: Vec<(usize, Vec<Brick>)>,
+    /// The correction sub-passes in execution order.
+    pub subpasses: Vec<SubpassPlan>,
     /// Bricks whose values this level delivers (to the finer level, or as output).
     pub deliver: Vec<Brick>,
 }
@@ -241,24 +351,16 @@ impl SparseLevel {
 pub fn plan_sparse(output: &[Brick], levels: usize, passes: usize) -> Vec<SparseLevel> {
     let one = &plan(Box3::new([0; 3], [BRICK; 3]), 1, passes)[0];
     let storage_range = offset_range(one.storage).expect("storage holds the brick");
-    let ranges: Vec<(usize, Option<([i32; 3], [i32; 3])>)> = one
-        .subpasses
-        .iter()
-        .map(|(class, b)| (*class, offset_range(*b)))
-        .collect();
     let mut deliver = output.to_vec();
     normalize(&mut deliver);
     let mut out = Vec::new();
     for _ in 0..levels {
         let bricks = dilate(&deliver, storage_range.0, storage_range.1);
-        let subpasses = ranges
+        let presence = Presence::new(&deliver);
+        let subpasses = one
+            .subpasses
             .iter()
-            .map(|(class, r)| {
-                let set = r
-                    .map(|(lo, hi)| dilate(&deliver, lo, hi))
-                    .unwrap_or_default();
-                (*class, set)
-            })
+            .map(|(class, needed)| subpass_plan(*class, *needed, &deliver, &presence))
             .collect();
         let grid = BrickGrid::new(&bricks);
         let mut parent: Vec<Brick> = bricks.iter().map(|b| b.map(|v| v >> 1)).collect();
@@ -338,7 +440,8 @@ mod tests {
         let output = vec![[0, 0, 0], [3, 1, -2], [-5, 0, 0]];
         let levels = plan_sparse(&output, 4, 2);
         for l in &levels {
-            for (_, set) in &l.subpasses {
+            for sp in &l.subpasses {
+                let set = &sp.bricks;
                 let reads = dilate(set, [-1; 3], [1; 3]);
                 // Reads of a 2-voxel footprint stay within one brick of the active brick, but only
                 // needed voxels must be covered: check the per-brick needed boxes directly.

@@ -286,9 +286,17 @@ impl Synthesizer {
             side -= 8;
         }
         let cube = (side as i32 / bricks::BRICK).max(1);
+        // Cubes start at the request's low corner, so a request that fits in one cube is one
+        // group wherever it lies.
+        let mut origin = all.first().copied().unwrap_or_default();
+        for b in all {
+            for i in 0..3 {
+                origin[i] = origin[i].min(b[i]);
+            }
+        }
         let mut map: std::collections::BTreeMap<[i32; 3], Vec<Brick>> = Default::default();
         for b in all {
-            let key = b.map(|v| v.div_euclid(cube));
+            let key = [0, 1, 2].map(|i| (b[i] - origin[i]).div_euclid(cube));
             map.entry([key[2], key[1], key[0]]).or_default().push(*b);
         }
         map.into_values().collect()
@@ -415,19 +423,20 @@ impl Synthesizer {
                 pack.k3d_stride
             }
             .min(pack.k3d_stride);
-            for (s, (class, list)) in lv.subpasses.iter().enumerate() {
-                if list.is_empty() {
+            for (s, sp) in lv.subpasses.iter().enumerate() {
+                if sp.bricks.is_empty() {
                     continue;
                 }
-                let p = correct_params(
+                let mut p = correct_params(
                     pack,
                     &lv.grid,
-                    (layout.subpass_lists[s], list.len() as u32),
-                    *class,
+                    (layout.subpass_lists[s].0, sp.bricks.len() as u32),
+                    sp.class,
                     k3d_used,
                     self.border,
                     self.params.candidates,
                 );
+                p.mask_offset = layout.subpass_lists[s].1;
                 exec::timed(&mut self.exec, &mut self.times, "correct", |e| {
                     e.correct(level, &p, &mut state, &indices[level])
                 })?;
@@ -492,7 +501,8 @@ fn stride_for(threads: u64) -> u32 {
 struct IndexLayout {
     words: Vec<u32>,
     storage_list: u32,
-    subpass_lists: Vec<u32>,
+    /// Per sub-pass: word offsets of its brick list and of its voxel masks.
+    subpass_lists: Vec<(u32, u32)>,
     parent_table: u32,
     output_list: u32,
 }
@@ -507,7 +517,16 @@ impl IndexLayout {
         let subpass_lists = level
             .subpasses
             .iter()
-            .map(|(_, list)| push(&mut words, list))
+            .map(|sp| {
+                let list = push(&mut words, &sp.bricks);
+                let masks = words.len() as u32;
+                words.extend(sp.masks.chunks(4).map(|m| {
+                    m.iter()
+                        .enumerate()
+                        .fold(0u32, |w, (i, &b)| w | (b as u32) << (8 * i))
+                }));
+                (list, masks)
+            })
             .collect();
         let parent_table = words.len() as u32;
         if let Some(p) = parent {
@@ -618,7 +637,8 @@ pub fn correct_params(
         counts1: o.counts[1],
         counts2: o.counts[2],
         grid_stride: stride_for(list.1 as u64 * 8),
-        _pad1: 0,
+        // The caller points this at the list's voxel masks.
+        mask_offset: 0,
         _pad2: 0,
         _pad3: 0,
         _pad4: 0,
