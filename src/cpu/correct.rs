@@ -70,10 +70,20 @@ impl Ctx<'_> {
 
     /// Projection of the plane of exemplar `a` through voxel `pos`.
     fn project_plane(&self, pos: [i32; 3], a: usize) -> [i32; MAX_PCA_OUT] {
+        // Accumulate only the kept dimensions (8 at the finest level, 12 above): the unused
+        // weights are zero, so the result is the same; the loop is just shorter.
+        match self.p.pca_out {
+            0..=8 => self.project_plane_k::<8>(pos, a),
+            9..=12 => self.project_plane_k::<12>(pos, a),
+            _ => self.project_plane_k::<MAX_PCA_OUT>(pos, a),
+        }
+    }
+
+    fn project_plane_k<const K: usize>(&self, pos: [i32; 3], a: usize) -> [i32; MAX_PCA_OUT] {
         let p = self.p;
         let (ua, va) = ((a + 1) % 3, (a + 2) % 3);
         let (wt, mean) = (&self.weights_t[a], &self.means[a]);
-        let mut acc = [0i32; MAX_PCA_OUT];
+        let mut acc = [0i32; K];
         let mut i = 0usize;
         for dv in -2..=2 {
             for du in -2..=2 {
@@ -87,10 +97,9 @@ impl Ctx<'_> {
                         (self.state[v + ch as usize / 4] >> ((ch % 4) * 8)) & 0xFF
                     });
                     let centred = byte as i32 - mean[i];
-                    let row: &[i32; MAX_PCA_OUT] = wt[i * MAX_PCA_OUT..(i + 1) * MAX_PCA_OUT]
-                        .try_into()
-                        .unwrap();
-                    for j in 0..MAX_PCA_OUT {
+                    let row: &[i32; K] =
+                        wt[i * MAX_PCA_OUT..i * MAX_PCA_OUT + K].try_into().unwrap();
+                    for j in 0..K {
                         acc[j] = acc[j].wrapping_add(centred.wrapping_mul(row[j]));
                     }
                     i += 1;
@@ -99,7 +108,7 @@ impl Ctx<'_> {
         }
         let round = 1i32 << (p.shift - 1);
         let mut q = [0i32; MAX_PCA_OUT];
-        for j in 0..p.pca_out as usize {
+        for j in 0..(p.pca_out as usize).min(K) {
             q[j] = ((acc[j].wrapping_add(round) >> p.shift) + 128).clamp(0, 255);
         }
         q

@@ -19,9 +19,13 @@ pub fn init(p: &InitParams, table: &[u32], level: &[u32], bricks: &[u32]) -> Vec
         .enumerate()
         .for_each(|(slot, dst)| {
             let brick = brick_at(bricks, p.list_offset, slot as u32);
+            // A brick is one jitter cell (both 4^3, aligned): its Gaussians are computed once.
+            let gaussians = (p.jitter_on != 0).then(|| {
+                jitter::cell_gaussians(jitter::cell_of(brick_origin(brick)), p.seed_lo, p.seed_hi)
+            });
             for local in 0..64usize {
                 let pos = voxel_of(brick, local as u32);
-                let t = init_voxel(p, table, level, pos);
+                let t = init_voxel(p, table, level, pos, gaussians.as_deref());
                 let voxel = &mut dst[local * stride..(local + 1) * stride];
                 write_voxel(
                     voxel,
@@ -37,18 +41,29 @@ pub fn init(p: &InitParams, table: &[u32], level: &[u32], bricks: &[u32]) -> Vec
     out
 }
 
-pub fn init_voxel(p: &InitParams, table: &[u32], level: &[u32], pos: [i32; 3]) -> [u32; 3] {
-    let warp = if p.jitter_on != 0 {
-        jitter::offset(
+const _: () = assert!(jitter::CELL == crate::lazy::bricks::BRICK);
+
+fn brick_origin(b: [i32; 3]) -> [i32; 3] {
+    b.map(|v| v * crate::lazy::bricks::BRICK)
+}
+
+/// The initial triple of voxel `pos`, given the Gaussians of its jitter cell (None: no jitter).
+fn init_voxel(
+    p: &InitParams,
+    table: &[u32],
+    level: &[u32],
+    pos: [i32; 3],
+    gaussians: Option<&[jitter::Gaussian]>,
+) -> [u32; 3] {
+    let warp = match gaussians {
+        Some(g) => jitter::offset_from(
             pos,
-            p.seed_lo,
-            p.seed_hi,
+            g,
             [p.amp0, p.amp1, p.amp2, p.amp3],
             [p.sig0, p.sig1, p.sig2, p.sig3],
             table,
-        )
-    } else {
-        [0; 3]
+        ),
+        None => [0; 3],
     };
     let q = [
         pos[0] + warp[0] + p.tile_x as i32,

@@ -58,6 +58,43 @@ pub fn cell_hash(seed_lo: u32, seed_hi: u32, c: [i32; 3]) -> u32 {
     h
 }
 
+/// One Gaussian of the field: centre (1/256 voxel), width class and direction index.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Gaussian {
+    centre: [i32; 3],
+    shape: usize,
+    dir: usize,
+}
+
+/// Gaussians a voxel of cell `cell` sums, in the kernel's order (cz, cy, cx ascending). Every
+/// voxel of a cell shares them, so the CPU backend computes them once per cell.
+pub fn cell_gaussians(cell: [i32; 3], seed_lo: u32, seed_hi: u32) -> Vec<Gaussian> {
+    let mut out = Vec::with_capacity(((2 * REACH + 1) as usize).pow(3));
+    for cz in cell[2] - REACH..=cell[2] + REACH {
+        for cy in cell[1] - REACH..=cell[1] + REACH {
+            for cx in cell[0] - REACH..=cell[0] + REACH {
+                let h = cell_hash(seed_lo, seed_hi, [cx, cy, cz]);
+                let shape = hash32(h ^ 4);
+                out.push(Gaussian {
+                    centre: [
+                        cx * CELL * 256 + (hash32(h ^ 1) & 1023) as i32,
+                        cy * CELL * 256 + (hash32(h ^ 2) & 1023) as i32,
+                        cz * CELL * 256 + (hash32(h ^ 3) & 1023) as i32,
+                    ],
+                    shape: (shape & 3) as usize,
+                    dir: ((shape >> 2) & 63) as usize,
+                });
+            }
+        }
+    }
+    out
+}
+
+/// The cell of l_start voxel `p`.
+pub fn cell_of(p: [i32; 3]) -> [i32; 3] {
+    p.map(|v| v.div_euclid(CELL))
+}
+
 /// The warp offset (whole voxels) at l_start voxel `p` (CPU side of `wgsl/init.wgsl`).
 pub fn offset(
     p: [i32; 3],
@@ -67,30 +104,28 @@ pub fn offset(
     sig2: [i32; 4],
     table: &[u32],
 ) -> [i32; 3] {
+    let gaussians = cell_gaussians(cell_of(p), seed_lo, seed_hi);
+    offset_from(p, &gaussians, amps, sig2, table)
+}
+
+/// The warp offset at `p` from its cell's Gaussians ([`cell_gaussians`] of [`cell_of`] p).
+pub fn offset_from(
+    p: [i32; 3],
+    gaussians: &[Gaussian],
+    amps: [i32; 4],
+    sig2: [i32; 4],
+    table: &[u32],
+) -> [i32; 3] {
     let pos = p.map(|v| v * 256 + 128);
-    let cell = p.map(|v| v.div_euclid(CELL));
     let mut disp = [0i32; 3];
-    for cz in cell[2] - REACH..=cell[2] + REACH {
-        for cy in cell[1] - REACH..=cell[1] + REACH {
-            for cx in cell[0] - REACH..=cell[0] + REACH {
-                let h = cell_hash(seed_lo, seed_hi, [cx, cy, cz]);
-                let centre = [
-                    cx * CELL * 256 + (hash32(h ^ 1) & 1023) as i32,
-                    cy * CELL * 256 + (hash32(h ^ 2) & 1023) as i32,
-                    cz * CELL * 256 + (hash32(h ^ 3) & 1023) as i32,
-                ];
-                let shape = hash32(h ^ 4);
-                let s = (shape & 3) as usize;
-                let dir = ((shape >> 2) & 63) as usize;
-                let d = [0, 1, 2].map(|i| pos[i] - centre[i]);
-                let r2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-                let q = r2 / sig2[s];
-                if q < WEIGHT_ENTRIES as i32 {
-                    let t = (amps[s] * table[q as usize] as i32) >> 16;
-                    for i in 0..3 {
-                        disp[i] += t * table[WEIGHT_ENTRIES + dir * 3 + i] as i32;
-                    }
-                }
+    for g in gaussians {
+        let d = [0, 1, 2].map(|i| pos[i] - g.centre[i]);
+        let r2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+        let q = r2 / sig2[g.shape];
+        if q < WEIGHT_ENTRIES as i32 {
+            let t = (amps[g.shape] * table[q as usize] as i32) >> 16;
+            for i in 0..3 {
+                disp[i] += t * table[WEIGHT_ENTRIES + g.dir * 3 + i] as i32;
             }
         }
     }
