@@ -92,6 +92,7 @@ pub fn run(args: CutArgs, quiet: bool) -> anyhow::Result<()> {
             "{}",
             serde_json::json!({"output": args.output, "size": args.size, "repeat": args.repeat,
                 "median_ms": median, "p95_ms": p95, "first_ms": latencies[0],
+                "stats": session.synthesizer().last_stats(),
                 "peak_rss_bytes": solidsynth::util::memory::peak_rss_bytes(), "backend": compute.describe()})
         );
     } else if !quiet {
@@ -102,6 +103,13 @@ pub fn run(args: CutArgs, quiet: bool) -> anyhow::Result<()> {
             args.repeat,
             latencies[0]
         );
+        if let Some(st) = session.synthesizer().last_stats() {
+            eprintln!(
+                "  voxels synthesized per level (coarsest first): {:?}; peak state {:.1} MiB",
+                st.voxels_per_level,
+                st.peak_state_bytes as f64 / (1 << 20) as f64
+            );
+        }
     }
     Ok(())
 }
