@@ -10,6 +10,7 @@ pub mod cpu;
 pub mod error;
 pub mod exemplar;
 pub mod gpu;
+pub mod gradient;
 pub mod io;
 pub mod kernel_types;
 pub mod lazy;

@@ -4,6 +4,7 @@ pub mod analyze;
 pub mod bench;
 pub mod cut;
 pub mod eval;
+pub mod gradient;
 pub mod inspect;
 pub mod surface;
 pub mod synth;
@@ -43,6 +44,9 @@ pub enum Command {
     Surface(surface::SurfaceArgs),
     /// Describe a .ssa file and write its candidate slab as a PNG.
     Inspect(inspect::InspectArgs),
+    /// Gradient solid textures: vectorize a volume into a .gsolid, render one.
+    #[command(subcommand)]
+    Gradient(gradient::GradientCommand),
     /// Benchmarks printed as tables.
     #[command(subcommand)]
     Bench(bench::BenchCommand),
@@ -82,6 +86,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Region(a) => synth::run_region(a, cli.quiet),
         Command::Cut(a) => cut::run(a, cli.quiet),
         Command::Surface(a) => surface::run(a, cli.quiet),
+        Command::Gradient(g) => gradient::run(g, cli.quiet),
         Command::Bench(b) => bench::run(b),
         Command::Adapters => {
             let list = solidsynth::gpu::context::list_adapters();

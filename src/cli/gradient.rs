@@ -1,0 +1,105 @@
+//! `solidsynth gradient ...`: gradient solid textures (vectorize a volume, render a .gsolid).
+
+use clap::{Args, Subcommand};
+use solidsynth::gradient::{format, vectorize, GradientSolid};
+use solidsynth::io::{atomic, nrrd};
+use solidsynth::Error;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+#[derive(Subcommand, Debug)]
+pub enum GradientCommand {
+    /// Fit a gradient solid to a volume (NRRD): per control point, eq. 2's least squares.
+    Vectorize(VectorizeArgs),
+    /// Render a .gsolid into a volume (NRRD).
+    Render(RenderArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct VectorizeArgs {
+    /// Input volume (NRRD as written by `synth`).
+    pub input: PathBuf,
+    /// Stored precision of the control values.
+    #[arg(long, value_enum, default_value = "u8")]
+    pub encoding: format::Encoding,
+    /// Output .gsolid.
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Print a JSON summary on stdout.
+    #[arg(long)]
+    pub json: bool,
+}
+
+#[derive(Args, Debug)]
+pub struct RenderArgs {
+    /// Input .gsolid.
+    pub input: PathBuf,
+    /// Edge of the rendered cube [0, N)^3 (default: the solid's extent).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=2048))]
+    pub size: Option<u32>,
+    /// Output NRRD volume.
+    #[arg(short, long)]
+    pub output: PathBuf,
+}
+
+fn load(path: &Path) -> solidsynth::Result<GradientSolid> {
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    format::from_bytes(&bytes, &path.display().to_string())
+}
+
+pub fn run(cmd: GradientCommand, quiet: bool) -> anyhow::Result<()> {
+    match cmd {
+        GradientCommand::Vectorize(a) => {
+            atomic::check_output_path(&a.output, "-o")?;
+            let volume = nrrd::load(&a.input)?;
+            let start = Instant::now();
+            let solid = vectorize::vectorize(&volume)?;
+            let fit_s = start.elapsed().as_secs_f64();
+            let bytes = format::to_bytes(&solid, a.encoding);
+            // The error of what is stored: decode the file's own bytes and render them.
+            let stored = format::from_bytes(&bytes, "encoded solid")?;
+            let rendered = vectorize::render(&stored, [volume.nx, volume.ny, volume.nz]);
+            let rms = vectorize::rms(&rendered, &volume);
+            let fraction = bytes.len() as f64 / volume.data.len() as f64;
+            atomic::write_file(&a.output, &bytes)?;
+            if a.json {
+                println!(
+                    "{}",
+                    serde_json::json!({"output": a.output, "grid": solid.dims, "rms": rms,
+                        "seconds": fit_s, "bytes": bytes.len(), "fraction_of_volume": fraction})
+                );
+            } else if !quiet {
+                eprintln!(
+                    "vectorized {}x{}x{} into a {:?} control grid in {fit_s:.2} s: RMS error {rms:.2}, \
+                     {} bytes ({:.1}% of the volume) -> {}",
+                    volume.nx,
+                    volume.ny,
+                    volume.nz,
+                    solid.dims,
+                    bytes.len(),
+                    fraction * 100.0,
+                    a.output.display()
+                );
+            }
+        }
+        GradientCommand::Render(a) => {
+            atomic::check_output_path(&a.output, "-o")?;
+            let solid = load(&a.input)?;
+            let n = a.size.map(|s| [s; 3]).unwrap_or_else(|| solid.extent());
+            let start = Instant::now();
+            let v = vectorize::render(&solid, n);
+            nrrd::save(&v, &a.output)?;
+            if !quiet {
+                eprintln!(
+                    "rendered {}x{}x{} in {:.2} s -> {}",
+                    n[0],
+                    n[1],
+                    n[2],
+                    start.elapsed().as_secs_f64(),
+                    a.output.display()
+                );
+            }
+        }
+    }
+    Ok(())
+}
