@@ -6,6 +6,7 @@ mod compare;
 mod project;
 mod shaders;
 mod synth;
+mod tricubic;
 
 use solidsynth::gpu::{GpuContext, GpuOptions};
 use std::sync::OnceLock;

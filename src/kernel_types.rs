@@ -133,6 +133,25 @@ gpu_struct! {
     }
 }
 
+gpu_struct! {
+    /// Uniforms of `wgsl/tricubic_eval.wgsl`: evaluate a gradient solid at points. Floats are
+    /// stored as their bits (`f32::to_bits`).
+    TricubicParams size 96 {
+        /// Control points per axis and channels.
+        dims_x: u32, dims_y: u32, dims_z: u32, channels: u32,
+        /// 0: an affine grid of points (origin + i a + j b + k c, i < n_x, j < n_y); 1: a list.
+        mode: u32,
+        /// Points of this dispatch, the index of its first point, threads per grid row.
+        count: u32, first: u32, grid_stride: u32,
+        n_x: u32, n_y: u32,
+        origin_x: u32, origin_y: u32, origin_z: u32,
+        a_x: u32, a_y: u32, a_z: u32,
+        b_x: u32, b_y: u32, b_z: u32,
+        c_x: u32, c_y: u32, c_z: u32,
+        _pad0: u32, _pad1: u32,
+    }
+}
+
 /// Every shared struct: (WGSL kernel, struct name, Rust layout, Rust size).
 pub fn all_layouts() -> Vec<(
     &'static str,
@@ -171,6 +190,12 @@ pub fn all_layouts() -> Vec<(
             "ColorizeParams",
             ColorizeParams::layout(),
             size_of::<ColorizeParams>(),
+        ),
+        (
+            "tricubic_eval",
+            "TricubicParams",
+            TricubicParams::layout(),
+            size_of::<TricubicParams>(),
         ),
     ]
 }

@@ -780,3 +780,71 @@ fn surface_bakes_the_solid_at_each_texel_and_refuses_bad_meshes() {
         assert_user_error(&o, needle, b, &["nan.obj", "empty.obj"]);
     }
 }
+
+#[test]
+fn gradient_vectorize_and_render_round_trip_and_refuse_corrupt_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let vol = d.join("v.nrrd");
+    let o = run(&[
+        "synth",
+        "--size",
+        "16",
+        "--backend",
+        "cpu",
+        "-o",
+        vol.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let gs = d.join("v.gsolid");
+    let o = run(&[
+        "gradient",
+        "vectorize",
+        vol.to_str().unwrap(),
+        "--json",
+        "-o",
+        gs.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let summary: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(summary["grid"], serde_json::json!([5, 5, 5]));
+    // The rendering is an approximation of the volume: bounded error, well below random.
+    let rms = summary["rms"].as_f64().unwrap();
+    assert!(rms > 0.0 && rms < 40.0, "rms {rms}");
+    let out = d.join("r.nrrd");
+    let o = run(&[
+        "gradient",
+        "render",
+        gs.to_str().unwrap(),
+        "--size",
+        "16",
+        "--backend",
+        "cpu",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let (a, b) = (
+        solidsynth::io::nrrd::load(&vol).unwrap(),
+        solidsynth::io::nrrd::load(&out).unwrap(),
+    );
+    let measured = solidsynth::gradient::vectorize::rms(&a, &b);
+    assert!((measured - rms).abs() < 1e-9, "{measured} vs {rms}");
+    // A corrupt file: exit 2 naming it, nothing written.
+    let mut bytes = std::fs::read(&gs).unwrap();
+    let last = bytes.len() - 1;
+    bytes[last] ^= 0x10;
+    let bad = tempfile::tempdir().unwrap();
+    let b = bad.path();
+    std::fs::write(b.join("bad.gsolid"), &bytes).unwrap();
+    let o = run(&[
+        "gradient",
+        "render",
+        b.join("bad.gsolid").to_str().unwrap(),
+        "--backend",
+        "cpu",
+        "-o",
+        b.join("o.nrrd").to_str().unwrap(),
+    ]);
+    assert_user_error(&o, "bad.gsolid", b, &["bad.gsolid"]);
+}

@@ -7,4 +7,5 @@ pub mod correct;
 pub mod init;
 pub mod project;
 pub mod synth_common;
+pub mod tricubic_eval;
 pub mod upsample;

@@ -5,5 +5,6 @@ pub mod context;
 pub mod project;
 pub mod shaders;
 pub mod synth;
+pub mod tricubic_eval;
 
 pub use context::{GpuContext, GpuOptions};

@@ -39,39 +39,15 @@ pub fn project(gpu: &GpuContext, img: &Image, border: Border, pca: &PcaBasis) ->
         let chunk = gpu.checked("project", || {
             let uniform = gpu.uniform_buffer("project params", &params);
             let output = gpu.output_buffer("projected", count as usize * words as usize, SENTINEL);
-            let bind = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("project"),
-                layout: &pipeline.get_bind_group_layout(0),
-                entries: &[
-                    entry(0, &uniform),
-                    entry(1, &image),
-                    entry(2, &mean),
-                    entry(3, &weights),
-                    entry(4, &output),
-                ],
-            });
-            let mut encoder = gpu
-                .device
-                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                    label: Some("project"),
-                });
-            {
-                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor::default());
-                pass.set_pipeline(&pipeline);
-                pass.set_bind_group(0, &bind, &[]);
-                pass.dispatch_workgroups(gx, gy, 1);
-            }
-            gpu.submit_and_wait(encoder)?;
+            gpu.dispatch_and_wait(
+                "project",
+                &pipeline,
+                &[&uniform, &image, &mean, &weights, &output],
+                (gx, gy),
+            )?;
             gpu.read_words(&output, count as usize * words as usize)
         })?;
         out.extend_from_slice(&chunk);
     }
     Ok(out)
-}
-
-fn entry(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
-    wgpu::BindGroupEntry {
-        binding,
-        resource: buffer.as_entire_binding(),
-    }
 }

@@ -18,6 +18,10 @@ pub const KERNELS: &[(&str, &str)] = &[
     ("upsample", with_prelude!("../../wgsl/upsample.wgsl")),
     ("correct", with_prelude!("../../wgsl/correct.wgsl")),
     ("colorize", with_prelude!("../../wgsl/colorize.wgsl")),
+    (
+        "tricubic_eval",
+        include_str!("../../wgsl/tricubic_eval.wgsl"),
+    ),
 ];
 
 /// The source of kernel `name`.
