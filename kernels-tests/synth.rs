@@ -94,6 +94,28 @@ fn synthesis_kernels_bit_exact_on_gpu_and_cpu() {
         )
         .unwrap();
     }
+    // A tileable solid (reads wrap around each level's period; periodic jitter and tiling).
+    let a = analysis(false, Border::Wrap);
+    let params = SynthParams {
+        seed: 5,
+        ..Default::default()
+    };
+    let on_cpu = Synthesizer::new(&a, params.clone(), &Compute::Cpu)
+        .unwrap()
+        .synthesize_tileable(32, &|_, _| {}, false)
+        .unwrap()
+        .0;
+    let on_gpu = Synthesizer::new(&a, params, &gpu)
+        .unwrap()
+        .synthesize_tileable(32, &|_, _| {}, false)
+        .unwrap()
+        .0;
+    words_equal(
+        "tileable",
+        &bytes_to_words(&on_cpu.data),
+        &bytes_to_words(&on_gpu.data),
+    )
+    .unwrap();
 }
 
 fn bytes_to_words(b: &[u8]) -> Vec<u32> {

@@ -49,7 +49,9 @@ gpu_struct! {
         /// The level's stored bricks (word offset of the brick list in the brick index, count)
         /// and the threads per row of the 2D dispatch grid (one thread per voxel).
         list_offset: u32, list_count: u32, grid_stride: u32,
-        _r0: u32, _r1: u32, _r2: u32,
+        /// Tileable solids: the level's period in voxels (a multiple of 4; 0: not periodic).
+        period: u32,
+        _r1: u32, _r2: u32,
         ex_width: u32, ex_height: u32, border: u32,
         seed_lo: u32, seed_hi: u32,
         /// 0: no jitter.
@@ -112,7 +114,9 @@ gpu_struct! {
         /// Word offset of the sub-pass's voxel masks: one byte per listed brick (bit k: its
         /// class voxel k is needed), four per word.
         mask_offset: u32,
-        _pad2: u32, _pad3: u32, _pad4: u32,
+        /// Tileable solids: the level's period in voxels (0: not periodic); reads wrap.
+        period: u32,
+        _pad3: u32, _pad4: u32,
     }
 }
 

@@ -20,7 +20,7 @@ struct CorrectParams {
     cand2d0: u32, cand2d1: u32, cand2d2: u32,
     cand3d0: u32, cand3d1: u32, cand3d2: u32,
     counts0: u32, counts1: u32, counts2: u32,
-    grid_stride: u32, mask_offset: u32, _pad2: u32, _pad3: u32, _pad4: u32,
+    grid_stride: u32, mask_offset: u32, period: u32, _pad3: u32, _pad4: u32,
 }
 
 const MAX_PCA_OUT: u32 = 16u;
@@ -38,7 +38,12 @@ override K2D: u32 = 2u;
 // (binding 4: the level's brick index, declared by the prelude)
 
 // Index of voxel p in the state (ABSENT when its brick is not stored).
-fn state_index(p: vec3<i32>) -> u32 {
+fn state_index(pos: vec3<i32>) -> u32 {
+    var p = pos;
+    if (params.period != 0u) {
+        let n = i32(params.period);
+        p = vec3<i32>(rem_euclid(p.x, n), rem_euclid(p.y, n), rem_euclid(p.z, n));
+    }
     return voxel_index(p, vec3<i32>(params.grid_lo_x, params.grid_lo_y, params.grid_lo_z),
         vec3<u32>(params.grid_x, params.grid_y, params.grid_z), params.table_offset);
 }

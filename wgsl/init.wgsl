@@ -3,7 +3,7 @@
 
 struct InitParams {
     list_offset: u32, list_count: u32, grid_stride: u32,
-    _r0: u32, _r1: u32, _r2: u32,
+    period: u32, _r1: u32, _r2: u32,
     ex_width: u32, ex_height: u32, border: u32,
     seed_lo: u32, seed_hi: u32,
     jitter_on: u32,
@@ -26,7 +26,13 @@ const WEIGHT_ENTRIES: i32 = 144;
 @group(0) @binding(3) var<storage, read_write> out_state: array<u32>;
 // (binding 4: the level's brick index, declared by the prelude)
 
-fn cell_hash(c: vec3<i32>) -> u32 {
+fn cell_hash(cell: vec3<i32>) -> u32 {
+    // Tileable solids: cells repeat with the period, so the field does too.
+    var c = cell;
+    if (params.period != 0u) {
+        let n = i32(params.period) / 4;
+        c = vec3<i32>(rem_euclid(c.x, n), rem_euclid(c.y, n), rem_euclid(c.z, n));
+    }
     var h = hash32(params.seed_lo ^ 0x9E3779B9u);
     h = hash32(h ^ params.seed_hi);
     h = hash32(h ^ bitcast<u32>(c.x));
@@ -82,7 +88,11 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (params.jitter_on != 0u) {
         warp = jitter_offset(pos);
     }
-    let q = pos + warp + vec3<i32>(i32(params.tile_x), i32(params.tile_y), i32(params.tile_z));
+    var q = pos + warp + vec3<i32>(i32(params.tile_x), i32(params.tile_y), i32(params.tile_z));
+    if (params.period != 0u) {
+        let n = i32(params.period);
+        q = vec3<i32>(rem_euclid(q.x, n), rem_euclid(q.y, n), rem_euclid(q.z, n));
+    }
     let w = params.ex_width;
     let h = params.ex_height;
     // Each 5-voxel layer of slabs along x gets its own hashed (y, z) offset (see the CPU reference).

@@ -15,6 +15,10 @@ pub struct SynthArgs {
     /// Edge of the cube [0, N)^3 to synthesize, in finest-level voxels.
     #[arg(long)]
     pub size: u32,
+    /// A periodic solid of period N (copies of the volume tile space seamlessly): its own
+    /// deterministic solid, not the box [0, N)^3 of the infinite one. N a multiple of 32.
+    #[arg(long)]
+    pub tileable: bool,
     #[command(flatten)]
     pub solid: SolidArgs,
 }
@@ -190,7 +194,14 @@ fn z_slice(v: &Volume, z: u32) -> image::RgbaImage {
 pub fn run(args: SynthArgs, quiet: bool) -> anyhow::Result<()> {
     check_size(args.size, 4)?;
     let n = args.size as i32;
-    run_box(&args.solid, Box3::new([0; 3], [n; 3]), quiet)
+    if args.tileable && (args.size < 32 || args.size % 32 != 0) {
+        return Err(Error::invalid(
+            format!("--size {} with --tileable", args.size),
+            "must be a multiple of 32 (every level a whole number of 4-voxel bricks)",
+        )
+        .into());
+    }
+    run_box(&args.solid, Box3::new([0; 3], [n; 3]), args.tileable, quiet)
 }
 
 /// Parse and check `--box X0,Y0,Z0,X1,Y1,Z1`.
@@ -248,10 +259,10 @@ pub fn parse_box(text: &str) -> solidsynth::Result<Box3> {
 
 pub fn run_region(args: RegionArgs, quiet: bool) -> anyhow::Result<()> {
     let b = parse_box(&args.region)?;
-    run_box(&args.solid, b, quiet)
+    run_box(&args.solid, b, false, quiet)
 }
 
-fn run_box(args: &SolidArgs, region: Box3, quiet: bool) -> anyhow::Result<()> {
+fn run_box(args: &SolidArgs, region: Box3, tileable: bool, quiet: bool) -> anyhow::Result<()> {
     atomic::check_output_path(&args.output, "-o")?;
     for (flag, p) in [
         ("--flipbook", &args.flipbook),
@@ -281,7 +292,11 @@ fn run_box(args: &SolidArgs, region: Box3, quiet: bool) -> anyhow::Result<()> {
     if args.profile {
         synth.enable_profiling();
     }
-    let (volume, triples) = synth.synthesize_with_triples(region, &report)?;
+    let (volume, triples) = if tileable {
+        synth.synthesize_tileable(region.size()[0], &report, true)?
+    } else {
+        synth.synthesize_with_triples(region, &report)?
+    };
     let synth_s = synth_start.elapsed().as_secs_f64();
     bar.finish_and_clear();
     nrrd::save(&volume, &args.output)?;

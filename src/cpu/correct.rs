@@ -49,6 +49,10 @@ impl Ctx<'_> {
     }
 
     fn state_index(&self, pos: [i32; 3]) -> Option<usize> {
+        let pos = match self.p.period {
+            0 => pos,
+            n => pos.map(|v| v.rem_euclid(n as i32)),
+        };
         voxel_index(
             self.bricks,
             pos,

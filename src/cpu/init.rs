@@ -21,7 +21,12 @@ pub fn init(p: &InitParams, table: &[u32], level: &[u32], bricks: &[u32]) -> Vec
             let brick = brick_at(bricks, p.list_offset, slot as u32);
             // A brick is one jitter cell (both 4^3, aligned): its Gaussians are computed once.
             let gaussians = (p.jitter_on != 0).then(|| {
-                jitter::cell_gaussians(jitter::cell_of(brick_origin(brick)), p.seed_lo, p.seed_hi)
+                jitter::cell_gaussians(
+                    jitter::cell_of(brick_origin(brick)),
+                    p.seed_lo,
+                    p.seed_hi,
+                    p.period,
+                )
             });
             for local in 0..64usize {
                 let pos = voxel_of(brick, local as u32);
@@ -65,11 +70,14 @@ fn init_voxel(
         ),
         None => [0; 3],
     };
-    let q = [
+    let mut q = [
         pos[0] + warp[0] + p.tile_x as i32,
         pos[1] + warp[1] + p.tile_y as i32,
         pos[2] + warp[2] + p.tile_z as i32,
     ];
+    if p.period != 0 {
+        q = q.map(|v| v.rem_euclid(p.period as i32));
+    }
     let (w, h) = (p.ex_width, p.ex_height);
     // Each 5-voxel layer of slabs along x is shifted by its own hashed (y, z) offset, so the
     // tiling does not extrude exemplar 0 along x (a state the correction cannot leave: it

@@ -377,6 +377,32 @@ pub fn plan_sparse(output: &[Brick], levels: usize, passes: usize) -> Vec<Sparse
     out
 }
 
+/// The plan of a tileable solid of period `n` (finest level): level l stores every brick of its
+/// period box [0, n >> (levels - 1 - l))^3 and every sub-pass computes all of them (reads wrap
+/// around the period, so no padding is needed).
+pub fn plan_periodic(n: u32, levels: usize, passes: usize) -> Vec<SparseLevel> {
+    (0..levels)
+        .map(|l| {
+            let p = (n >> (levels - 1 - l)) as i32;
+            let bricks = bricks_of_box(Box3::new([0; 3], [p; 3]));
+            let subpasses = (0..passes)
+                .flat_map(|_| super::SUBPASS_ORDER)
+                .map(|class| SubpassPlan {
+                    class,
+                    bricks: bricks.clone(),
+                    masks: vec![0xFF; bricks.len()],
+                })
+                .collect();
+            SparseLevel {
+                grid: BrickGrid::new(&bricks),
+                deliver: bricks.clone(),
+                bricks,
+                subpasses,
+            }
+        })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -49,7 +49,12 @@ pub fn sigma2_fixed() -> [i32; 4] {
 }
 
 /// Hash of a cell of the lattice for a seed (shared with the WGSL kernel `init`).
-pub fn cell_hash(seed_lo: u32, seed_hi: u32, c: [i32; 3]) -> u32 {
+/// `period`: tileable solids' period in voxels (0: none); cells then repeat with it.
+pub fn cell_hash(seed_lo: u32, seed_hi: u32, c: [i32; 3], period: u32) -> u32 {
+    let c = match period {
+        0 => c,
+        n => c.map(|v| v.rem_euclid(n as i32 / CELL)),
+    };
     let mut h = hash32(seed_lo ^ 0x9E37_79B9);
     h = hash32(h ^ seed_hi);
     for v in c {
@@ -68,12 +73,12 @@ pub struct Gaussian {
 
 /// Gaussians a voxel of cell `cell` sums, in the kernel's order (cz, cy, cx ascending). Every
 /// voxel of a cell shares them, so the CPU backend computes them once per cell.
-pub fn cell_gaussians(cell: [i32; 3], seed_lo: u32, seed_hi: u32) -> Vec<Gaussian> {
+pub fn cell_gaussians(cell: [i32; 3], seed_lo: u32, seed_hi: u32, period: u32) -> Vec<Gaussian> {
     let mut out = Vec::with_capacity(((2 * REACH + 1) as usize).pow(3));
     for cz in cell[2] - REACH..=cell[2] + REACH {
         for cy in cell[1] - REACH..=cell[1] + REACH {
             for cx in cell[0] - REACH..=cell[0] + REACH {
-                let h = cell_hash(seed_lo, seed_hi, [cx, cy, cz]);
+                let h = cell_hash(seed_lo, seed_hi, [cx, cy, cz], period);
                 let shape = hash32(h ^ 4);
                 out.push(Gaussian {
                     centre: [
@@ -104,7 +109,7 @@ pub fn offset(
     sig2: [i32; 4],
     table: &[u32],
 ) -> [i32; 3] {
-    let gaussians = cell_gaussians(cell_of(p), seed_lo, seed_hi);
+    let gaussians = cell_gaussians(cell_of(p), seed_lo, seed_hi, 0);
     offset_from(p, &gaussians, amps, sig2, table)
 }
 

@@ -220,7 +220,7 @@ impl Synthesizer {
         for (g, group) in groups.iter().enumerate() {
             let base = g as f32 / groups.len() as f32;
             let scale = 1.0 / groups.len() as f32;
-            let (c, t) = self.synthesize_group(
+            let (c, t) = self.synthesize_group_of(
                 group,
                 &|m, f| progress(m, base + scale * f),
                 want_triples,
@@ -302,8 +302,82 @@ impl Synthesizer {
         map.into_values().collect()
     }
 
+    /// A tileable solid: the `n`^3 volume of a solid periodic with period `n` along each axis
+    /// (every level periodic with its own size, reads wrapping around), so copies of it tile
+    /// space seamlessly. Its own deterministic definition (same analysis, seed, jitter), not a
+    /// region of the infinite solid. `n` must be a multiple of 32 (each level a whole number of
+    /// bricks and of jitter cells).
+    pub fn synthesize_tileable(
+        &mut self,
+        n: u32,
+        progress: Progress,
+        want_triples: bool,
+    ) -> Result<(Volume, Vec<u32>)> {
+        if n < 32 || n % 32 != 0 {
+            return Err(Error::invalid(
+                format!("--size {n} with --tileable"),
+                "must be a multiple of 32 (every level a whole number of 4-voxel bricks)",
+            ));
+        }
+        let stride = 3 + self.packs.last().unwrap().pixel_words as u64;
+        let state = (n as u64).pow(3) * stride * 4;
+        if state > self.exec.max_state_bytes() {
+            return Err(Error::invalid(
+                format!("--size {n} with --tileable"),
+                format!(
+                    "the periodic state ({} MiB) exceeds this backend's {} MiB per buffer; a \
+                     tileable solid is synthesized in one piece: use a smaller size or --backend cpu",
+                    state >> 20,
+                    self.exec.max_state_bytes() >> 20
+                ),
+            ));
+        }
+        let levels = bricks::plan_periodic(n, ANALYSED_LEVELS, self.params.passes as usize);
+        let periods: Vec<u32> = (0..ANALYSED_LEVELS)
+            .map(|l| n >> (ANALYSED_LEVELS - 1 - l))
+            .collect();
+        let output = levels.last().unwrap().bricks.clone();
+        let mut stats = SynthStats {
+            voxels_per_level: vec![0; ANALYSED_LEVELS],
+            peak_state_bytes: 0,
+            groups: 1,
+        };
+        let (colors, triples) = self.synthesize_group(
+            levels,
+            &output,
+            Some(&periods),
+            progress,
+            want_triples,
+            &mut stats,
+        )?;
+        self.last_stats = Some(stats);
+        let grid = BrickGrid::new(&output);
+        let channels = self.color_channels() as usize;
+        let mut volume = Volume::new(n, n, n, channels as u32);
+        let mut out_triples = Vec::with_capacity(if want_triples {
+            n as usize * n as usize * n as usize * 3
+        } else {
+            0
+        });
+        for z in 0..n as i32 {
+            for y in 0..n as i32 {
+                for x in 0..n as i32 {
+                    let i = grid.voxel_index([x, y, z]).expect("every brick is output");
+                    volume
+                        .at_mut(x as u32, y as u32, z as u32)
+                        .copy_from_slice(&colors[i].to_le_bytes()[..channels]);
+                    if want_triples {
+                        out_triples.extend_from_slice(&triples[i * 3..i * 3 + 3]);
+                    }
+                }
+            }
+        }
+        progress("done", 1.0);
+        Ok((volume, out_triples))
+    }
+
     /// Colours (64 per brick, `group` order) and, when asked, triples of one group of bricks.
-    fn synthesize_group(
+    fn synthesize_group_of(
         &mut self,
         group: &[Brick],
         progress: Progress,
@@ -311,6 +385,21 @@ impl Synthesizer {
         stats: &mut SynthStats,
     ) -> Result<(Vec<u32>, Vec<u32>)> {
         let levels = bricks::plan_sparse(group, ANALYSED_LEVELS, self.params.passes as usize);
+        self.synthesize_group(levels, group, None, progress, want_triples, stats)
+    }
+
+    /// Run a planned synthesis: colours (64 per brick, `group` order) and, when asked, triples
+    /// of the output bricks `group`. `periods`: per level, the period of a tileable solid.
+    fn synthesize_group(
+        &mut self,
+        levels: Vec<SparseLevel>,
+        group: &[Brick],
+        periods: Option<&[u32]>,
+        progress: Progress,
+        want_triples: bool,
+        stats: &mut SynthStats,
+    ) -> Result<(Vec<u32>, Vec<u32>)> {
+        let period = |l: usize| periods.map_or(0, |p| p[l]);
         let layouts: Vec<IndexLayout> = (0..levels.len())
             .map(|l| {
                 IndexLayout::new(
@@ -346,7 +435,7 @@ impl Synthesizer {
             list_offset: layouts[0].storage_list,
             list_count: count0,
             grid_stride: stride_for(count0 as u64 * 64),
-            _r0: 0,
+            period: period(0),
             _r1: 0,
             _r2: 0,
             ex_width: coarse.width,
@@ -437,6 +526,7 @@ impl Synthesizer {
                     self.params.candidates,
                 );
                 p.mask_offset = layout.subpass_lists[s].1;
+                p.period = period(level);
                 exec::timed(&mut self.exec, &mut self.times, "correct", |e| {
                     e.correct(level, &p, &mut state, &indices[level])
                 })?;
@@ -639,7 +729,7 @@ pub fn correct_params(
         grid_stride: stride_for(list.1 as u64 * 8),
         // The caller points this at the list's voxel masks.
         mask_offset: 0,
-        _pad2: 0,
+        period: 0,
         _pad3: 0,
         _pad4: 0,
     }
