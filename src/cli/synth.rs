@@ -292,10 +292,14 @@ fn run_box(args: &SolidArgs, region: Box3, tileable: bool, quiet: bool) -> anyho
     if args.profile {
         synth.enable_profiling();
     }
+    // Triples cost memory (and a read-back): only when asked for.
+    let want_triples = args.triples.is_some();
     let (volume, triples) = if tileable {
-        synth.synthesize_tileable(region.size()[0], &report, true)?
-    } else {
+        synth.synthesize_tileable(region.size()[0], &report, want_triples)?
+    } else if want_triples {
         synth.synthesize_with_triples(region, &report)?
+    } else {
+        (synth.synthesize(region, &report)?, Vec::new())
     };
     let synth_s = synth_start.elapsed().as_secs_f64();
     bar.finish_and_clear();
