@@ -830,6 +830,49 @@ fn gradient_vectorize_and_render_round_trip_and_refuse_corrupt_files() {
     );
     let measured = solidsynth::gradient::vectorize::rms(&a, &b);
     assert!((measured - rms).abs() < 1e-9, "{measured} vs {rms}");
+    // Editing: strokes recolour, bad strokes are refused.
+    let strokes = d.join("s.json");
+    std::fs::write(
+        &strokes,
+        r#"{"strokes": [{"position": [8, 8, 8], "strength": 1.0}]}"#,
+    )
+    .unwrap();
+    let edited = d.join("e.gsolid");
+    let o = run(&[
+        "gradient",
+        "edit",
+        gs.to_str().unwrap(),
+        "--strokes",
+        strokes.to_str().unwrap(),
+        "--color",
+        "255,0,255",
+        "-o",
+        edited.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let e =
+        solidsynth::gradient::format::from_bytes(&std::fs::read(&edited).unwrap(), "e").unwrap();
+    let mut at_stroke = [0f32; 3];
+    e.eval([8.0, 8.0, 8.0], &mut at_stroke);
+    assert!(
+        at_stroke[0] > 200.0 && at_stroke[2] > 200.0 && at_stroke[1] < 60.0,
+        "{at_stroke:?}"
+    );
+    std::fs::write(&strokes, r#"{"strokes": []}"#).unwrap();
+    let o = run(&[
+        "gradient",
+        "edit",
+        gs.to_str().unwrap(),
+        "--strokes",
+        strokes.to_str().unwrap(),
+        "--color",
+        "255,0,255",
+        "-o",
+        d.join("x.gsolid").to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("no strokes"));
+    assert!(!d.join("x.gsolid").exists());
     // A corrupt file: exit 2 naming it, nothing written.
     let mut bytes = std::fs::read(&gs).unwrap();
     let last = bytes.len() - 1;

@@ -1,9 +1,10 @@
-//! `solidsynth gradient ...`: gradient solid textures (vectorize a volume, render a .gsolid).
+//! `solidsynth gradient ...`: gradient solid textures (vectorize a volume, render or edit a
+//! .gsolid).
 
 use clap::{Args, Subcommand};
 use solidsynth::backend::Compute;
 use solidsynth::cpu::tricubic_eval::{tricubic_eval, Query};
-use solidsynth::gradient::{format, vectorize, GradientSolid};
+use solidsynth::gradient::{edit, format, vectorize, GradientSolid};
 use solidsynth::io::{atomic, nrrd};
 use solidsynth::Error;
 use std::path::{Path, PathBuf};
@@ -15,6 +16,33 @@ pub enum GradientCommand {
     Vectorize(VectorizeArgs),
     /// Render a .gsolid into a volume (NRRD).
     Render(RenderArgs),
+    /// Recolour by strokes (instant editing): voxels similar in place and colour to the strokes
+    /// move towards a reference colour; only control points change.
+    Edit(EditArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct EditArgs {
+    /// Input .gsolid.
+    pub input: PathBuf,
+    /// Strokes JSON: {"strokes": [{"position": [x, y, z], "strength": s}, ...]} (voxels; s in [0, 1]).
+    #[arg(long)]
+    pub strokes: PathBuf,
+    /// Reference colour, one number per channel (e.g. R,G,B in 0..255).
+    #[arg(long)]
+    pub color: String,
+    /// Propagation alpha of eq. 4 (larger: a more local edit in space and colour).
+    #[arg(long, default_value_t = edit::ALPHA)]
+    pub alpha: f64,
+    /// Propagation beta of eq. 4 (weight of distance against colour difference).
+    #[arg(long, default_value_t = edit::BETA)]
+    pub beta: f64,
+    /// Stored precision of the output.
+    #[arg(long, value_enum, default_value = "u8")]
+    pub encoding: format::Encoding,
+    /// Output .gsolid.
+    #[arg(short, long)]
+    pub output: PathBuf,
 }
 
 #[derive(Args, Debug)]
@@ -82,6 +110,42 @@ pub fn run(cmd: GradientCommand, quiet: bool) -> anyhow::Result<()> {
                     solid.dims,
                     bytes.len(),
                     fraction * 100.0,
+                    a.output.display()
+                );
+            }
+        }
+        GradientCommand::Edit(a) => {
+            atomic::check_output_path(&a.output, "-o")?;
+            let mut solid = load(&a.input)?;
+            let text = std::fs::read_to_string(&a.strokes).map_err(|e| Error::io(&a.strokes, e))?;
+            let strokes = edit::parse_strokes(&text, &a.strokes.display().to_string())?;
+            let reference: Vec<f64> = a
+                .color
+                .split(',')
+                .map(|t| t.trim().parse::<f64>())
+                .collect::<Result<_, _>>()
+                .ok()
+                .filter(|v: &Vec<f64>| v.iter().all(|x| x.is_finite()))
+                .ok_or_else(|| {
+                    Error::invalid(
+                        format!("--color {}", a.color),
+                        "expected numbers like 255,0,0",
+                    )
+                })?;
+            let start = Instant::now();
+            let propagation = edit::Propagation {
+                alpha: a.alpha,
+                beta: a.beta,
+            };
+            let residual = edit::edit(&mut solid, &strokes, &reference, propagation)?;
+            let seconds = start.elapsed().as_secs_f64();
+            atomic::write_file(&a.output, &format::to_bytes(&solid, a.encoding))?;
+            if !quiet {
+                eprintln!(
+                    "edited {} control points with {} strokes in {seconds:.3} s (strength fit RMS \
+                     {residual:.3}) -> {}",
+                    solid.data.len() / (solid.channels as usize * 4),
+                    strokes.len(),
                     a.output.display()
                 );
             }

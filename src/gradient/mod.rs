@@ -14,6 +14,7 @@
 //! Control point (i, j, k) sits at voxel position d (i, j, k); a solid of n points per axis covers
 //! positions [0, d (n - 1)]. Positions outside are clamped to the domain.
 
+pub mod edit;
 pub mod format;
 pub mod vectorize;
 
