@@ -18,6 +18,22 @@ fn fixture_path(name: &str) -> PathBuf {
         .join(name)
 }
 
+/// Analyse the cells fixture (periodic, CPU) into `dir`/c.ssa.
+fn analyze_cells(dir: &Path) -> PathBuf {
+    let ssa = dir.join("c.ssa");
+    let o = run(&[
+        "analyze",
+        "--backend",
+        "cpu",
+        "--periodic",
+        fixture_path("cells32.png").to_str().unwrap(),
+        "-o",
+        ssa.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    ssa
+}
+
 fn run(args: &[&str]) -> Output {
     bin().args(args).output().unwrap()
 }
@@ -475,17 +491,7 @@ fn synth_bad_inputs_exit_2_and_write_nothing() {
 fn region_is_the_same_solid_as_synth_and_checks_its_box() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let ssa = d.join("c.ssa");
-    let o = run(&[
-        "analyze",
-        "--backend",
-        "cpu",
-        "--periodic",
-        fixture_path("cells32.png").to_str().unwrap(),
-        "-o",
-        ssa.to_str().unwrap(),
-    ]);
-    assert!(o.status.success());
+    let ssa = analyze_cells(d);
     let (a, b) = (d.join("a.nrrd"), d.join("b.nrrd"));
     let o = run(&[
         "synth",
@@ -564,17 +570,7 @@ fn region_is_the_same_solid_as_synth_and_checks_its_box() {
 fn cuts_equal_the_same_voxels_of_a_region() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let ssa = d.join("c.ssa");
-    let o = run(&[
-        "analyze",
-        "--backend",
-        "cpu",
-        "--periodic",
-        fixture_path("cells32.png").to_str().unwrap(),
-        "-o",
-        ssa.to_str().unwrap(),
-    ]);
-    assert!(o.status.success());
+    let ssa = analyze_cells(d);
     let s = ssa.to_str().unwrap();
     let vol = d.join("r.nrrd");
     let o = run(&[
@@ -686,17 +682,7 @@ fn surface_bakes_the_solid_at_each_texel_and_refuses_bad_meshes() {
     let obj_text = "v 0 0 0\nv 2 0 0\nv 0 2 0\nv 0 0 2\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n";
     let mesh_path = d.join("tetra.obj");
     std::fs::write(&mesh_path, obj_text).unwrap();
-    let ssa = d.join("c.ssa");
-    let o = run(&[
-        "analyze",
-        "--backend",
-        "cpu",
-        "--periodic",
-        fixture_path("cells32.png").to_str().unwrap(),
-        "-o",
-        ssa.to_str().unwrap(),
-    ]);
-    assert!(o.status.success());
+    let ssa = analyze_cells(d);
     let s = ssa.to_str().unwrap();
     let common = [
         "--seed",
