@@ -77,6 +77,7 @@ fn synthesis_kernels_bit_exact_on_gpu_and_cpu() {
             candidates: mode,
             passes: 2,
             color,
+            coarse_cache: None,
         };
         let on_cpu = Synthesizer::new(&a, params.clone(), &Compute::Cpu)
             .unwrap()
@@ -112,6 +113,27 @@ fn synthesis_kernels_bit_exact_on_gpu_and_cpu() {
         .0;
     words_equal(
         "tileable",
+        &bytes_to_words(&on_cpu.data),
+        &bytes_to_words(&on_gpu.data),
+    )
+    .unwrap();
+    // The coarse-level cache: level L-1 built once from a tileable solid, uploaded per request.
+    let params = SynthParams {
+        seed: 8,
+        coarse_cache: Some(64),
+        ..Default::default()
+    };
+    let b = Box3::new([-6, 2, -9], [6, 10, 3]);
+    let on_cpu = Synthesizer::new(&a, params.clone(), &Compute::Cpu)
+        .unwrap()
+        .synthesize(b, &|_, _| {})
+        .unwrap();
+    let on_gpu = Synthesizer::new(&a, params, &gpu)
+        .unwrap()
+        .synthesize(b, &|_, _| {})
+        .unwrap();
+    words_equal(
+        "coarse cache",
         &bytes_to_words(&on_cpu.data),
         &bytes_to_words(&on_gpu.data),
     )

@@ -354,3 +354,64 @@ fn tileable_solids_wrap_around_seamlessly() {
     // Sizes that are not a whole number of bricks at every level are refused.
     assert!(s.synthesize_tileable(48, &|_, _| {}, false).is_err());
 }
+
+/// With the coarse-level cache the solid is another deterministic function of space: any box
+/// equals the same voxels of a larger one, and sparse samples equal the box's.
+#[test]
+fn coarse_cache_solids_are_spatially_deterministic() {
+    use solidsynth::backend::Compute;
+    use solidsynth::lazy::{Box3, SynthParams, Synthesizer};
+    let a = common::analyze(vec![common::fixture("cells32.png")], Border::Wrap);
+    let params = SynthParams {
+        seed: 6,
+        coarse_cache: Some(64),
+        ..Default::default()
+    };
+    let big = Box3::new([-20, -7, 3], [13, 9, 21]);
+    let mut s = Synthesizer::new(&a, params.clone(), &Compute::Cpu).unwrap();
+    let v = s.synthesize(big, &|_, _| {}).unwrap();
+    let small = Box3::new([-3, -2, 10], [5, 4, 17]);
+    let mut fresh = Synthesizer::new(&a, params.clone(), &Compute::Cpu).unwrap();
+    let sv = fresh.synthesize(small, &|_, _| {}).unwrap();
+    for z in small.lo[2]..small.hi[2] {
+        for y in small.lo[1]..small.hi[1] {
+            for x in small.lo[0]..small.hi[0] {
+                let at = |b: Box3| {
+                    [
+                        (x - b.lo[0]) as u32,
+                        (y - b.lo[1]) as u32,
+                        (z - b.lo[2]) as u32,
+                    ]
+                };
+                let (p, q) = (at(small), at(big));
+                assert_eq!(
+                    sv.at(p[0], p[1], p[2]),
+                    v.at(q[0], q[1], q[2]),
+                    "voxel {x},{y},{z}"
+                );
+            }
+        }
+    }
+    // Only the finest level is synthesized per request.
+    let stats = fresh.last_stats().unwrap();
+    assert_eq!(stats.voxels_per_level[0], 0);
+    // The cache changes the solid (it is another definition), and bad periods are refused.
+    let plain = Synthesizer::new(
+        &a,
+        SynthParams {
+            coarse_cache: None,
+            ..params.clone()
+        },
+        &Compute::Cpu,
+    )
+    .unwrap()
+    .synthesize(small, &|_, _| {})
+    .unwrap();
+    assert_ne!(plain, sv);
+    assert!(SynthParams {
+        coarse_cache: Some(96),
+        ..params
+    }
+    .validate()
+    .is_err());
+}

@@ -58,6 +58,11 @@ pub struct SolidParams {
     /// Output colour: the mean of the voxel's three exemplar pixels, or one exemplar's pixel.
     #[arg(long, value_enum, default_value = "average")]
     pub color: ColorSource,
+    /// Coarse-level cache (paper 6.2): the levels above the finest come from one tileable solid
+    /// of period N (a multiple of 64), synthesized once and read through the jitter warp; each
+    /// request then synthesizes only the finest level. A different solid, as deterministic.
+    #[arg(long, value_name = "N")]
+    pub coarse_cache: Option<u32>,
 }
 
 impl SolidParams {
@@ -68,6 +73,7 @@ impl SolidParams {
             candidates: self.candidates,
             passes: self.passes,
             color: self.color,
+            coarse_cache: self.coarse_cache,
         }
     }
 }

@@ -114,6 +114,27 @@ impl GpuSynth {
         })
     }
 
+    /// A state built on the host.
+    pub fn upload_state(&self, words: &[u32]) -> GpuState {
+        use wgpu::util::DeviceExt;
+        // Usable like any state (corrections copy it to and from their scratch buffer).
+        let current = self
+            .ctx
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("uploaded state"),
+                contents: bytemuck::cast_slice(words),
+                usage: wgpu::BufferUsages::STORAGE
+                    | wgpu::BufferUsages::COPY_SRC
+                    | wgpu::BufferUsages::COPY_DST,
+            });
+        GpuState {
+            current,
+            scratch: None,
+            words: words.len() as u64,
+        }
+    }
+
     /// A brick index (tables and brick lists) on the device.
     pub fn upload_index(&self, words: &[u32]) -> wgpu::Buffer {
         self.ctx

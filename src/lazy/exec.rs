@@ -70,6 +70,14 @@ impl Executor {
         }
     }
 
+    /// A state built on the host (e.g. from the coarse-level cache).
+    pub fn upload_state(&self, words: Vec<u32>) -> Result<State> {
+        match self {
+            Executor::Cpu { .. } => Ok(State::Cpu(words)),
+            Executor::Gpu(g) => Ok(State::Gpu(g.upload_state(&words))),
+        }
+    }
+
     pub fn upload_index(&self, words: Vec<u32>) -> IndexBuf {
         match self {
             Executor::Cpu { .. } => IndexBuf::Cpu(words),

@@ -65,6 +65,11 @@ pub struct SynthParams {
     pub passes: u32,
     /// Output colour rule.
     pub color: ColorSource,
+    /// Coarse-level cache (paper 6.2): when set, the levels above the finest come from one
+    /// tileable solid of this period (finest-level voxels; a multiple of 64), synthesized once
+    /// per session and read through the jitter warp; each request then synthesizes only the
+    /// finest level. This defines a different (equally deterministic) solid.
+    pub coarse_cache: Option<u32>,
 }
 
 impl Default for SynthParams {
@@ -75,6 +80,7 @@ impl Default for SynthParams {
             candidates: CandidateMode::ThreeD,
             passes: 2,
             color: ColorSource::Average,
+            coarse_cache: None,
         }
     }
 }
@@ -86,6 +92,14 @@ impl SynthParams {
                 format!("--jitter {}", self.jitter),
                 format!("must be a number in 0..={}", jitter::MAX_JITTER),
             ));
+        }
+        if let Some(n) = self.coarse_cache {
+            if !(64..=1024).contains(&n) || n % 64 != 0 {
+                return Err(Error::invalid(
+                    format!("--coarse-cache {n}"),
+                    "must be a multiple of 64 in 64..=1024",
+                ));
+            }
         }
         if self.passes > 8 {
             return Err(Error::invalid(
@@ -112,6 +126,8 @@ pub struct Synthesizer {
     /// Per-kernel times when profiling (each kernel then waits for the device).
     times: Option<exec::KernelTimes>,
     last_stats: Option<SynthStats>,
+    /// The coarse-level cache once built: level L-1 triples of one period, x fastest.
+    cache: Option<Vec<u32>>,
 }
 
 impl Synthesizer {
@@ -131,6 +147,7 @@ impl Synthesizer {
             max_chunk_side: None,
             times: None,
             last_stats: None,
+            cache: None,
         })
     }
 
@@ -342,8 +359,12 @@ impl Synthesizer {
             peak_state_bytes: 0,
             groups: 1,
         };
-        let (colors, triples) = self.synthesize_group(
+        let GroupResult {
+            colors, triples, ..
+        } = self.synthesize_group(
             levels,
+            0,
+            None,
             &output,
             Some(&periods),
             progress,
@@ -384,21 +405,136 @@ impl Synthesizer {
         want_triples: bool,
         stats: &mut SynthStats,
     ) -> Result<(Vec<u32>, Vec<u32>)> {
+        if self.params.coarse_cache.is_some() {
+            return self.synthesize_group_cached(group, progress, want_triples, stats);
+        }
         let levels = bricks::plan_sparse(group, ANALYSED_LEVELS, self.params.passes as usize);
-        self.synthesize_group(levels, group, None, progress, want_triples, stats)
+        self.synthesize_group(levels, 0, None, group, None, progress, want_triples, stats)
+            .map(|r| (r.colors, r.triples))
+    }
+
+    /// Level L-1 of the coarse cache: a tileable solid of period `coarse_cache / 2` there,
+    /// synthesized through levels l_start..L-1 once.
+    fn coarse_cache(&mut self) -> Result<&[u32]> {
+        if self.cache.is_none() {
+            let n = self.params.coarse_cache.expect("cache requested") / 2;
+            let levels_above = ANALYSED_LEVELS - 1;
+            let levels = bricks::plan_periodic(n, levels_above, self.params.passes as usize);
+            let periods: Vec<u32> = (0..levels_above)
+                .map(|l| n >> (levels_above - 1 - l))
+                .collect();
+            let top = levels.last().unwrap().clone();
+            let mut stats = SynthStats {
+                voxels_per_level: vec![0; ANALYSED_LEVELS],
+                ..Default::default()
+            };
+            let r = self.synthesize_group(
+                levels,
+                0,
+                None,
+                &[],
+                Some(&periods),
+                &|_, _| {},
+                false,
+                &mut stats,
+            )?;
+            let stride = 3 + self.packs[levels_above - 1].pixel_words as usize;
+            let mut triples = Vec::with_capacity((n as usize).pow(3) * 3);
+            for z in 0..n as i32 {
+                for y in 0..n as i32 {
+                    for x in 0..n as i32 {
+                        let i = top.grid.voxel_index([x, y, z]).expect("whole period") * stride;
+                        triples.extend_from_slice(&r.state[i..i + 3]);
+                    }
+                }
+            }
+            self.cache = Some(triples);
+        }
+        Ok(self.cache.as_deref().unwrap())
+    }
+
+    /// One group through the coarse cache: level L-1 read from the cache (warped, periodic),
+    /// then only the finest level synthesized.
+    fn synthesize_group_cached(
+        &mut self,
+        group: &[Brick],
+        progress: Progress,
+        want_triples: bool,
+        stats: &mut SynthStats,
+    ) -> Result<(Vec<u32>, Vec<u32>)> {
+        let finest = bricks::plan_sparse(group, 1, self.params.passes as usize)
+            .pop()
+            .unwrap();
+        let mut parents: Vec<Brick> = finest.bricks.iter().map(|b| b.map(|v| v >> 1)).collect();
+        bricks::normalize(&mut parents);
+        let parent = SparseLevel {
+            grid: BrickGrid::new(&parents),
+            deliver: parents.clone(),
+            bricks: parents,
+            subpasses: Vec::new(),
+        };
+        let n = (self.params.coarse_cache.unwrap() / 2) as i32;
+        let parent_pack = ANALYSED_LEVELS - 2;
+        let stride = 3 + self.packs[parent_pack].pixel_words as usize;
+        let (seed_lo, seed_hi) = (self.params.seed as u32, (self.params.seed >> 32) as u32);
+        let amps = jitter::amplitudes(self.params.jitter);
+        let sig = jitter::sigma2_fixed();
+        let table = jitter::table();
+        // A hashed offset so different seeds read the cache at different places.
+        let shift =
+            [0x71u32, 0x72, 0x73].map(|k| (hash32(seed_lo ^ seed_hi ^ k) % n as u32) as i32);
+        let cache = self.coarse_cache()?.to_vec();
+        let mut words = vec![0u32; parent.bricks.len() * 64 * stride];
+        for (slot, b) in parent.bricks.iter().enumerate() {
+            let gaussians = (self.params.jitter > 0.0).then(|| {
+                jitter::cell_gaussians(
+                    jitter::cell_of(b.map(|v| v * bricks::BRICK)),
+                    seed_lo,
+                    seed_hi,
+                    0,
+                )
+            });
+            for l in 0..64 {
+                let v = bricks::voxel_of(*b, l);
+                let warp = gaussians
+                    .as_deref()
+                    .map_or([0; 3], |g| jitter::offset_from(v, g, amps, sig, &table));
+                let q = [0, 1, 2].map(|i| (v[i] + warp[i] + shift[i]).rem_euclid(n) as usize);
+                let src = ((q[2] * n as usize + q[1]) * n as usize + q[0]) * 3;
+                let dst = (slot * 64 + l as usize) * stride;
+                words[dst..dst + 3].copy_from_slice(&cache[src..src + 3]);
+            }
+        }
+        let start = self.exec.upload_state(words)?;
+        self.synthesize_group(
+            vec![parent, finest],
+            parent_pack,
+            Some(start),
+            group,
+            None,
+            progress,
+            want_triples,
+            stats,
+        )
+        .map(|r| (r.colors, r.triples))
     }
 
     /// Run a planned synthesis: colours (64 per brick, `group` order) and, when asked, triples
     /// of the output bricks `group`. `periods`: per level, the period of a tileable solid.
+    /// `levels` are the packs `first_pack..`; `start`: the first level's state when it does not
+    /// come from `init`. An empty `group` skips the colours (the final state is returned).
+    #[allow(clippy::too_many_arguments)]
     fn synthesize_group(
         &mut self,
         levels: Vec<SparseLevel>,
+        first_pack: usize,
+        start: Option<exec::State>,
         group: &[Brick],
         periods: Option<&[u32]>,
         progress: Progress,
         want_triples: bool,
         stats: &mut SynthStats,
-    ) -> Result<(Vec<u32>, Vec<u32>)> {
+    ) -> Result<GroupResult> {
         let period = |l: usize| periods.map_or(0, |p| p[l]);
         let layouts: Vec<IndexLayout> = (0..levels.len())
             .map(|l| {
@@ -411,8 +547,8 @@ impl Synthesizer {
             .collect();
         let mut state_bytes = 0u64;
         for (l, lv) in levels.iter().enumerate() {
-            stats.voxels_per_level[l] += lv.voxels();
-            let words = lv.voxels() * (3 + self.packs[l].pixel_words as u64);
+            stats.voxels_per_level[first_pack + l] += lv.voxels();
+            let words = lv.voxels() * (3 + self.packs[first_pack + l].pixel_words as u64);
             state_bytes = state_bytes.max(words * 4);
         }
         let gpu_copies = if matches!(self.exec, exec::Executor::Gpu(_)) {
@@ -466,11 +602,15 @@ impl Synthesizer {
             _pad2: 0,
         };
         progress("level 0: init", 0.0);
-        let mut state = exec::timed(&mut self.exec, &mut self.times, "init", |e| {
-            e.init(0, &init, &indices[0])
-        })?;
+        let mut state = match start {
+            Some(s) => s,
+            None => exec::timed(&mut self.exec, &mut self.times, "init", |e| {
+                e.init(first_pack, &init, &indices[0])
+            })?,
+        };
         for (level, lv) in levels.iter().enumerate() {
-            let pack = &self.packs[level];
+            let pack_index = first_pack + level;
+            let pack = &self.packs[pack_index];
             let layout = &layouts[level];
             if level > 0 {
                 let parent = &levels[level - 1].grid;
@@ -498,7 +638,7 @@ impl Synthesizer {
                     _r1: 0,
                 };
                 state = exec::timed(&mut self.exec, &mut self.times, "upsample", |e| {
-                    e.upsample(level, &up, state, &indices[level])
+                    e.upsample(pack_index, &up, state, &indices[level])
                 })?;
             }
             progress(
@@ -506,7 +646,7 @@ impl Synthesizer {
                 (level as f32 + 0.1) / levels.len() as f32,
             );
             // The paper's reduced search at the finest level: 4 of the 3D candidates.
-            let k3d_used = if level + 1 == levels.len() {
+            let k3d_used = if pack_index + 1 == self.packs.len() {
                 4
             } else {
                 pack.k3d_stride
@@ -528,9 +668,16 @@ impl Synthesizer {
                 p.mask_offset = layout.subpass_lists[s].1;
                 p.period = period(level);
                 exec::timed(&mut self.exec, &mut self.times, "correct", |e| {
-                    e.correct(level, &p, &mut state, &indices[level])
+                    e.correct(pack_index, &p, &mut state, &indices[level])
                 })?;
             }
+        }
+        if group.is_empty() {
+            return Ok(GroupResult {
+                colors: Vec::new(),
+                triples: Vec::new(),
+                state: self.exec.read_state(&state)?,
+            });
         }
         let finest = levels.last().unwrap();
         let layout = layouts.last().unwrap();
@@ -560,7 +707,7 @@ impl Synthesizer {
         };
         let last = levels.len() - 1;
         let colors = exec::timed(&mut self.exec, &mut self.times, "colorize", |e| {
-            e.colorize(last, &c, &state, &indices[last])
+            e.colorize(first_pack + last, &c, &state, &indices[last])
         })?;
         let mut triples = Vec::new();
         if want_triples {
@@ -578,8 +725,20 @@ impl Synthesizer {
                 }
             }
         }
-        Ok((colors, triples))
+        Ok(GroupResult {
+            colors,
+            triples,
+            state: Vec::new(),
+        })
     }
+}
+
+/// What [`Synthesizer::synthesize_group`] returns.
+struct GroupResult {
+    colors: Vec<u32>,
+    triples: Vec<u32>,
+    /// The final state's words, when no colours were asked for.
+    state: Vec<u32>,
 }
 
 /// Threads per row of the 2D dispatch grid for `threads` threads (see `gpu::context`).
