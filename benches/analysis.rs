@@ -1,5 +1,5 @@
 //! `cargo bench`: kernel `project` on the CPU reference vs the GPU adapter, the whole analysis, and
-//! end-to-end synthesis on both backends.
+//! end-to-end synthesis on both backends, and kernel `tricubic_eval` (gradient solids).
 //! Wall-clock tables per exemplar size with peak memory come from `solidsynth bench analyze`.
 
 use criterion::{criterion_group, criterion_main, Criterion};
@@ -98,5 +98,26 @@ fn synthesis(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, project_kernel, whole_analysis, synthesis);
+/// Kernel `tricubic_eval`: a 64^3 volume from a random 17^3 x 3-channel gradient solid.
+fn tricubic(c: &mut Criterion) {
+    use solidsynth::cpu::tricubic_eval::{tricubic_eval, Query};
+    let mut solid = solidsynth::gradient::GradientSolid::new([17, 17, 17], 3).unwrap();
+    let mut rng = solidsynth::util::hash::SeededRng::new(1);
+    for v in solid.data.iter_mut() {
+        *v = rng.below(256) as f32;
+    }
+    let query = Query::volume([64, 64, 64]);
+    let gpu = GpuContext::new(&GpuOptions::from_env()).ok();
+    let mut group = c.benchmark_group("tricubic_eval/64^3");
+    group.sample_size(10);
+    group.bench_function("cpu", |b| b.iter(|| tricubic_eval(&solid, &query)));
+    if let Some(g) = &gpu {
+        group.bench_function("gpu", |b| {
+            b.iter(|| solidsynth::gpu::tricubic_eval::tricubic_eval(g, &solid, &query).unwrap())
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(benches, project_kernel, whole_analysis, synthesis, tricubic);
 criterion_main!(benches);

@@ -816,6 +816,31 @@ fn gradient_vectorize_and_render_round_trip_and_refuse_corrupt_files() {
     );
     let measured = solidsynth::gradient::vectorize::rms(&a, &b);
     assert!((measured - rms).abs() < 1e-9, "{measured} vs {rms}");
+    // A slice with the cut conventions: centred at (7.5, 7.5, 5) with unit spacing, its pixels
+    // sample the integer positions of z-slice 5 of the rendered volume.
+    let png = d.join("slice.png");
+    let o = run(&[
+        "gradient",
+        "render",
+        gs.to_str().unwrap(),
+        "--normal",
+        "0,0,1",
+        "--origin",
+        "7.5,7.5,5",
+        "--size",
+        "16",
+        "--backend",
+        "cpu",
+        "-o",
+        png.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let img = image::open(&png).unwrap().to_rgba8();
+    for y in 0..16 {
+        for x in 0..16 {
+            assert_eq!(&img.get_pixel(x, y).0[..3], b.at(x, y, 5), "pixel {x},{y}");
+        }
+    }
     // Editing: strokes recolour, bad strokes are refused.
     let strokes = d.join("s.json");
     std::fs::write(

@@ -41,7 +41,8 @@ pub struct CutArgs {
     pub json: bool,
 }
 
-fn triple(text: &str, flag: &str) -> solidsynth::Result<[f64; 3]> {
+/// Parse `A,B,C` (finite numbers) for `flag`.
+pub fn triple(text: &str, flag: &str) -> solidsynth::Result<[f64; 3]> {
     let v: Vec<f64> = text
         .split(',')
         .map(|t| t.trim().parse::<f64>())
