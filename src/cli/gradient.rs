@@ -52,6 +52,12 @@ pub struct VectorizeArgs {
     /// Stored precision of the control values.
     #[arg(long, value_enum, default_value = "u8")]
     pub encoding: format::Encoding,
+    /// Then optimize all control values together (eq. 3: least squares against every voxel).
+    #[arg(long)]
+    pub optimize: bool,
+    /// Conjugate-gradient steps of --optimize.
+    #[arg(long, default_value_t = 40, value_parser = clap::value_parser!(u32).range(1..=1000))]
+    pub iterations: u32,
     /// Output .gsolid.
     #[arg(short, long)]
     pub output: PathBuf,
@@ -163,7 +169,10 @@ pub fn run(cmd: GradientCommand, quiet: bool) -> anyhow::Result<()> {
             atomic::check_output_path(&a.output, "-o")?;
             let volume = nrrd::load(&a.input)?;
             let start = Instant::now();
-            let solid = vectorize::vectorize(&volume)?;
+            let mut solid = vectorize::vectorize(&volume)?;
+            if a.optimize {
+                vectorize::optimize(&mut solid, &volume, a.iterations as usize);
+            }
             let fit_s = start.elapsed().as_secs_f64();
             let bytes = format::to_bytes(&solid, a.encoding);
             // The error of what is stored: decode the file's own bytes and render them.

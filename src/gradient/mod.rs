@@ -73,7 +73,7 @@ impl GradientSolid {
     }
 
     /// The cube containing position `x` (clamped to the domain) and the local parameters.
-    fn locate(&self, x: [f32; 3]) -> ([u32; 3], [f32; 3]) {
+    pub fn locate(&self, x: [f32; 3]) -> ([u32; 3], [f32; 3]) {
         let mut cube = [0u32; 3];
         let mut t = [0f32; 3];
         for a in 0..3 {

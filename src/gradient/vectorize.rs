@@ -1,7 +1,9 @@
 //! Vectorization of a voxel volume into a gradient solid (paper 5.2): per control point, the
 //! least-squares fit of eq. 2, f + grad . (x - p) ~ value(x), over the voxels of its
-//! (2d + 1)^3 neighbourhood (clipped to the volume). Control-point optimization (eq. 3) is not
-//! implemented.
+//! (2d + 1)^3 neighbourhood (clipped to the volume); then, optionally, the control-point
+//! optimization of eq. 3: all control values at once, minimizing the squared difference between
+//! the interpolated solid and every voxel (a sparse linear least-squares problem, solved by
+//! conjugate gradients on the normal equations, starting from the eq. 2 fit).
 
 use super::{GradientSolid, SPACING};
 use crate::error::Result;
@@ -69,6 +71,100 @@ pub fn vectorize(v: &Volume) -> Result<GradientSolid> {
     Ok(solid)
 }
 
+/// The voxels' interpolation stencils: per voxel (x fastest), its cube's first control point
+/// index and the 32 weights.
+fn stencils(s: &GradientSolid, n: [u32; 3]) -> Vec<(usize, [f32; 32])> {
+    let mut out = Vec::with_capacity(n.iter().map(|&v| v as usize).product());
+    for z in 0..n[2] {
+        for y in 0..n[1] {
+            for x in 0..n[0] {
+                let (cube, t) = s.locate([x as f32, y as f32, z as f32]);
+                out.push((s.point_index(cube), super::weights(t)));
+            }
+        }
+    }
+    out
+}
+
+/// Offsets (in points) of a cube's 8 corners from its first one, in weight order.
+fn corner_offsets(s: &GradientSolid) -> [usize; 8] {
+    let (dx, dy) = (s.dims[0] as usize, s.dims[0] as usize * s.dims[1] as usize);
+    std::array::from_fn(|c| (c & 1) + ((c >> 1) & 1) * dx + (c >> 2) * dy)
+}
+
+/// y = A x: the interpolated values (per voxel, per channel) of control values `x`.
+fn apply(st: &[(usize, [f32; 32])], corners: &[usize; 8], ch: usize, x: &[f64], y: &mut [f64]) {
+    y.par_chunks_mut(ch).zip(st).for_each(|(out, (base, w))| {
+        for (c, o) in out.iter_mut().enumerate() {
+            let mut acc = 0.0;
+            for (k, off) in corners.iter().enumerate() {
+                let v = ((base + off) * ch + c) * 4;
+                for j in 0..4 {
+                    acc += w[k * 4 + j] as f64 * x[v + j];
+                }
+            }
+            *o = acc;
+        }
+    });
+}
+
+/// x = A^T y (sequential: a deterministic order of accumulation).
+fn apply_t(st: &[(usize, [f32; 32])], corners: &[usize; 8], ch: usize, y: &[f64], x: &mut [f64]) {
+    x.iter_mut().for_each(|v| *v = 0.0);
+    for (vox, (base, w)) in st.iter().enumerate() {
+        for c in 0..ch {
+            let r = y[vox * ch + c];
+            for (k, off) in corners.iter().enumerate() {
+                let v = ((base + off) * ch + c) * 4;
+                for j in 0..4 {
+                    x[v + j] += w[k * 4 + j] as f64 * r;
+                }
+            }
+        }
+    }
+}
+
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
+
+/// Eq. 3: refine all control values so the interpolated solid fits every voxel of `v` in the
+/// least-squares sense (CGNR, `iterations` steps). Returns the RMS error after each step.
+pub fn optimize(s: &mut GradientSolid, v: &Volume, iterations: usize) -> Vec<f64> {
+    let n = [v.nx, v.ny, v.nz];
+    let ch = s.channels as usize;
+    let st = stencils(s, n);
+    let corners = corner_offsets(s);
+    let b: Vec<f64> = v.data.iter().map(|&x| x as f64).collect();
+    let mut x: Vec<f64> = s.data.iter().map(|&d| d as f64).collect();
+    let mut ax = vec![0f64; b.len()];
+    apply(&st, &corners, ch, &x, &mut ax);
+    let mut resid: Vec<f64> = b.iter().zip(&ax).map(|(b, a)| b - a).collect();
+    let mut r = vec![0f64; x.len()];
+    apply_t(&st, &corners, ch, &resid, &mut r);
+    let mut p = r.clone();
+    let mut rs = dot(&r, &r);
+    let mut q = vec![0f64; b.len()];
+    let mut history = Vec::new();
+    for _ in 0..iterations {
+        if rs <= 1e-18 {
+            break;
+        }
+        apply(&st, &corners, ch, &p, &mut q);
+        let alpha = rs / dot(&q, &q).max(f64::MIN_POSITIVE);
+        x.iter_mut().zip(&p).for_each(|(x, p)| *x += alpha * p);
+        resid.iter_mut().zip(&q).for_each(|(r, q)| *r -= alpha * q);
+        history.push((dot(&resid, &resid) / resid.len() as f64).sqrt());
+        apply_t(&st, &corners, ch, &resid, &mut r);
+        let rs_new = dot(&r, &r);
+        let beta = rs_new / rs;
+        p.iter_mut().zip(&r).for_each(|(p, r)| *p = r + beta * *p);
+        rs = rs_new;
+    }
+    s.data = x.into_iter().map(|v| v as f32).collect();
+    history
+}
+
 /// Render every voxel of an `n`-sized box from the origin (exact evaluation), rounded to 8 bits.
 pub fn render(s: &GradientSolid, n: [u32; 3]) -> Volume {
     let mut v = Volume::new(n[0], n[1], n[2], s.channels);
@@ -124,8 +220,13 @@ mod tests {
                 }
             }
         }
-        let s = vectorize(&v).unwrap();
+        let mut s = vectorize(&v).unwrap();
         let e = rms(&render(&s, [17, 13, 9]), &v);
         assert!(e < 4.0, "rms {e}");
+        // Eq. 3 lowers the error further, monotonically (CG on the normal equations).
+        let history = optimize(&mut s, &v, 30);
+        assert!(history.windows(2).all(|w| w[1] <= w[0] + 1e-9), "{history:?}");
+        let e2 = rms(&render(&s, [17, 13, 9]), &v);
+        assert!(e2 < 0.7 * e, "optimized rms {e2} vs {e}");
     }
 }
