@@ -2,6 +2,7 @@
 //! finds (Mesa lavapipe in CI). With `CI` set, a missing adapter fails the run: a skipped GPU
 //! test must never look like a passing one.
 
+mod bucket;
 mod compare;
 mod project;
 mod shaders;

@@ -156,6 +156,17 @@ gpu_struct! {
     }
 }
 
+gpu_struct! {
+    /// Uniforms of `wgsl/bucket_accumulate.wgsl`.
+    BucketParams size 32 {
+        /// Samples (each: voxel, cluster, `channels` values), clusters per voxel, channels.
+        samples: u32, clusters: u32, channels: u32,
+        /// 0: count samples per (voxel, cluster); 1: sum the two dominant clusters' samples.
+        pass_index: u32,
+        grid_stride: u32, _pad0: u32, _pad1: u32, _pad2: u32,
+    }
+}
+
 /// Every shared struct: (WGSL kernel, struct name, Rust layout, Rust size).
 pub fn all_layouts() -> Vec<(
     &'static str,
@@ -194,6 +205,12 @@ pub fn all_layouts() -> Vec<(
             "ColorizeParams",
             ColorizeParams::layout(),
             size_of::<ColorizeParams>(),
+        ),
+        (
+            "bucket_accumulate",
+            "BucketParams",
+            BucketParams::layout(),
+            size_of::<BucketParams>(),
         ),
         (
             "tricubic_eval",

@@ -2,6 +2,7 @@
 //! Each mirrors its shader's loops and integer arithmetic, and is also the real, rayon-parallel
 //! CPU backend.
 
+pub mod bucket_accumulate;
 pub mod colorize;
 pub mod correct;
 pub mod init;

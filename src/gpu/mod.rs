@@ -1,6 +1,7 @@
 //! GPU runtime: the context (adapter, device, bounded waits, chunking) and one dispatch module per
 //! kernel, named like its `wgsl/*.wgsl`.
 
+pub mod bucket_accumulate;
 pub mod context;
 pub mod project;
 pub mod shaders;

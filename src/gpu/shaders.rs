@@ -22,6 +22,10 @@ pub const KERNELS: &[(&str, &str)] = &[
         "tricubic_eval",
         include_str!("../../wgsl/tricubic_eval.wgsl"),
     ),
+    (
+        "bucket_accumulate",
+        include_str!("../../wgsl/bucket_accumulate.wgsl"),
+    ),
 ];
 
 /// The source of kernel `name`.

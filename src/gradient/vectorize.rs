@@ -225,7 +225,10 @@ mod tests {
         assert!(e < 4.0, "rms {e}");
         // Eq. 3 lowers the error further, monotonically (CG on the normal equations).
         let history = optimize(&mut s, &v, 30);
-        assert!(history.windows(2).all(|w| w[1] <= w[0] + 1e-9), "{history:?}");
+        assert!(
+            history.windows(2).all(|w| w[1] <= w[0] + 1e-9),
+            "{history:?}"
+        );
         let e2 = rms(&render(&s, [17, 13, 9]), &v);
         assert!(e2 < 0.7 * e, "optimized rms {e2} vs {e}");
     }
