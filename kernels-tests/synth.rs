@@ -79,21 +79,10 @@ fn synthesis_kernels_bit_exact_on_gpu_and_cpu() {
             color,
             coarse_cache: None,
         };
-        let on_cpu = Synthesizer::new(&a, params.clone(), &Compute::Cpu)
-            .unwrap()
-            .synthesize(b, &|_, _| {})
-            .unwrap();
-        let on_gpu = Synthesizer::new(&a, params, &gpu)
-            .unwrap()
-            .synthesize(b, &|_, _| {})
-            .unwrap();
         let what = format!("three={three} {border:?} {mode:?} jitter={jitter} {color:?} {b:?}");
-        words_equal(
-            &what,
-            &bytes_to_words(&on_cpu.data),
-            &bytes_to_words(&on_gpu.data),
-        )
-        .unwrap();
+        same_on_both(&what, &a, &params, &gpu, |s| {
+            s.synthesize(b, &|_, _| {}).unwrap()
+        });
     }
     // A tileable solid (reads wrap around each level's period; periodic jitter and tiling).
     let a = analysis(false, Border::Wrap);
@@ -101,22 +90,9 @@ fn synthesis_kernels_bit_exact_on_gpu_and_cpu() {
         seed: 5,
         ..Default::default()
     };
-    let on_cpu = Synthesizer::new(&a, params.clone(), &Compute::Cpu)
-        .unwrap()
-        .synthesize_tileable(32, &|_, _| {}, false)
-        .unwrap()
-        .0;
-    let on_gpu = Synthesizer::new(&a, params, &gpu)
-        .unwrap()
-        .synthesize_tileable(32, &|_, _| {}, false)
-        .unwrap()
-        .0;
-    words_equal(
-        "tileable",
-        &bytes_to_words(&on_cpu.data),
-        &bytes_to_words(&on_gpu.data),
-    )
-    .unwrap();
+    same_on_both("tileable", &a, &params, &gpu, |s| {
+        s.synthesize_tileable(32, &|_, _| {}, false).unwrap().0
+    });
     // The coarse-level cache: level L-1 built once from a tileable solid, uploaded per request.
     let params = SynthParams {
         seed: 8,
@@ -124,16 +100,23 @@ fn synthesis_kernels_bit_exact_on_gpu_and_cpu() {
         ..Default::default()
     };
     let b = Box3::new([-6, 2, -9], [6, 10, 3]);
-    let on_cpu = Synthesizer::new(&a, params.clone(), &Compute::Cpu)
-        .unwrap()
-        .synthesize(b, &|_, _| {})
-        .unwrap();
-    let on_gpu = Synthesizer::new(&a, params, &gpu)
-        .unwrap()
-        .synthesize(b, &|_, _| {})
-        .unwrap();
+    same_on_both("coarse cache", &a, &params, &gpu, |s| {
+        s.synthesize(b, &|_, _| {}).unwrap()
+    });
+}
+
+/// Run `f` on a fresh synthesizer of each backend and require byte-identical volumes.
+fn same_on_both(
+    what: &str,
+    a: &solidsynth::analysis::Analysis,
+    params: &SynthParams,
+    gpu: &Compute,
+    f: impl Fn(&mut Synthesizer) -> solidsynth::volume::Volume,
+) {
+    let on_cpu = f(&mut Synthesizer::new(a, params.clone(), &Compute::Cpu).unwrap());
+    let on_gpu = f(&mut Synthesizer::new(a, params.clone(), gpu).unwrap());
     words_equal(
-        "coarse cache",
+        what,
         &bytes_to_words(&on_cpu.data),
         &bytes_to_words(&on_gpu.data),
     )

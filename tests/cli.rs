@@ -18,6 +18,25 @@ fn fixture_path(name: &str) -> PathBuf {
         .join(name)
 }
 
+/// The box [0, 16)^3 of the solid of `ssa` with `seed` (CPU), through `region`.
+fn region16(ssa: &str, seed: &str, dir: &Path) -> solidsynth::volume::Volume {
+    let vol = dir.join("r.nrrd");
+    let o = run(&[
+        "region",
+        ssa,
+        "--box",
+        "0,0,0,16,16,16",
+        "--seed",
+        seed,
+        "--backend",
+        "cpu",
+        "-o",
+        vol.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    solidsynth::io::nrrd::load(&vol).unwrap()
+}
+
 /// Analyse the cells fixture (periodic, CPU) into `dir`/c.ssa.
 fn analyze_cells(dir: &Path) -> PathBuf {
     let ssa = dir.join("c.ssa");
@@ -572,21 +591,7 @@ fn cuts_equal_the_same_voxels_of_a_region() {
     let d = dir.path();
     let ssa = analyze_cells(d);
     let s = ssa.to_str().unwrap();
-    let vol = d.join("r.nrrd");
-    let o = run(&[
-        "region",
-        s,
-        "--box",
-        "0,0,0,16,16,16",
-        "--seed",
-        "7",
-        "--backend",
-        "cpu",
-        "-o",
-        vol.to_str().unwrap(),
-    ]);
-    assert!(o.status.success());
-    let v = solidsynth::io::nrrd::load(&vol).unwrap();
+    let v = region16(s, "7", d);
     // The convention: `cut --origin 8,8,5 --normal 0,0,1 --size 16` is z-slice 5.
     let png = d.join("cut.png");
     let o = run(&[
@@ -705,21 +710,7 @@ fn surface_bakes_the_solid_at_each_texel_and_refuses_bad_meshes() {
         .contains("map_Kd baked.png"));
     let img = image::open(d.join("baked.png")).unwrap().to_rgba8();
     // Every texel is the solid's voxel at its 3D point: compare with a region holding the mesh.
-    let vol = d.join("r.nrrd");
-    let o = run(&[
-        "region",
-        s,
-        "--box",
-        "0,0,0,16,16,16",
-        "--seed",
-        "3",
-        "--backend",
-        "cpu",
-        "-o",
-        vol.to_str().unwrap(),
-    ]);
-    assert!(o.status.success());
-    let v = solidsynth::io::nrrd::load(&vol).unwrap();
+    let v = region16(s, "3", d);
     let mesh = solidsynth::mesh::parse_obj(obj_text.as_bytes(), "t").unwrap();
     let atlas = Atlas::new(mesh.triangles.len(), 5).unwrap();
     assert_eq!((img.width(), img.height()), (atlas.width, atlas.height));
