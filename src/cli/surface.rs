@@ -66,6 +66,23 @@ pub fn run(args: SurfaceArgs, quiet: bool) -> anyhow::Result<()> {
         .texels
         .unwrap_or_else(|| bake::auto_texels(&mesh, &place));
     let atlas = bake::Atlas::new(mesh.triangles.len(), texels)?;
+    // Per texel: its voxel (12 bytes), colour (4), image pixel (4) and PNG buffers, plus the
+    // requested bricks' bookkeeping: refuse before allocating when that cannot fit.
+    let estimate = atlas.width as u64 * atlas.height as u64 * 40;
+    let available = super::synth::available_memory();
+    if estimate > available {
+        return Err(Error::invalid(
+            format!("--texels {texels}"),
+            format!(
+                "a {}x{} atlas needs about {:.1} GiB, {:.1} GiB is available; use fewer texels",
+                atlas.width,
+                atlas.height,
+                estimate as f64 / (1u64 << 30) as f64,
+                available as f64 / (1u64 << 30) as f64
+            ),
+        )
+        .into());
+    }
     let compute = args.solid.input.backend.open()?;
     let analysis = load_or_analyze(&args.solid.input, &compute, quiet || args.json)?;
     let start = Instant::now();

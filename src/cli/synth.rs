@@ -113,7 +113,8 @@ pub const TRIPLES_MAGIC: &[u8; 8] = b"SSTRIPLE";
 /// Largest --size accepted before the memory estimate is even computed.
 pub const MAX_SIZE: u32 = 2048;
 
-fn available_memory() -> u64 {
+/// MemAvailable from /proc/meminfo (u64::MAX when unknown).
+pub fn available_memory() -> u64 {
     std::fs::read_to_string("/proc/meminfo")
         .ok()
         .and_then(|s| {
