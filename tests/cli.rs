@@ -893,3 +893,25 @@ fn gradient_vectorize_and_render_round_trip_and_refuse_corrupt_files() {
     ]);
     assert_user_error(&o, "bad.gsolid", b, &["bad.gsolid"]);
 }
+
+#[test]
+fn synth_writes_a_vti_equal_to_its_nrrd() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (nrrd, vti) = (d.join("v.nrrd"), d.join("v.vti"));
+    let o = run(&[
+        "synth",
+        "--size",
+        "12",
+        "--backend",
+        "cpu",
+        "--vti",
+        vti.to_str().unwrap(),
+        "-o",
+        nrrd.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let a = solidsynth::io::nrrd::load(&nrrd).unwrap();
+    let b = solidsynth::io::vti::from_bytes(&std::fs::read(&vti).unwrap(), "v.vti").unwrap();
+    assert_eq!(a, b);
+}

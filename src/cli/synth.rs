@@ -92,6 +92,9 @@ pub struct SolidArgs {
     /// Also write all z slices in one grid PNG (the layout Unity and Unreal import as a 3D texture).
     #[arg(long)]
     pub flipbook: Option<PathBuf>,
+    /// Also write the volume as VTK image data (.vti, for ParaView).
+    #[arg(long)]
+    pub vti: Option<PathBuf>,
     /// Also write the finest-level coordinate triples (format in the README).
     #[arg(long)]
     pub triples: Option<PathBuf>,
@@ -273,6 +276,7 @@ fn run_box(args: &SolidArgs, region: Box3, tileable: bool, quiet: bool) -> anyho
     atomic::check_output_path(&args.output, "-o")?;
     for (flag, p) in [
         ("--flipbook", &args.flipbook),
+        ("--vti", &args.vti),
         ("--sheet", &args.sheet),
         ("--triples", &args.triples),
     ] {
@@ -327,6 +331,9 @@ fn run_box(args: &SolidArgs, region: Box3, tileable: bool, quiet: bool) -> anyho
         }
         bytes.extend(triples.iter().flat_map(|t| t.to_le_bytes()));
         atomic::write_file(p, &bytes)?;
+    }
+    if let Some(p) = &args.vti {
+        solidsynth::io::vti::save(&volume, p)?;
     }
     if let Some(p) = &args.flipbook {
         atomic::save_png(p, &flipbook(&volume))?;

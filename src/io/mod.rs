@@ -3,3 +3,4 @@
 pub mod atomic;
 pub mod nrrd;
 pub mod ssa;
+pub mod vti;
