@@ -12,6 +12,9 @@ use std::time::Instant;
 
 #[derive(Subcommand, Debug)]
 pub enum GradientCommand {
+    /// Synthesize a gradient solid directly from a 2D exemplar (paper section 4): a periodic
+    /// solid of period N (rounded up to a multiple of 4) that tiles space.
+    Synth(SynthArgs),
     /// Fit a gradient solid to a volume (NRRD): per control point, eq. 2's least squares.
     Vectorize(VectorizeArgs),
     /// Render a .gsolid into a volume (NRRD).
@@ -19,6 +22,52 @@ pub enum GradientCommand {
     /// Recolour by strokes (instant editing): voxels similar in place and colour to the strokes
     /// move towards a reference colour; only control points change.
     Edit(EditArgs),
+}
+
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+pub enum SearchArg {
+    /// E_y and E_z chosen among the N1 = 20 / N2 = 50 nearest for crossbar consistency.
+    Crossbar,
+    /// Three independent nearest-patch searches.
+    Independent,
+}
+
+#[derive(Args, Debug)]
+pub struct SynthArgs {
+    /// Exemplar image (PNG, JPEG, ...); without it, the built-in exemplar.
+    pub input: Option<PathBuf>,
+    /// Period of the solid in voxels (its edge); rounded up to a multiple of 4.
+    #[arg(long)]
+    pub size: u32,
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Direction field orienting the slices: none, constant:X,Y,Z (local z along it) or
+    /// cylinder:X,Y,Z (around that axis through the centre; rings, vases).
+    #[arg(long, default_value = "none")]
+    pub field: String,
+    /// How the three slices of a check point are matched.
+    #[arg(long, value_enum, default_value = "crossbar")]
+    pub search: SearchArg,
+    /// Optimization iterations per level (N_O).
+    #[arg(long, default_value_t = 3)]
+    pub iterations: u32,
+    /// Check points per control cube (N_C).
+    #[arg(long, default_value_t = 3)]
+    pub check_points: u32,
+    /// Colour clusters of the finest level's buckets (N_T).
+    #[arg(long, default_value_t = 12)]
+    pub clusters: u32,
+    /// Stored precision of the control values.
+    #[arg(long, value_enum, default_value = "u8")]
+    pub encoding: format::Encoding,
+    #[command(flatten)]
+    pub backend: super::BackendArgs,
+    /// Output .gsolid.
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Print a JSON summary on stdout.
+    #[arg(long)]
+    pub json: bool,
 }
 
 #[derive(Args, Debug)]
@@ -163,8 +212,97 @@ fn load(path: &Path) -> solidsynth::Result<GradientSolid> {
     format::from_bytes(&bytes, &path.display().to_string())
 }
 
+fn synth(a: SynthArgs, quiet: bool) -> anyhow::Result<()> {
+    use solidsynth::gradient::synth::{self, Field, GradientSynthParams, SliceSearch};
+    atomic::check_output_path(&a.output, "-o")?;
+    let exemplar = match &a.input {
+        Some(path) => {
+            let img = solidsynth::exemplar::load_image(path, &path.display().to_string())?;
+            solidsynth::exemplar::check_exemplar_size(&img, &path.display().to_string())?;
+            img
+        }
+        None => solidsynth::exemplar::default_exemplar(),
+    };
+    let field = Field::parse(&a.field).ok_or_else(|| {
+        Error::invalid(
+            format!("--field {}", a.field),
+            "expected none, constant:X,Y,Z or cylinder:X,Y,Z with a non-zero direction",
+        )
+    })?;
+    let params = GradientSynthParams {
+        seed: a.seed,
+        size: a.size,
+        iterations: a.iterations,
+        check_points: a.check_points,
+        clusters: a.clusters,
+        search: match a.search {
+            SearchArg::Crossbar => SliceSearch::Crossbar { n1: 20, n2: 50 },
+            SearchArg::Independent => SliceSearch::Independent,
+        },
+        field,
+        ..Default::default()
+    };
+    params.validate()?;
+    let compute = a.backend.open()?;
+    let bar = super::progress_bar(quiet || a.json);
+    bar.set_length(1000);
+    let progress = |msg: &str, f: f32| {
+        bar.set_message(msg.to_string());
+        bar.set_position((f * 1000.0) as u64);
+    };
+    let (solid, report) = synth::synthesize(&exemplar, &params, &compute, &progress)?;
+    bar.finish_and_clear();
+    let solid = solid.to_gradient_solid()?;
+    let bytes = format::to_bytes(&solid, a.encoding);
+    atomic::write_file(&a.output, &bytes)?;
+    let period = params.cells() * solidsynth::gradient::SPACING;
+    if a.json {
+        let levels: Vec<_> = report
+            .levels
+            .iter()
+            .map(|l| {
+                serde_json::json!({"spacing": l.spec.spacing, "size": l.spec.size,
+                    "candidates": l.candidates, "pca_energy": l.pca_energy,
+                    "prepare_seconds": l.prepare_seconds, "match_seconds": l.match_seconds,
+                    "update_seconds": l.update_seconds, "refitted": l.refitted})
+            })
+            .collect();
+        println!(
+            "{}",
+            serde_json::json!({"output": a.output, "grid": solid.dims, "period": period,
+                "seconds": report.seconds, "bytes": bytes.len(), "levels": levels,
+                "backend": compute.describe(),
+                "peak_rss_bytes": solidsynth::util::memory::peak_rss_bytes()})
+        );
+    } else if !quiet {
+        for l in &report.levels {
+            eprintln!(
+                "level N={} spacing {}: {} patches (PCA keeps {:.1}%), prepare {:.2} s, match \
+                 {:.2} s, update {:.2} s",
+                l.spec.size,
+                l.spec.spacing,
+                l.candidates,
+                l.pca_energy * 100.0,
+                l.prepare_seconds,
+                l.match_seconds,
+                l.update_seconds
+            );
+        }
+        eprintln!(
+            "synthesized a gradient solid of period {period} ({:?} control points) in {:.2} s \
+             ({}) -> {}",
+            solid.dims,
+            report.seconds,
+            compute.describe(),
+            a.output.display()
+        );
+    }
+    Ok(())
+}
+
 pub fn run(cmd: GradientCommand, quiet: bool) -> anyhow::Result<()> {
     match cmd {
+        GradientCommand::Synth(a) => synth(a, quiet)?,
         GradientCommand::Vectorize(a) => {
             atomic::check_output_path(&a.output, "-o")?;
             let volume = nrrd::load(&a.input)?;

@@ -16,6 +16,7 @@
 
 pub mod edit;
 pub mod format;
+pub mod synth;
 pub mod vectorize;
 
 use crate::error::{Error, Result};

@@ -1,0 +1,259 @@
+//! Representation update (paper 4.2.2): the matched patches' samples are scattered into
+//! per-voxel buckets and each control point is refitted to the buckets nearest to it (eq. 2).
+//!
+//! Bucket reuse: buckets exist for one control layer at a time (the voxels z in [4K - 2, 4K + 2)
+//! whose nearest control points are in layer K), so memory is O(P^2) per layer being processed
+//! instead of O(P^3). Only check points whose slices can reach the layer are visited. Layers are
+//! independent (they read the previous solid and the matches) and run in parallel.
+//!
+//! Accumulation is kernel `bucket_accumulate` (wgsl/bucket_accumulate.wgsl): pass 1 counts the
+//! samples of every (voxel, colour cluster), pass 2 sums, in 8.8 fixed point, the samples of each
+//! voxel's two dominant clusters. On the CPU backend the samples are streamed straight into the
+//! counts and sums ([`accumulate_streaming`], the same integer arithmetic as
+//! `crate::cpu::bucket_accumulate`, without materializing the sample list); on the GPU the
+//! layer's samples are listed and dispatched. Both give the same integers.
+
+use super::matching::{Match, MatchContext};
+use super::PeriodicSolid;
+use crate::backend::Compute;
+use crate::cpu::bucket_accumulate::{dominant, Buckets};
+use crate::error::Result;
+use crate::gradient::SPACING;
+use nalgebra::{Matrix4, Vector4};
+use rayon::prelude::*;
+
+/// Voxels of a layer's buckets along z (one control spacing).
+const LAYER: i64 = SPACING as i64;
+/// Ridge on the gradient unknowns of eq. 2 (in bucket-count x voxel^2 units; a full
+/// neighbourhood has ~100 on the diagonal): keeps under-determined directions (all buckets
+/// coplanar) at zero gradient instead of singular.
+const RIDGE: f64 = 0.5;
+
+/// One control layer's view of the samples.
+struct Layer<'a> {
+    solid: &'a PeriodicSolid,
+    matches: &'a [Match],
+    ctx: &'a MatchContext<'a>,
+    /// Control layer index K.
+    k: u32,
+}
+
+impl Layer<'_> {
+    fn period(&self) -> i64 {
+        self.solid.period()
+    }
+    /// First voxel z of the layer's buckets.
+    fn z0(&self) -> i64 {
+        self.k as i64 * SPACING as i64 - LAYER / 2
+    }
+    fn voxels(&self) -> usize {
+        (self.period() * self.period() * LAYER) as usize
+    }
+
+    /// Calls `visit(bucket, exemplar_pixel)` for every sample landing in this layer.
+    fn for_each_sample(&self, mut visit: impl FnMut(usize, usize)) {
+        let ctx = self.ctx;
+        let (m, p_len) = (self.solid.m as i64, self.period());
+        let nc = ctx.params.check_points as usize;
+        let n = ctx.patches.size;
+        let h = ctx.patches.half_extent() as i64;
+        // Farthest a slice sample lies from its check point along z: h for axis-aligned slices,
+        // up to h sqrt 2 (+ rounding) for turned ones.
+        let reach = if ctx.params.field == super::Field::None {
+            h
+        } else {
+            (h as f64 * std::f64::consts::SQRT_2).ceil() as i64 + 1
+        };
+        let d = SPACING as i64;
+        let (zlo, zhi) = (self.z0() - reach, self.z0() + LAYER - 1 + reach);
+        let first = zlo.div_euclid(d);
+        let layers = (zhi.div_euclid(d) - first + 1).min(m);
+        let in_layer = |z: i64| (z - self.z0()).rem_euclid(p_len) < LAYER;
+        for cz in first..first + layers {
+            let cz = cz.rem_euclid(m) as u32;
+            for cy in 0..m as u32 {
+                for cx in 0..m as u32 {
+                    let cube = [cx, cy, cz];
+                    let cube_index =
+                        ((cz as usize * m as usize) + cy as usize) * m as usize + cx as usize;
+                    for k in 0..nc {
+                        let p = ctx.check_point(cube, k as u32);
+                        let frame = ctx.frame(p, p_len);
+                        let matched = &self.matches[cube_index * nc + k];
+                        for (o, &candidate) in matched.iter().enumerate() {
+                            for b in 0..n {
+                                // z is monotone along a row: its two ends bound it.
+                                let (za, zb) = (
+                                    ctx.sample_position(p, &frame, o, 0, b)[2],
+                                    ctx.sample_position(p, &frame, o, n - 1, b)[2],
+                                );
+                                let (lo, span) = (za.min(zb), (za - zb).abs());
+                                let dz = (lo - self.z0()).rem_euclid(p_len);
+                                if dz >= LAYER && dz + span < p_len {
+                                    continue;
+                                }
+                                for a in 0..n {
+                                    let q = ctx.sample_position(p, &frame, o, a, b);
+                                    if !in_layer(q[2]) {
+                                        continue;
+                                    }
+                                    let bucket = (((q[2] - self.z0()).rem_euclid(p_len) * p_len
+                                        + q[1].rem_euclid(p_len))
+                                        * p_len
+                                        + q[0].rem_euclid(p_len))
+                                        as usize;
+                                    visit(bucket, ctx.patches.pixel_index(candidate, a, b));
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    /// Both passes of the bucket accumulation, streamed (CPU backend).
+    fn accumulate_streaming(&self) -> Buckets {
+        let patches = self.ctx.patches;
+        let clusters = patches.cluster_count() as usize;
+        let channels = self.solid.channels;
+        let voxels = self.voxels();
+        let mut counts = vec![0u32; voxels * clusters];
+        self.for_each_sample(|v, px| counts[v * clusters + patches.cluster(px) as usize] += 1);
+        let dominant: Vec<[u32; 2]> = counts.chunks_exact(clusters).map(dominant).collect();
+        let per = 1 + channels;
+        let mut sums = vec![0u32; voxels * 2 * per];
+        self.for_each_sample(|v, px| {
+            let cluster = patches.cluster(px);
+            let Some(slot) = dominant[v].iter().position(|&c| c == cluster) else {
+                return;
+            };
+            let base = (v * 2 + slot) * per;
+            sums[base] += 1;
+            for (c, &value) in patches.value(px).iter().enumerate() {
+                sums[base + 1 + c] += (value as u32) << 8;
+            }
+        });
+        Buckets { counts, sums }
+    }
+
+    /// The layer's samples as the kernel's list: bucket, cluster, channel values.
+    fn sample_list(&self) -> Vec<u32> {
+        let patches = self.ctx.patches;
+        let mut list = Vec::new();
+        self.for_each_sample(|v, px| {
+            list.push(v as u32);
+            list.push(patches.cluster(px));
+            list.extend(patches.value(px).iter().map(|&x| x as u32));
+        });
+        list
+    }
+
+    fn accumulate(&self, compute: &Compute) -> Result<Buckets> {
+        match compute {
+            Compute::Cpu => Ok(self.accumulate_streaming()),
+            Compute::Gpu(gpu) => crate::gpu::bucket_accumulate::bucket_accumulate(
+                gpu,
+                &self.sample_list(),
+                self.voxels(),
+                self.ctx.patches.cluster_count(),
+                self.solid.channels as u32,
+            ),
+        }
+    }
+
+    /// Eq. 2 for every control point of the layer: f + grad f . (x - p) ~ bucket value, over
+    /// the non-empty buckets whose nearest point it is. Points without samples keep their
+    /// values. Returns the layer's new values and how many points were refitted.
+    fn fit(&self, buckets: &Buckets) -> (Vec<f32>, usize) {
+        let solid = self.solid;
+        let (m, c) = (solid.m as i64, solid.channels);
+        let p_len = self.period();
+        let per = 1 + c;
+        let d = SPACING as i64;
+        let mut out = Vec::with_capacity((m * m) as usize * c * 4);
+        let mut refitted = 0;
+        for y in 0..m {
+            for x in 0..m {
+                let old = solid.offset([x, y, self.k as i64]);
+                let mut ata = Matrix4::<f64>::zeros();
+                let mut atb = vec![Vector4::<f64>::zeros(); c];
+                let mut samples = 0;
+                for dz in -LAYER / 2..LAYER / 2 {
+                    for dy in -d / 2..d / 2 {
+                        for dx in -d / 2..d / 2 {
+                            let bz = dz + LAYER / 2;
+                            let by = (y * d + dy).rem_euclid(p_len);
+                            let bx = (x * d + dx).rem_euclid(p_len);
+                            let v = ((bz * p_len + by) * p_len + bx) as usize;
+                            let (s0, s1) = (v * 2 * per, (v * 2 + 1) * per);
+                            let count = buckets.sums[s0] + buckets.sums[s1];
+                            if count == 0 {
+                                continue;
+                            }
+                            samples += 1;
+                            let row = Vector4::new(1.0, dx as f64, dy as f64, dz as f64);
+                            ata += row * row.transpose();
+                            for (ch, b) in atb.iter_mut().enumerate() {
+                                let sum =
+                                    (buckets.sums[s0 + 1 + ch] + buckets.sums[s1 + 1 + ch]) as f64;
+                                *b += row * (sum / (256.0 * count as f64));
+                            }
+                        }
+                    }
+                }
+                if samples == 0 {
+                    out.extend_from_slice(&solid.data[old..old + c * 4]);
+                    continue;
+                }
+                refitted += 1;
+                for i in 1..4 {
+                    ata[(i, i)] += RIDGE;
+                }
+                let inv = ata.try_inverse().unwrap_or_else(Matrix4::zeros);
+                for b in &atb {
+                    let sol = inv * b;
+                    out.extend(sol.iter().map(|&v| v as f32));
+                }
+            }
+        }
+        (out, refitted)
+    }
+}
+
+/// One representation update: the new solid and the fraction of points refitted.
+pub fn update(
+    solid: &PeriodicSolid,
+    matches: &[Match],
+    ctx: &MatchContext,
+    compute: &Compute,
+) -> Result<(PeriodicSolid, f64)> {
+    let layer = |k: u32| -> Result<(Vec<f32>, usize)> {
+        let layer = Layer {
+            solid,
+            matches,
+            ctx,
+            k,
+        };
+        let buckets = layer.accumulate(compute)?;
+        Ok(layer.fit(&buckets))
+    };
+    // The GPU path runs its layers one after another (one queue); the CPU path in parallel.
+    let layers: Vec<(Vec<f32>, usize)> = match compute {
+        Compute::Cpu => (0..solid.m)
+            .into_par_iter()
+            .map(layer)
+            .collect::<Result<_>>()?,
+        Compute::Gpu(_) => (0..solid.m).map(layer).collect::<Result<_>>()?,
+    };
+    let refitted: usize = layers.iter().map(|l| l.1).sum();
+    let data = layers.into_iter().flat_map(|l| l.0).collect();
+    Ok((
+        PeriodicSolid {
+            m: solid.m,
+            channels: solid.channels,
+            data,
+        },
+        refitted as f64 / (solid.m as f64).powi(3),
+    ))
+}

@@ -1,0 +1,181 @@
+//! Finding matched patches (paper 4.2.1): check points, their three slices of the current solid,
+//! and the exemplar patches that best match them.
+
+use super::frame::Frame;
+use super::patches::{LevelPatches, Line};
+use super::pca::KEPT;
+use super::{GradientSynthParams, PeriodicSolid, SliceSearch};
+use crate::gradient::SPACING;
+use crate::util::hash::mix64;
+use glam::DVec3;
+use rayon::prelude::*;
+
+/// What one iteration of one level needs to place and match check points.
+pub struct MatchContext<'a> {
+    pub params: &'a GradientSynthParams,
+    pub level: u32,
+    pub iteration: u32,
+    pub patches: &'a LevelPatches,
+}
+
+impl MatchContext<'_> {
+    /// Check point `k` of cube `cube` (wrapped cube coordinates): a seeded position inside the
+    /// cube, whole voxels.
+    pub fn check_point(&self, cube: [u32; 3], k: u32) -> [i64; 3] {
+        let tag = ((self.level as u64) << 56)
+            ^ ((self.iteration as u64) << 48)
+            ^ ((k as u64) << 40)
+            ^ ((cube[2] as u64) << 26)
+            ^ ((cube[1] as u64) << 13)
+            ^ cube[0] as u64;
+        let h = mix64(mix64(self.params.seed) ^ tag);
+        let d = SPACING as u64;
+        std::array::from_fn(|a| (cube[a] * SPACING) as i64 + ((h >> (8 * a)) % d) as i64)
+    }
+
+    /// The slice frame at check point `p`.
+    pub fn frame(&self, p: [i64; 3], period: i64) -> Frame {
+        let centre = DVec3::splat(period as f64 / 2.0);
+        self.params
+            .field
+            .frame([p[0] as i32, p[1] as i32, p[2] as i32], centre)
+    }
+
+    /// Voxel of sample (a, b) of the slice orthogonal to local axis `o` at `p`.
+    #[inline]
+    pub fn sample_position(
+        &self,
+        p: [i64; 3],
+        frame: &Frame,
+        o: usize,
+        a: u32,
+        b: u32,
+    ) -> [i64; 3] {
+        let s = self.patches.spacing as i64;
+        let h = (self.patches.size / 2) as i64;
+        let (da, db) = (s * (a as i64 - h), s * (b as i64 - h));
+        if frame.is_identity() {
+            let (u, v) = [(1, 2), (0, 2), (0, 1)][o];
+            let mut q = p;
+            q[u] += da;
+            q[v] += db;
+            return q;
+        }
+        let (u, v) = frame.slice_axes(o);
+        let off = u * da as f64 + v * db as f64;
+        [
+            p[0] + off.x.round() as i64,
+            p[1] + off.y.round() as i64,
+            p[2] + off.z.round() as i64,
+        ]
+    }
+}
+
+/// Matched candidate indices of one check point: one per slice (x, y, z).
+pub type Match = [u32; 3];
+
+/// All check points of all cubes, in order (cube index, then k): their matches.
+pub fn match_all(solid: &PeriodicSolid, ctx: &MatchContext) -> Vec<Match> {
+    let m = solid.m as usize;
+    let nc = ctx.params.check_points as usize;
+    (0..m * m * m * nc)
+        .into_par_iter()
+        .map_init(
+            || vec![0f32; ctx.patches.dims()],
+            |buffer, i| {
+                let cube = i / nc;
+                let cube = [
+                    (cube % m) as u32,
+                    ((cube / m) % m) as u32,
+                    (cube / (m * m)) as u32,
+                ];
+                let p = ctx.check_point(cube, (i % nc) as u32);
+                match_check_point(solid, ctx, p, buffer)
+            },
+        )
+        .collect()
+}
+
+/// The three slices at `p`, projected.
+fn project_slices(
+    solid: &PeriodicSolid,
+    ctx: &MatchContext,
+    p: [i64; 3],
+    buffer: &mut [f32],
+) -> [[f32; KEPT]; 3] {
+    let frame = ctx.frame(p, solid.period());
+    let (n, c) = (ctx.patches.size, solid.channels);
+    std::array::from_fn(|o| {
+        if frame.is_identity() {
+            // Axis-aligned slices: whole-voxel steps along two axes.
+            let (u, v) = [(1, 2), (0, 2), (0, 1)][o];
+            let s = ctx.patches.spacing as i64;
+            let h = (n / 2) as i64;
+            let mut at = 0;
+            for b in 0..n as i64 {
+                let mut q = p;
+                q[v] += s * (b - h);
+                q[u] -= s * h;
+                for _ in 0..n {
+                    solid.taylor(q, &mut buffer[at..at + c]);
+                    at += c;
+                    q[u] += s;
+                }
+            }
+        } else {
+            for b in 0..n {
+                for a in 0..n {
+                    let q = ctx.sample_position(p, &frame, o, a, b);
+                    let at = ((b * n + a) as usize) * c;
+                    solid.taylor(q, &mut buffer[at..at + c]);
+                }
+            }
+        }
+        ctx.patches.pca().project(buffer)
+    })
+}
+
+/// Index of the candidate with the smallest `cost` (ties: the nearer in appearance, i.e. the
+/// earlier in `ranked`).
+fn most_consistent(ranked: &[(f32, u32)], cost: impl Fn(u32) -> u32) -> u32 {
+    let mut best = (u32::MAX, ranked[0].1);
+    for &(_, c) in ranked {
+        let e = cost(c);
+        if e < best.0 {
+            best = (e, c);
+        }
+    }
+    best.1
+}
+
+/// The matches of the check point at `p`.
+///
+/// Crossbars (Fig. 3), in the slice conventions of [`Frame::slice_axes`]: s_x and s_y share
+/// the line along z, which is the centre column of both; s_x and s_z share the line along y,
+/// the centre row of s_x and centre column of s_z; s_y and s_z share the line along x, the
+/// centre row of both. The paper chooses E_y "from a set of N_1 candidates with the most
+/// consistent crossbar voxels as E_x"; we read the set as the N_1 nearest patches to s_y (what
+/// the k-d tree gives cheaply) and pick the one whose crossbar agrees best with E_x.
+pub fn match_check_point(
+    solid: &PeriodicSolid,
+    ctx: &MatchContext,
+    p: [i64; 3],
+    buffer: &mut [f32],
+) -> Match {
+    let q = project_slices(solid, ctx, p, buffer);
+    let patches = ctx.patches;
+    match ctx.params.search {
+        SliceSearch::Independent => q.map(|q| patches.nearest(&q, 1)[0].1),
+        SliceSearch::Crossbar { n1, n2 } => {
+            let ex = patches.nearest(&q[0], 1)[0].1;
+            let ey = most_consistent(&patches.nearest(&q[1], n1 as usize), |c| {
+                patches.line_distance(ex, Line::Column, c, Line::Column)
+            });
+            let ez = most_consistent(&patches.nearest(&q[2], n2 as usize), |c| {
+                patches.line_distance(ex, Line::Row, c, Line::Column)
+                    + patches.line_distance(ey, Line::Row, c, Line::Row)
+            });
+            [ex, ey, ez]
+        }
+    }
+}
