@@ -915,3 +915,51 @@ fn synth_writes_a_vti_equal_to_its_nrrd() {
     let b = solidsynth::io::vti::from_bytes(&std::fs::read(&vti).unwrap(), "v.vti").unwrap();
     assert_eq!(a, b);
 }
+
+#[test]
+fn gradient_synth_writes_a_tileable_solid_and_refuses_bad_input() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let out = d.join("s.gsolid");
+    let o = run(&[
+        "gradient",
+        "synth",
+        fixture_path("cc0_gravel64.png").to_str().unwrap(),
+        "--size",
+        "18",
+        "--iterations",
+        "1",
+        "--seed",
+        "4",
+        "--backend",
+        "cpu",
+        "--json",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let summary: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(summary["period"], 20, "{summary}");
+    assert_eq!(summary["levels"].as_array().unwrap().len(), 3);
+    let solid =
+        solidsynth::gradient::format::from_bytes(&std::fs::read(&out).unwrap(), "s").unwrap();
+    assert_eq!(solid.dims, [6, 6, 6]);
+
+    let bad = tempfile::tempdir().unwrap();
+    let b = bad.path();
+    let target = b.join("o.gsolid");
+    let t = target.to_str().unwrap();
+    let cells = fixture_path("cells32.png");
+    let cases: [(&[&str], &str); 4] = [
+        (&["--size", "32", "--field", "spiral:1,0,0"], "--field"),
+        (&["--size", "32", "--field", "constant:0,0,0"], "--field"),
+        (&["--size", "4"], "--size 4"),
+        // 32x32 is smaller than the coarse level's 33-pixel patches.
+        (&[cells.to_str().unwrap(), "--size", "32"], "cells32.png"),
+    ];
+    for (args, needle) in cases {
+        let mut all = vec!["gradient", "synth", "--backend", "cpu", "-o", t];
+        all.extend_from_slice(args);
+        assert_user_error(&run(&all), needle, b, &[]);
+    }
+}

@@ -216,13 +216,14 @@ fn synth(a: SynthArgs, quiet: bool) -> anyhow::Result<()> {
     use solidsynth::gradient::synth::{self, Field, GradientSynthParams, SliceSearch};
     atomic::check_output_path(&a.output, "-o")?;
     let exemplar = match &a.input {
-        Some(path) => {
-            let img = solidsynth::exemplar::load_image(path, &path.display().to_string())?;
-            solidsynth::exemplar::check_exemplar_size(&img, &path.display().to_string())?;
-            img
-        }
+        Some(path) => solidsynth::exemplar::load_image(path, &path.display().to_string())?,
         None => solidsynth::exemplar::default_exemplar(),
     };
+    let name = a
+        .input
+        .as_ref()
+        .map_or("built-in exemplar".to_string(), |p| p.display().to_string());
+    solidsynth::exemplar::check_exemplar_size(&exemplar, &name)?;
     let field = Field::parse(&a.field).ok_or_else(|| {
         Error::invalid(
             format!("--field {}", a.field),
@@ -243,6 +244,18 @@ fn synth(a: SynthArgs, quiet: bool) -> anyhow::Result<()> {
         ..Default::default()
     };
     params.validate()?;
+    let side = params.min_exemplar_side();
+    if exemplar.width < side || exemplar.height < side {
+        return Err(Error::invalid(
+            name,
+            format!(
+                "is {}x{}; gradient synthesis needs at least {side}x{side} pixels (its coarsest \
+                 patches span that much)",
+                exemplar.width, exemplar.height
+            ),
+        )
+        .into());
+    }
     let compute = a.backend.open()?;
     let bar = super::progress_bar(quiet || a.json);
     bar.set_length(1000);

@@ -158,6 +158,15 @@ impl GradientSynthParams {
         Ok(())
     }
 
+    /// Smallest exemplar side the levels' patches fit in.
+    pub fn min_exemplar_side(&self) -> u32 {
+        self.levels
+            .iter()
+            .map(|l| (l.size - 1) * l.spacing + 1)
+            .max()
+            .unwrap_or(1)
+    }
+
     /// Control cells per axis: the period in units of the spacing.
     pub fn cells(&self) -> u32 {
         self.size.div_ceil(SPACING)
