@@ -57,6 +57,13 @@ pub struct SynthArgs {
     /// Colour clusters of the finest level's buckets (N_T).
     #[arg(long, default_value_t = 12)]
     pub clusters: u32,
+    /// Finish with the control-point optimization of eq. 3 (all points fitted at once to the
+    /// last samples; sizes up to 256).
+    #[arg(long)]
+    pub optimize: bool,
+    /// Conjugate-gradient steps of --optimize.
+    #[arg(long, default_value_t = 20, value_parser = clap::value_parser!(u32).range(1..=1000))]
+    pub optimize_iterations: u32,
     /// Stored precision of the control values.
     #[arg(long, value_enum, default_value = "u8")]
     pub encoding: format::Encoding,
@@ -241,6 +248,7 @@ fn synth(a: SynthArgs, quiet: bool) -> anyhow::Result<()> {
             SearchArg::Independent => SliceSearch::Independent,
         },
         field,
+        optimize_iterations: if a.optimize { a.optimize_iterations } else { 0 },
         ..Default::default()
     };
     params.validate()?;
@@ -284,6 +292,8 @@ fn synth(a: SynthArgs, quiet: bool) -> anyhow::Result<()> {
             "{}",
             serde_json::json!({"output": a.output, "grid": solid.dims, "period": period,
                 "seconds": report.seconds, "bytes": bytes.len(), "levels": levels,
+                "optimize_seconds": report.optimize_seconds,
+                "optimize_rms": [report.optimize_rms.0, report.optimize_rms.1],
                 "backend": compute.describe(),
                 "peak_rss_bytes": solidsynth::util::memory::peak_rss_bytes()})
         );
@@ -299,6 +309,12 @@ fn synth(a: SynthArgs, quiet: bool) -> anyhow::Result<()> {
                 l.prepare_seconds,
                 l.match_seconds,
                 l.update_seconds
+            );
+        }
+        if a.optimize {
+            eprintln!(
+                "final optimization (eq. 3): RMS to the samples {:.2} -> {:.2} in {:.2} s",
+                report.optimize_rms.0, report.optimize_rms.1, report.optimize_seconds
             );
         }
         eprintln!(

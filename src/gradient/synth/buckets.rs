@@ -14,6 +14,7 @@
 //! layer's samples are listed and dispatched. Both give the same integers.
 
 use super::matching::{Match, MatchContext};
+use super::refine::Targets;
 use super::PeriodicSolid;
 use crate::backend::Compute;
 use crate::cpu::bucket_accumulate::{dominant, Buckets};
@@ -166,6 +167,31 @@ impl Layer<'_> {
     /// the non-empty buckets whose nearest point it is. Points without samples keep their
     /// values. Returns the layer's new values and how many points were refitted.
     fn fit(&self, buckets: &Buckets) -> (Vec<f32>, usize) {
+        self.fit_points(buckets)
+    }
+
+    /// The average of every bucket of the layer (per voxel, per channel; NaN when empty), z
+    /// from the layer's first voxel.
+    fn bucket_values(&self, buckets: &Buckets) -> Vec<f32> {
+        let c = self.solid.channels;
+        let per = 1 + c;
+        (0..self.voxels())
+            .flat_map(|v| {
+                let (s0, s1) = (v * 2 * per, (v * 2 + 1) * per);
+                let count = buckets.sums[s0] + buckets.sums[s1];
+                (0..c).map(move |ch| {
+                    if count == 0 {
+                        f32::NAN
+                    } else {
+                        (buckets.sums[s0 + 1 + ch] + buckets.sums[s1 + 1 + ch]) as f32
+                            / (256.0 * count as f32)
+                    }
+                })
+            })
+            .collect()
+    }
+
+    fn fit_points(&self, buckets: &Buckets) -> (Vec<f32>, usize) {
         let solid = self.solid;
         let (m, c) = (solid.m as i64, solid.channels);
         let p_len = self.period();
@@ -221,14 +247,17 @@ impl Layer<'_> {
     }
 }
 
-/// One representation update: the new solid and the fraction of points refitted.
+/// One representation update: the new solid and the fraction of points refitted. With
+/// `targets`, also every bucket's average (the samples of eq. 3).
 pub fn update(
     solid: &PeriodicSolid,
     matches: &[Match],
     ctx: &MatchContext,
     compute: &Compute,
+    mut targets: Option<&mut Targets>,
 ) -> Result<(PeriodicSolid, f64)> {
-    let layer = |k: u32| -> Result<(Vec<f32>, usize)> {
+    let want_values = targets.is_some();
+    let layer = |k: u32| -> Result<(Vec<f32>, usize, Vec<f32>)> {
         let layer = Layer {
             solid,
             matches,
@@ -236,16 +265,34 @@ pub fn update(
             k,
         };
         let buckets = layer.accumulate(compute)?;
-        Ok(layer.fit(&buckets))
+        let (values, refitted) = layer.fit(&buckets);
+        let averages = if want_values {
+            layer.bucket_values(&buckets)
+        } else {
+            Vec::new()
+        };
+        Ok((values, refitted, averages))
     };
     // The GPU path runs its layers one after another (one queue); the CPU path in parallel.
-    let layers: Vec<(Vec<f32>, usize)> = match compute {
+    let mut layers: Vec<(Vec<f32>, usize, Vec<f32>)> = match compute {
         Compute::Cpu => (0..solid.m)
             .into_par_iter()
             .map(layer)
             .collect::<Result<_>>()?,
         Compute::Gpu(_) => (0..solid.m).map(layer).collect::<Result<_>>()?,
     };
+    if let Some(t) = targets.as_deref_mut() {
+        let (p_len, c) = (solid.period() as usize, solid.channels);
+        let plane = p_len * p_len * c;
+        for (k, layer) in layers.iter_mut().enumerate() {
+            let averages = std::mem::take(&mut layer.2);
+            for (bz, slab) in averages.chunks_exact(plane).enumerate() {
+                let z = (k as i64 * SPACING as i64 - LAYER / 2 + bz as i64).rem_euclid(p_len as i64)
+                    as usize;
+                t.values[z * plane..(z + 1) * plane].copy_from_slice(slab);
+            }
+        }
+    }
     let refitted: usize = layers.iter().map(|l| l.1).sum();
     let data = layers.into_iter().flat_map(|l| l.0).collect();
     Ok((

@@ -22,8 +22,10 @@
 //! tiles space seamlessly. It is written with m + 1 points per axis (the last face repeats the
 //! first), covering [0, P]^3.
 //!
-//! Not implemented here: region separation with a mask (3.2, 4.3) and the final control-point
-//! optimization of eq. 3 for synthesized solids (it exists for vectorization).
+//! Optionally (`optimize_iterations`), the final control-point optimization of eq. 3 fits all
+//! points at once to the last iteration's bucket values ([`refine`]).
+//!
+//! Not implemented here: region separation with a mask (3.2, 4.3).
 
 pub mod buckets;
 pub mod clusters;
@@ -31,6 +33,7 @@ pub mod frame;
 pub mod matching;
 pub mod patches;
 pub mod pca;
+pub mod refine;
 
 use super::{GradientSolid, SPACING};
 use crate::backend::Compute;
@@ -97,6 +100,8 @@ pub struct GradientSynthParams {
     pub histogram_matching: bool,
     pub levels: Vec<LevelSpec>,
     pub field: Field,
+    /// CGNR steps of the final eq. 3 optimization (0: off, the paper's default).
+    pub optimize_iterations: u32,
 }
 
 impl Default for GradientSynthParams {
@@ -112,12 +117,15 @@ impl Default for GradientSynthParams {
             histogram_matching: true,
             levels: PAPER_LEVELS.to_vec(),
             field: Field::None,
+            optimize_iterations: 0,
         }
     }
 }
 
 /// Largest accepted size (the control grid of 1024^3 is 256^3 points).
 pub const MAX_SIZE: u32 = 1024;
+/// Largest size of the final optimization (its samples take 12 bytes per voxel: 200 MB).
+pub const MAX_OPTIMIZE_SIZE: u32 = 256;
 
 impl GradientSynthParams {
     pub fn validate(&self) -> Result<()> {
@@ -140,6 +148,15 @@ impl GradientSynthParams {
         bounded("--iterations", self.iterations, 20)?;
         bounded("--check-points", self.check_points, 16)?;
         bounded("--clusters", self.clusters, 32)?;
+        if self.optimize_iterations > 0 && self.size > MAX_OPTIMIZE_SIZE {
+            return Err(Error::invalid(
+                format!("--optimize with --size {}", self.size),
+                format!(
+                    "the final optimization keeps every voxel's sample: at most \
+                     {MAX_OPTIMIZE_SIZE}^3"
+                ),
+            ));
+        }
         if let SliceSearch::Crossbar { n1, n2 } = self.search {
             bounded("crossbar candidates N1", n1, 256)?;
             bounded("crossbar candidates N2", n2, 256)?;
@@ -302,6 +319,9 @@ impl PeriodicSolid {
 pub struct SynthReport {
     pub levels: Vec<LevelReport>,
     pub seconds: f64,
+    /// Time of the final optimization and the RMS error to its samples before and after.
+    pub optimize_seconds: f64,
+    pub optimize_rms: (f64, f64),
 }
 
 #[derive(Clone, Debug)]
@@ -374,7 +394,11 @@ pub fn synthesize(
             };
             let matches = matching::match_all(&solid, &ctx);
             let t2 = Instant::now();
-            let (next, refitted) = buckets::update(&solid, &matches, &ctx, compute)?;
+            let last = li == finest && it + 1 == params.iterations;
+            let mut targets = (last && params.optimize_iterations > 0)
+                .then(|| refine::Targets::empty(solid.period() as usize, solid.channels));
+            let (next, refitted) =
+                buckets::update(&solid, &matches, &ctx, compute, targets.as_mut())?;
             solid = next;
             if params.histogram_matching {
                 solid.match_histogram(&patches.filtered_values());
@@ -391,6 +415,14 @@ pub fn synthesize(
             level.match_seconds += (t2 - t1).as_secs_f64();
             level.update_seconds += t2.elapsed().as_secs_f64();
             level.refitted = refitted;
+            if let Some(targets) = &targets {
+                progress("final optimization (eq. 3)", 0.99);
+                let t3 = Instant::now();
+                let history =
+                    refine::optimize(&mut solid, targets, params.optimize_iterations as usize);
+                report.optimize_seconds = t3.elapsed().as_secs_f64();
+                report.optimize_rms = (history[0], *history.last().unwrap());
+            }
         }
         report.levels.push(level);
     }
