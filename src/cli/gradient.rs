@@ -48,6 +48,10 @@ pub struct SynthArgs {
     /// How the three slices of a check point are matched.
     #[arg(long, value_enum, default_value = "crossbar")]
     pub search: SearchArg,
+    /// Slices matched per check point: 3, or 2 (orthogonal to x and y only) for anisotropic
+    /// exemplars such as brick walls or strata.
+    #[arg(long, default_value_t = 3)]
+    pub slices: u32,
     /// Optimization iterations per level (N_O).
     #[arg(long, default_value_t = 3)]
     pub iterations: u32,
@@ -248,6 +252,7 @@ fn synth(a: SynthArgs, quiet: bool) -> anyhow::Result<()> {
             SearchArg::Independent => SliceSearch::Independent,
         },
         field,
+        matched_slices: a.slices,
         optimize_iterations: if a.optimize { a.optimize_iterations } else { 0 },
         ..Default::default()
     };

@@ -13,7 +13,7 @@
 //! `crate::cpu::bucket_accumulate`, without materializing the sample list); on the GPU the
 //! layer's samples are listed and dispatched. Both give the same integers.
 
-use super::matching::{Match, MatchContext};
+use super::matching::{Match, MatchContext, UNMATCHED};
 use super::refine::Targets;
 use super::PeriodicSolid;
 use crate::backend::Compute;
@@ -82,6 +82,9 @@ impl Layer<'_> {
                         let frame = ctx.frame(p, p_len);
                         let matched = &self.matches[cube_index * nc + k];
                         for (o, &candidate) in matched.iter().enumerate() {
+                            if candidate == UNMATCHED {
+                                continue;
+                            }
                             for b in 0..n {
                                 // z is monotone along a row: its two ends bound it.
                                 let (za, zb) = (

@@ -52,6 +52,30 @@ impl Field {
     }
 }
 
+/// How exemplar patches lie in the three slices: which local axes a patch's columns (U) and
+/// rows (V) run along.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SliceAxes {
+    /// The crate's frame (`crate::analysis::frame`, and what `eval` compares with): x: (y, z),
+    /// y: (z, x), z: (x, y). Used when three slices are matched.
+    Cyclic,
+    /// x: (y, z), y: (x, z), z: (x, y): the slices orthogonal to x and y share "up" (z), so a
+    /// layered exemplar (brick courses, strata) can hold on both. Used when two are matched.
+    Upright,
+}
+
+impl SliceAxes {
+    /// (U, V) axis indices of the slice orthogonal to axis `o`.
+    pub fn of(self, o: usize) -> (usize, usize) {
+        match (self, o) {
+            (_, 0) => (1, 2),
+            (SliceAxes::Cyclic, 1) => (2, 0),
+            (SliceAxes::Upright, 1) => (0, 2),
+            _ => (0, 1),
+        }
+    }
+}
+
 /// Three orthonormal axes.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Frame(pub [DVec3; 3]);
@@ -77,15 +101,11 @@ impl Frame {
         Frame([x, z.cross(x), z])
     }
 
-    /// The two in-plane axes (U, V) of the slice orthogonal to local axis `o`: (y, z), (x, z),
-    /// (x, y), the crate's convention for exemplars (Ex lies in the plane orthogonal to x).
-    pub fn slice_axes(&self, o: usize) -> (DVec3, DVec3) {
-        let [x, y, z] = self.0;
-        match o {
-            0 => (y, z),
-            1 => (x, z),
-            _ => (x, y),
-        }
+    /// The two in-plane axes (U, V) of the slice orthogonal to local axis `o`, as local axis
+    /// indices (see [`SliceAxes`]), turned into directions.
+    pub fn slice_axes(&self, axes: SliceAxes, o: usize) -> (DVec3, DVec3) {
+        let (u, v) = axes.of(o);
+        (self.0[u], self.0[v])
     }
 
     /// True when the frame is the identity (integer sample offsets, no rounding).

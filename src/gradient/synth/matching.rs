@@ -1,7 +1,7 @@
 //! Finding matched patches (paper 4.2.1): check points, their three slices of the current solid,
 //! and the exemplar patches that best match them.
 
-use super::frame::Frame;
+use super::frame::{Frame, SliceAxes};
 use super::patches::{LevelPatches, Line};
 use super::pca::KEPT;
 use super::{GradientSynthParams, PeriodicSolid, SliceSearch};
@@ -55,13 +55,13 @@ impl MatchContext<'_> {
         let h = (self.patches.size / 2) as i64;
         let (da, db) = (s * (a as i64 - h), s * (b as i64 - h));
         if frame.is_identity() {
-            let (u, v) = [(1, 2), (0, 2), (0, 1)][o];
+            let (u, v) = self.params.slice_axes().of(o);
             let mut q = p;
             q[u] += da;
             q[v] += db;
             return q;
         }
-        let (u, v) = frame.slice_axes(o);
+        let (u, v) = frame.slice_axes(self.params.slice_axes(), o);
         let off = u * da as f64 + v * db as f64;
         [
             p[0] + off.x.round() as i64,
@@ -71,8 +71,11 @@ impl MatchContext<'_> {
     }
 }
 
-/// Matched candidate indices of one check point: one per slice (x, y, z).
+/// Matched candidate indices of one check point: one per slice (x, y, z); [`UNMATCHED`] for a
+/// slice left free.
 pub type Match = [u32; 3];
+
+pub const UNMATCHED: u32 = u32::MAX;
 
 /// All check points of all cubes, in order (cube index, then k): their matches.
 pub fn match_all(solid: &PeriodicSolid, ctx: &MatchContext) -> Vec<Match> {
@@ -108,7 +111,7 @@ fn project_slices(
     std::array::from_fn(|o| {
         if frame.is_identity() {
             // Axis-aligned slices: whole-voxel steps along two axes.
-            let (u, v) = [(1, 2), (0, 2), (0, 1)][o];
+            let (u, v) = ctx.params.slice_axes().of(o);
             let s = ctx.patches.spacing as i64;
             let h = (n / 2) as i64;
             let mut at = 0;
@@ -150,12 +153,13 @@ fn most_consistent(ranked: &[(f32, u32)], cost: impl Fn(u32) -> u32) -> u32 {
 
 /// The matches of the check point at `p`.
 ///
-/// Crossbars (Fig. 3), in the slice conventions of [`Frame::slice_axes`]: s_x and s_y share
-/// the line along z, which is the centre column of both; s_x and s_z share the line along y,
-/// the centre row of s_x and centre column of s_z; s_y and s_z share the line along x, the
-/// centre row of both. The paper chooses E_y "from a set of N_1 candidates with the most
-/// consistent crossbar voxels as E_x"; we read the set as the N_1 nearest patches to s_y (what
-/// the k-d tree gives cheaply) and pick the one whose crossbar agrees best with E_x.
+/// Crossbars (Fig. 3) are the lines two slices share; which patch line each is depends on the
+/// slice axes ([`SliceAxes`]). Cyclic: the line along z is the centre column of s_x and the
+/// centre row of s_y; along y, the column of s_z and the row of s_x; along x, the column of s_y
+/// and the row of s_z. Upright: along z, the centre columns of s_x and s_y (only two slices are
+/// matched then). The paper chooses E_y "from a set of N_1 candidates with the most consistent
+/// crossbar voxels as E_x"; we read the set as the N_1 nearest patches to s_y (what the search
+/// gives cheaply) and pick the one whose crossbar agrees best with E_x.
 pub fn match_check_point(
     solid: &PeriodicSolid,
     ctx: &MatchContext,
@@ -164,16 +168,31 @@ pub fn match_check_point(
 ) -> Match {
     let q = project_slices(solid, ctx, p, buffer);
     let patches = ctx.patches;
+    let three = ctx.params.matched_slices == 3;
     match ctx.params.search {
-        SliceSearch::Independent => q.map(|q| patches.nearest(&q, 1)[0].1),
+        SliceSearch::Independent => {
+            let mut m = q.map(|q| patches.nearest(&q, 1)[0].1);
+            if !three {
+                m[2] = UNMATCHED;
+            }
+            m
+        }
         SliceSearch::Crossbar { n1, n2 } => {
             let ex = patches.nearest(&q[0], 1)[0].1;
+            let ey_line = match ctx.params.slice_axes() {
+                SliceAxes::Cyclic => Line::Row,
+                SliceAxes::Upright => Line::Column,
+            };
             let ey = most_consistent(&patches.nearest(&q[1], n1 as usize), |c| {
-                patches.line_distance(ex, Line::Column, c, Line::Column)
+                patches.line_distance(ex, Line::Column, c, ey_line)
             });
+            if !three {
+                return [ex, ey, UNMATCHED];
+            }
+            // Three slices: cyclic axes.
             let ez = most_consistent(&patches.nearest(&q[2], n2 as usize), |c| {
                 patches.line_distance(ex, Line::Row, c, Line::Column)
-                    + patches.line_distance(ey, Line::Row, c, Line::Row)
+                    + patches.line_distance(ey, Line::Column, c, Line::Row)
             });
             [ex, ey, ez]
         }

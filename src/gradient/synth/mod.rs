@@ -90,6 +90,9 @@ pub struct GradientSynthParams {
     /// N_T: colour clusters of the finest level's buckets.
     pub clusters: u32,
     pub search: SliceSearch,
+    /// Slices matched per check point: 3, or 2 (those orthogonal to x and y; the z slice is
+    /// left free) for anisotropic exemplars that cannot hold on all three planes (4.2.1).
+    pub matched_slices: u32,
     /// Quantize the buckets of every level, not only the finest (the paper's choice). Without
     /// it, the first iterations from a random start average unrelated patches and the solid
     /// collapses towards the mean colour (measured: value spread 60 -> 2.4 in two iterations).
@@ -113,6 +116,7 @@ impl Default for GradientSynthParams {
             check_points: 3,
             clusters: 12,
             search: SliceSearch::Crossbar { n1: 20, n2: 50 },
+            matched_slices: 3,
             quantize_all_levels: true,
             histogram_matching: true,
             levels: PAPER_LEVELS.to_vec(),
@@ -148,6 +152,12 @@ impl GradientSynthParams {
         bounded("--iterations", self.iterations, 20)?;
         bounded("--check-points", self.check_points, 16)?;
         bounded("--clusters", self.clusters, 32)?;
+        if !(2..=3).contains(&self.matched_slices) {
+            return Err(Error::invalid(
+                format!("--slices {}", self.matched_slices),
+                "must be 2 or 3",
+            ));
+        }
         if self.optimize_iterations > 0 && self.size > MAX_OPTIMIZE_SIZE {
             return Err(Error::invalid(
                 format!("--optimize with --size {}", self.size),
@@ -173,6 +183,15 @@ impl GradientSynthParams {
             ));
         }
         Ok(())
+    }
+
+    /// The slice axes: cyclic (the crate's frame) with three matched slices, upright with two.
+    pub fn slice_axes(&self) -> frame::SliceAxes {
+        if self.matched_slices == 3 {
+            frame::SliceAxes::Cyclic
+        } else {
+            frame::SliceAxes::Upright
+        }
     }
 
     /// Smallest exemplar side the levels' patches fit in.
