@@ -13,6 +13,24 @@ pub enum BenchCommand {
     /// Synthesis (after analysis) per volume size and backend: median wall time, peak memory,
     /// and per-kernel times with the CPU/GPU ratio (each run in a fresh process).
     Synth(BenchSynthArgs),
+    /// Direct gradient-solid synthesis per size and backend: median wall time, peak memory,
+    /// per-level match/update times (each run in a fresh process).
+    GradientSynth(BenchGradientArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct BenchGradientArgs {
+    /// Exemplar image (default: the built-in exemplar).
+    pub input: Option<PathBuf>,
+    /// Solid periods, comma-separated.
+    #[arg(long, value_delimiter = ',', default_values_t = vec![64u32, 128])]
+    pub sizes: Vec<u32>,
+    /// Backends to compare, comma-separated (gpu: the bucket kernel on the GPU).
+    #[arg(long, value_delimiter = ',', default_values_t = vec!["cpu".to_string()])]
+    pub backends: Vec<String>,
+    /// Runs per size and backend; the median is reported.
+    #[arg(long, default_value_t = 3)]
+    pub runs: u32,
 }
 
 #[derive(Args, Debug)]
@@ -66,7 +84,70 @@ pub fn run(cmd: BenchCommand) -> anyhow::Result<()> {
     match cmd {
         BenchCommand::Analyze(args) => bench_analyze(args),
         BenchCommand::Synth(args) => bench_synth(args),
+        BenchCommand::GradientSynth(args) => bench_gradient_synth(args),
     }
+}
+
+fn bench_gradient_synth(args: BenchGradientArgs) -> anyhow::Result<()> {
+    let dir = tempfile::tempdir()?;
+    let exe = std::env::current_exe()?;
+    println!(
+        "gradient synthesis benchmark: median of {} run(s) per size and backend",
+        args.runs
+    );
+    println!(
+        "{:>6} {:>8} {:>10} {:>13} {:>28}",
+        "size", "backend", "median s", "peak RSS MiB", "match / update s (median run)"
+    );
+    for &size in &args.sizes {
+        for backend in &args.backends {
+            let mut runs = Vec::new();
+            for _ in 0..args.runs.max(1) {
+                let mut cmd = Command::new(&exe);
+                cmd.args(["--quiet", "gradient", "synth"]);
+                if let Some(input) = &args.input {
+                    cmd.arg(input);
+                }
+                let out = cmd
+                    .args([
+                        "--size",
+                        &size.to_string(),
+                        "--backend",
+                        backend,
+                        "--json",
+                        "-o",
+                    ])
+                    .arg(dir.path().join("bench.gsolid"))
+                    .output()?;
+                if !out.status.success() {
+                    anyhow::bail!(
+                        "gradient synth --size {size} --backend {backend} failed: {}",
+                        String::from_utf8_lossy(&out.stderr)
+                    );
+                }
+                let v: serde_json::Value = serde_json::from_slice(&out.stdout)?;
+                runs.push(v);
+            }
+            let seconds = |v: &serde_json::Value| v["seconds"].as_f64().unwrap_or(f64::NAN);
+            runs.sort_by(|a, b| seconds(a).total_cmp(&seconds(b)));
+            let median = &runs[runs.len() / 2];
+            let sum = |key: &str| -> f64 {
+                median["levels"]
+                    .as_array()
+                    .map(|l| l.iter().filter_map(|x| x[key].as_f64()).sum())
+                    .unwrap_or(0.0)
+            };
+            println!(
+                "{:>6} {:>8} {:>10.2} {:>13.1} {:>28}",
+                size,
+                backend,
+                median["seconds"].as_f64().unwrap_or(f64::NAN),
+                median["peak_rss_bytes"].as_f64().unwrap_or(f64::NAN) / (1 << 20) as f64,
+                format!("{:.2} / {:.2}", sum("match_seconds"), sum("update_seconds")),
+            );
+        }
+    }
+    Ok(())
 }
 
 fn bench_synth(args: BenchSynthArgs) -> anyhow::Result<()> {

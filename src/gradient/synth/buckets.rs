@@ -257,7 +257,7 @@ pub fn update(
     matches: &[Match],
     ctx: &MatchContext,
     compute: &Compute,
-    mut targets: Option<&mut Targets>,
+    targets: Option<&mut Targets>,
 ) -> Result<(PeriodicSolid, f64)> {
     let want_values = targets.is_some();
     let layer = |k: u32| -> Result<(Vec<f32>, usize, Vec<f32>)> {
@@ -284,7 +284,7 @@ pub fn update(
             .collect::<Result<_>>()?,
         Compute::Gpu(_) => (0..solid.m).map(layer).collect::<Result<_>>()?,
     };
-    if let Some(t) = targets.as_deref_mut() {
+    if let Some(t) = targets {
         let (p_len, c) = (solid.period() as usize, solid.channels);
         let plane = p_len * p_len * c;
         for (k, layer) in layers.iter_mut().enumerate() {
