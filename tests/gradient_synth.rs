@@ -110,3 +110,16 @@ fn the_final_optimization_fits_the_last_samples_better() {
     };
     assert!(big.validate().unwrap_err().is_user_error());
 }
+
+#[test]
+fn a_direction_field_turns_the_slices_deterministically() {
+    use solidsynth::gradient::synth::Field;
+    let turned = GradientSynthParams {
+        field: Field::Cylinder([0.0, 1.0, 1.0]),
+        ..small()
+    };
+    let a = run(&turned);
+    assert_eq!(a, run(&turned));
+    assert_ne!(a, run(&small()));
+    assert!(a.value_spread() > 20.0, "{}", a.value_spread());
+}
