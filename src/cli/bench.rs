@@ -13,6 +13,9 @@ pub enum BenchCommand {
     /// Synthesis (after analysis) per volume size and backend: median wall time, peak memory,
     /// and per-kernel times with the CPU/GPU ratio (each run in a fresh process).
     Synth(BenchSynthArgs),
+    /// PTM synthesis (projection vs brute-force search, identical output) and relighting (CPU vs
+    /// GPU) on a synthetic capture.
+    Ptm(super::ptm_bench::BenchPtmArgs),
 }
 
 #[derive(Args, Debug)]
@@ -66,6 +69,7 @@ pub fn run(cmd: BenchCommand) -> anyhow::Result<()> {
     match cmd {
         BenchCommand::Analyze(args) => bench_analyze(args),
         BenchCommand::Synth(args) => bench_synth(args),
+        BenchCommand::Ptm(args) => super::ptm_bench::run(args),
     }
 }
 
