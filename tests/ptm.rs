@@ -232,8 +232,8 @@ fn legendre_distances_are_reflectance_function_distances() {
 // ---------------------------------------------------------------- search
 
 /// A query image: quilting-like states made of random source pixels and another surface.
-fn query_image(src: &FeatureImage, w: u32, h: u32, seed: u64) -> FeatureImage {
-    let other = search::features(&source(w.max(h), PtmFormat::Lrgb, seed));
+fn query_image(src: &FeatureImage, format: PtmFormat, w: u32, h: u32, seed: u64) -> FeatureImage {
+    let other = search::features(&source(w.max(h), format, seed));
     let mut q = FeatureImage::new(w, h, src.dims);
     let mut rng = SeededRng::new(seed);
     for y in 0..h {
@@ -255,7 +255,7 @@ fn projection_search_equals_brute_force_on_many_queries() {
     for (format, block, overlap) in [(PtmFormat::Lrgb, 12, 3), (PtmFormat::Rgb, 10, 4), (PtmFormat::Lrgb, 16, 6)] {
         let src = search::features(&source(40, format, 7));
         let searcher = Searcher::new(src.clone(), block, overlap);
-        let q = query_image(&src, 64, 64, 11);
+        let q = query_image(&src, format, 64, 64, 11);
         let mut rng = SeededRng::new(1);
         let mut stats = SearchStats::default();
         for k in 0..60 {

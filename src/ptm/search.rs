@@ -3,28 +3,29 @@
 //!
 //! Two searches with identical results:
 //! - [`Searcher::brute`]: the exact distance to every candidate block.
-//! - [`Searcher::projection`]: the projection-kernel rejection scheme of Hel-Or & Hel-Or. The
-//!   neighbourhood is projected onto an energy-compacting orthogonal basis, one group of kernels
-//!   at a time, and the squared distance of the projections is a lower bound of the full distance
-//!   (the paper's eq. 2). Our kernels are the Haar / Walsh-Hadamard box kernels: level 0 is the
-//!   sum over each rectangle of the template (the DC kernel), and each level splits every cell in
-//!   two along its longer side. The span of a level's kernels is the functions constant on its
-//!   cells, so the energy of the projection of a difference x - y is sum_cells (S_c(x) -
-//!   S_c(y))^2 / n_c (S: the sum over the cell, n: its pixel count), nondecreasing with the level
-//!   and equal to |x - y|^2 at single pixels. The source's projections are computed once (per
-//!   template shape), so a bound costs a few subtractions and multiplications per candidate.
-//!   Candidates whose bound exceeds the threshold of the best distance found so far are rejected;
-//!   the survivors get exact distances.
+//! - [`Searcher::projection`]: the projection-kernel rejection scheme of Hel-Or & Hel-Or. Each
+//!   neighbourhood vector is projected onto an energy-compacting basis, and the squared distance
+//!   of the first few projections is a lower bound of the full distance (the paper's eq. 2).
+//!   The basis is the paper's "SVD of the neighbourhood ensemble": per rectangle of the
+//!   neighbourhood (top strip, corner, lower-left strip), the principal components of a sample of
+//!   the source's blocks, computed once, as are the source's projections onto them. A query is
+//!   projected once; a candidate's bound then costs a few subtractions and multiplications.
+//!   Projections are accumulated in stages (2, 4, 8, 16 kernels); candidates whose bound exceeds
+//!   the threshold of the best distance found so far are rejected; survivors get exact distances
+//!   (which themselves stop early once a partial sum exceeds the threshold).
 //!
 //! Exactness: features are integers (the orthonormal Legendre coefficients quantized, see
-//! [`FEATURE_SCALE`]), so every distance and bound is integer arithmetic, which is exact and
-//! independent of summation order and thread count. Each bound is rounded down
-//! (floor(sum / n)), so it never exceeds the true distance, which is an integer. A candidate is
-//! rejected only when its bound exceeds the threshold derived from a distance already achieved,
-//! which is at least the final threshold (the threshold is nondecreasing in the best distance),
-//! so no candidate within the final threshold is ever rejected. Both searches then keep exactly
-//! the candidates with distance <= threshold(best): the same set, in index order, so the same
-//! seeded choice. Ties are resolved by the smallest candidate index.
+//! [`FEATURE_SCALE`]) and the basis is rounded to an integer matrix P, so every projection,
+//! distance and bound is integer arithmetic: exact, independent of summation order and thread
+//! count. Rounding makes P only nearly orthogonal, so the bound divides by S, an integer upper
+//! bound of P's largest squared singular value (Gershgorin's bound on the exact Gram matrix
+//! P P^T): |P x|^2 <= lambda_max(P P^T) |x|^2 <= S |x|^2, hence floor(|P (q - c)|^2 / S) <=
+//! |q - c|^2 for every candidate, whatever P is. (So exactness does not depend on the floating
+//! point PCA, only the speed does.) A candidate is rejected only when its bound exceeds the
+//! threshold of a distance already achieved, which is at least the final threshold (the
+//! threshold is nondecreasing in the best distance), so no candidate within the final threshold
+//! is ever rejected. Both searches keep exactly the candidates with distance <= threshold(best):
+//! the same set, in index order, so the same seeded choice. Ties go to the smallest index.
 
 use super::{legendre, Ptm, COEFFS};
 use rayon::prelude::*;
@@ -104,38 +105,6 @@ pub struct Rect {
     pub h: u32,
 }
 
-impl Rect {
-    fn pixels(&self) -> u64 {
-        self.w as u64 * self.h as u64
-    }
-    /// Halves along the longer side (None for a single pixel).
-    fn split(&self) -> Option<(Rect, Rect)> {
-        if self.w >= self.h && self.w > 1 {
-            let a = self.w / 2;
-            Some((
-                Rect { w: a, ..*self },
-                Rect {
-                    x: self.x + a,
-                    w: self.w - a,
-                    ..*self
-                },
-            ))
-        } else if self.h > 1 {
-            let a = self.h / 2;
-            Some((
-                Rect { h: a, ..*self },
-                Rect {
-                    y: self.y + a,
-                    h: self.h - a,
-                    ..*self
-                },
-            ))
-        } else {
-            None
-        }
-    }
-}
-
 /// Which neighbours a block overlaps: the shape of its causal neighbourhood.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Shape {
@@ -147,25 +116,31 @@ pub enum Shape {
     Both,
 }
 
+/// The three rectangles neighbourhoods are made of: the top strip (overlap x block), the corner
+/// (overlap x overlap) and the lower-left strip (below the corner).
+const TOP: usize = 0;
+const CORNER: usize = 1;
+const LOWER_LEFT: usize = 2;
+
+fn parts(shape: Shape) -> &'static [usize] {
+    match shape {
+        Shape::Left => &[CORNER, LOWER_LEFT],
+        Shape::Top => &[TOP],
+        Shape::Both => &[TOP, LOWER_LEFT],
+    }
+}
+
+fn part_rect(part: usize, block: u32, overlap: u32) -> Rect {
+    match part {
+        TOP => Rect { x: 0, y: 0, w: block, h: overlap },
+        CORNER => Rect { x: 0, y: 0, w: overlap, h: overlap },
+        _ => Rect { x: 0, y: overlap, w: overlap, h: block - overlap },
+    }
+}
+
 /// The disjoint rectangles of a neighbourhood shape for blocks of side `block`, overlap `overlap`.
 pub fn template(shape: Shape, block: u32, overlap: u32) -> Vec<Rect> {
-    let top = Rect {
-        x: 0,
-        y: 0,
-        w: block,
-        h: overlap,
-    };
-    let left = |y0: u32| Rect {
-        x: 0,
-        y: y0,
-        w: overlap,
-        h: block - y0,
-    };
-    match shape {
-        Shape::Left => vec![left(0)],
-        Shape::Top => vec![top],
-        Shape::Both => vec![top, left(overlap)],
-    }
+    parts(shape).iter().map(|&p| part_rect(p, block, overlap)).collect()
 }
 
 /// Which candidates are acceptable: those with distance <= best + best * permille / 1000
@@ -176,10 +151,12 @@ pub struct Tolerance {
 }
 
 impl Tolerance {
-    /// The threshold for a best distance; nondecreasing in `best` (rejection relies on it).
+    /// floor(best * (1000 + permille) / 1000) without overflow; nondecreasing in `best`
+    /// (rejection relies on it).
     #[inline]
     pub fn threshold(&self, best: u64) -> u64 {
-        best.saturating_add(best / 1000 * self.permille as u64 + (best % 1000) * self.permille as u64 / 1000)
+        let p = self.permille as u64;
+        best.saturating_add((best / 1000) * p + (best % 1000) * p / 1000)
     }
 }
 
@@ -196,19 +173,30 @@ pub struct Matches {
 pub struct SearchStats {
     pub queries: u64,
     pub candidates: u64,
-    /// Candidates still alive after each projection level.
+    /// Candidates still alive after each projection stage.
     pub survivors: Vec<u64>,
-    /// Exact distances computed.
+    /// Exact distances computed (most stop early).
     pub exact: u64,
 }
 
-/// One projection level of one shape: cells grouped by pixel count (one division per group per
-/// candidate) and the source's cell sums, per candidate, per cell, per dimension.
-struct Level {
-    cells: Vec<Rect>,
-    /// (pixels per cell, number of consecutive cells in `cells` with that count).
-    groups: Vec<(u64, usize)>,
-    sums: Vec<i64>,
+/// Kernels per rectangle, and the stages at which bounds are evaluated (kernels used so far).
+pub const KERNELS: usize = 16;
+pub const STAGES: [usize; 4] = [2, 4, 8, 16];
+/// Blocks sampled for the principal components.
+const PCA_SAMPLE: usize = 256;
+/// The unit basis vectors are scaled by this before rounding to integers.
+const BASIS_SCALE: f64 = 256.0;
+
+/// The integer projection kernels of one rectangle and the source's projections onto them.
+struct Projection {
+    rect: Rect,
+    /// KERNELS x (pixels x dims), row-major.
+    basis: Vec<i32>,
+    /// For each stage, S: an integer >= the largest eigenvalue of the Gram matrix of the
+    /// stage's kernels (Gershgorin: the largest absolute row sum).
+    norm: [u128; STAGES.len()],
+    /// candidates x KERNELS.
+    proj: Vec<i64>,
 }
 
 /// The source features and everything precomputed for searching its blocks.
@@ -219,12 +207,8 @@ pub struct Searcher {
     /// Candidate block origins per row and column: (width - block + 1, height - block + 1).
     pub cand_w: u32,
     pub cand_h: u32,
-    levels: std::sync::Mutex<std::collections::HashMap<Shape, std::sync::Arc<Vec<Level>>>>,
+    parts: std::sync::Mutex<[Option<std::sync::Arc<Projection>>; 3]>,
 }
-
-/// Projection levels computed for each shape (cells per rectangle: 1, 2, 4, 8); after them the
-/// survivors get exact distances.
-pub const PROJECTION_LEVELS: usize = 4;
 
 impl Searcher {
     /// `block` and `overlap` must fit the source (checked by the caller).
@@ -237,7 +221,7 @@ impl Searcher {
             overlap,
             cand_w,
             cand_h,
-            levels: Default::default(),
+            parts: Default::default(),
         }
     }
 
@@ -251,9 +235,17 @@ impl Searcher {
     }
 
     /// Exact squared distance between the neighbourhood of candidate `i` and that of the output
-    /// block at (qx, qy) of `out`, stopping early (returning a partial sum > limit) once it
-    /// exceeds `limit`: partial sums of squares are lower bounds too.
-    pub fn distance(&self, i: u32, out: &FeatureImage, qx: u32, qy: u32, rects: &[Rect], limit: u64) -> u64 {
+    /// block at (qx, qy) of `out`. Stops early, returning a partial sum > limit, once the sum
+    /// exceeds `limit` (partial sums of squares are lower bounds too).
+    pub fn distance(
+        &self,
+        i: u32,
+        out: &FeatureImage,
+        qx: u32,
+        qy: u32,
+        rects: &[Rect],
+        limit: u64,
+    ) -> u64 {
         let (cx, cy) = self.origin(i);
         let mut acc = 0u64;
         for r in rects {
@@ -261,62 +253,109 @@ impl Searcher {
                 let a = self.source.run(cx + r.x, cy + r.y + row, r.w);
                 let b = out.run(qx + r.x, qy + r.y + row, r.w);
                 acc += squared_difference(a, b);
-            }
-            if acc > limit {
-                return acc;
+                if acc > limit {
+                    return acc;
+                }
             }
         }
         acc
     }
 
-    fn levels_for(&self, shape: Shape) -> std::sync::Arc<Vec<Level>> {
-        if let Some(l) = self.levels.lock().unwrap().get(&shape) {
-            return l.clone();
+    /// The values of rectangle `r` of the block at (x, y) of `img`, row by row.
+    fn gather(img: &FeatureImage, x: u32, y: u32, r: &Rect, out: &mut Vec<i32>) {
+        out.clear();
+        for row in 0..r.h {
+            out.extend_from_slice(img.run(x + r.x, y + r.y + row, r.w));
         }
-        let d = self.source.dims;
-        let mut cells = template(shape, self.block, self.overlap);
-        let mut levels = Vec::new();
-        for _ in 0..PROJECTION_LEVELS {
-            // Group cells by size (stable order) so a bound needs one division per group.
-            cells.sort_by_key(|c| std::cmp::Reverse(c.pixels()));
-            let mut groups: Vec<(u64, usize)> = Vec::new();
-            for c in &cells {
-                match groups.last_mut() {
-                    Some((n, k)) if *n == c.pixels() => *k += 1,
-                    _ => groups.push((c.pixels(), 1)),
+    }
+
+    /// The projection of part `part`, computed on first use.
+    fn projection_of(&self, part: usize) -> std::sync::Arc<Projection> {
+        if let Some(p) = &self.parts.lock().unwrap()[part] {
+            return p.clone();
+        }
+        let rect = part_rect(part, self.block, self.overlap);
+        let n = (rect.w * rect.h) as usize * self.source.dims;
+        let cands = self.candidates();
+        // Principal components of a regular sample of the source's blocks (snapshot method:
+        // eigenvectors of the m x m Gram matrix of the centred sample).
+        let m = PCA_SAMPLE.min(cands);
+        let mut x = nalgebra::DMatrix::<f64>::zeros(m, n);
+        let mut buf = Vec::with_capacity(n);
+        for s in 0..m {
+            let (cx, cy) = self.origin((s * cands / m) as u32);
+            Self::gather(&self.source, cx, cy, &rect, &mut buf);
+            for (j, &v) in buf.iter().enumerate() {
+                x[(s, j)] = v as f64;
+            }
+        }
+        for j in 0..n {
+            let mean = x.column(j).sum() / m as f64;
+            for s in 0..m {
+                x[(s, j)] -= mean;
+            }
+        }
+        let gram = &x * x.transpose();
+        let eig = gram.symmetric_eigen();
+        let mut order: Vec<usize> = (0..m).collect();
+        order.sort_by(|&a, &b| eig.eigenvalues[b].total_cmp(&eig.eigenvalues[a]).then(a.cmp(&b)));
+        let mut basis = vec![0i32; KERNELS * n];
+        for (k, &e) in order.iter().take(KERNELS).enumerate() {
+            let u = x.transpose() * eig.eigenvectors.column(e);
+            let len = u.norm();
+            if len > 0.0 {
+                for j in 0..n {
+                    basis[k * n + j] = (u[j] / len * BASIS_SCALE).round() as i32;
                 }
             }
-            let per = cells.len() * d;
-            let mut sums = vec![0i64; self.candidates() * per];
-            sums.par_chunks_mut(per).enumerate().for_each(|(i, out)| {
+        }
+        // Gershgorin bounds of the Gram matrices of each stage's kernels, exactly in integers.
+        let mut gram_i = [[0i128; KERNELS]; KERNELS];
+        for a in 0..KERNELS {
+            for b in 0..KERNELS {
+                gram_i[a][b] = basis[a * n..(a + 1) * n]
+                    .iter()
+                    .zip(&basis[b * n..(b + 1) * n])
+                    .map(|(&p, &q)| p as i128 * q as i128)
+                    .sum();
+            }
+        }
+        let norm = STAGES.map(|k| {
+            (0..k)
+                .map(|a| (0..k).map(|b| gram_i[a][b].unsigned_abs()).sum::<u128>())
+                .max()
+                .unwrap_or(1)
+                .max(1)
+        });
+        let mut proj = vec![0i64; cands * KERNELS];
+        proj.par_chunks_mut(KERNELS)
+            .enumerate()
+            .for_each_init(Vec::new, |buf, (i, out)| {
                 let (cx, cy) = self.origin(i as u32);
-                for (k, c) in cells.iter().enumerate() {
-                    cell_sums(&self.source, cx + c.x, cy + c.y, c, &mut out[k * d..(k + 1) * d]);
+                Self::gather(&self.source, cx, cy, &rect, buf);
+                for (k, o) in out.iter_mut().enumerate() {
+                    *o = dot(&basis[k * n..(k + 1) * n], buf);
                 }
             });
-            levels.push(Level {
-                cells: cells.clone(),
-                groups,
-                sums,
-            });
-            cells = cells
-                .iter()
-                .flat_map(|c| match c.split() {
-                    Some((a, b)) => vec![a, b],
-                    None => vec![*c],
-                })
-                .collect();
-        }
-        let levels = std::sync::Arc::new(levels);
-        self.levels
-            .lock()
-            .unwrap()
-            .insert(shape, levels.clone());
-        levels
+        let p = std::sync::Arc::new(Projection {
+            rect,
+            basis,
+            norm,
+            proj,
+        });
+        self.parts.lock().unwrap()[part] = Some(p.clone());
+        p
     }
 
     /// Brute force: the exact distance to every candidate.
-    pub fn brute(&self, out: &FeatureImage, qx: u32, qy: u32, shape: Shape, tol: Tolerance) -> Matches {
+    pub fn brute(
+        &self,
+        out: &FeatureImage,
+        qx: u32,
+        qy: u32,
+        shape: Shape,
+        tol: Tolerance,
+    ) -> Matches {
         let rects = template(shape, self.block, self.overlap);
         let dist: Vec<u64> = (0..self.candidates() as u32)
             .into_par_iter()
@@ -333,8 +372,8 @@ impl Searcher {
         Matches { best, within }
     }
 
-    /// The projection-kernel search: same result as [`Searcher::brute`], proven in the module
-    /// docs and tested on many queries.
+    /// The projection-kernel search: same result as [`Searcher::brute`] (proven in the module
+    /// docs, tested on many queries).
     pub fn projection(
         &self,
         out: &FeatureImage,
@@ -345,56 +384,58 @@ impl Searcher {
         stats: &mut SearchStats,
     ) -> Matches {
         let rects = template(shape, self.block, self.overlap);
-        let levels = self.levels_for(shape);
-        let d = self.source.dims;
-        let mut survivors: Vec<u32> = (0..self.candidates() as u32).collect();
+        let projections: Vec<std::sync::Arc<Projection>> =
+            parts(shape).iter().map(|&p| self.projection_of(p)).collect();
+        // The query's projections, per part.
+        let mut buf = Vec::new();
+        let query: Vec<[i64; KERNELS]> = projections
+            .iter()
+            .map(|p| {
+                Self::gather(out, qx, qy, &p.rect, &mut buf);
+                let n = buf.len();
+                std::array::from_fn(|k| dot(&p.basis[k * n..(k + 1) * n], &buf))
+            })
+            .collect();
+        // One normalization for all parts (the largest S): floor(sum_parts |P(q - c)|^2 / S_max)
+        // is still a lower bound, and comparing sum > thr * S_max needs no division.
+        let norms: Vec<u128> = (0..STAGES.len())
+            .map(|st| projections.iter().map(|p| p.norm[st]).max().unwrap_or(1))
+            .collect();
+        // Survivors with their accumulated squared projection differences.
+        let mut survivors: Vec<(u32, u128)> =
+            (0..self.candidates() as u32).map(|i| (i, 0)).collect();
         let mut best = u64::MAX;
         stats.queries += 1;
         stats.candidates += survivors.len() as u64;
-        stats.survivors.resize(levels.len(), 0);
-        for (li, level) in levels.iter().enumerate() {
-            let per = level.cells.len() * d;
-            let mut q = vec![0i64; per];
-            for (k, c) in level.cells.iter().enumerate() {
-                cell_sums(out, qx + c.x, qy + c.y, c, &mut q[k * d..(k + 1) * d]);
-            }
-            let bounds: Vec<u64> = survivors
-                .par_iter()
-                .map(|&i| {
-                    let s = &level.sums[i as usize * per..(i as usize + 1) * per];
-                    let mut lb = 0u64;
-                    let mut at = 0;
-                    for &(n, count) in &level.groups {
-                        let mut acc = 0u64;
-                        for k in at * d..(at + count) * d {
-                            let diff = (q[k] - s[k]).unsigned_abs();
-                            acc += diff * diff;
-                        }
-                        lb += acc / n;
-                        at += count;
+        stats.survivors.resize(STAGES.len(), 0);
+        let mut done = 0;
+        for (stage, &k) in STAGES.iter().enumerate() {
+            survivors.par_iter_mut().for_each(|(i, acc)| {
+                for (p, q) in projections.iter().zip(&query) {
+                    let c = &p.proj[*i as usize * KERNELS..][..KERNELS];
+                    for t in done..k {
+                        let d = (q[t] - c[t]).unsigned_abs() as u128;
+                        *acc += d * d;
                     }
-                    lb
-                })
-                .collect();
+                }
+            });
+            done = k;
             // Tighten the best distance so far with the most promising survivor (smallest
-            // bound, then smallest index): its exact distance is achievable.
-            if let Some((k, _)) = bounds.iter().enumerate().min_by_key(|(k, &b)| (b, *k)) {
-                let dd = self.distance(survivors[k], out, qx, qy, &rects, u64::MAX);
+            // bound, then smallest index): its exact distance is achieved by a candidate.
+            if let Some(&(i, _)) = survivors.iter().min_by_key(|(i, acc)| (*acc, *i)) {
+                let d = self.distance(i, out, qx, qy, &rects, u64::MAX);
                 stats.exact += 1;
-                best = best.min(dd);
+                best = best.min(d);
             }
-            let thr = tol.threshold(best);
-            survivors = survivors
-                .iter()
-                .zip(&bounds)
-                .filter(|(_, &b)| b <= thr)
-                .map(|(&i, _)| i)
-                .collect();
-            stats.survivors[li] += survivors.len() as u64;
+            // Reject when floor(acc / S) > thr, i.e. acc >= (thr + 1) * S.
+            let reject_at = (tol.threshold(best) as u128 + 1) * norms[stage];
+            survivors.retain(|&(_, acc)| acc < reject_at);
+            stats.survivors[stage] += survivors.len() as u64;
             if survivors.len() <= 1 {
                 break;
             }
         }
+        let survivors: Vec<u32> = survivors.into_iter().map(|(i, _)| i).collect();
         let limit = tol.threshold(best);
         stats.exact += survivors.len() as u64;
         let exact: Vec<(u32, u64)> = survivors
@@ -408,17 +449,20 @@ impl Searcher {
     }
 }
 
-/// Sum over the cell at (x, y) (absolute) of each feature dimension.
-fn cell_sums(img: &FeatureImage, x: u32, y: u32, c: &Rect, out: &mut [i64]) {
-    let d = img.dims;
-    out.fill(0);
-    for row in 0..c.h {
-        for px in img.run(x, y + row, c.w).chunks_exact(d) {
-            for k in 0..d {
-                out[k] += px[k] as i64;
-            }
-        }
-    }
+/// Integer dot product of a kernel and a neighbourhood. Both fit i16 (|kernel| <= 256, |feature|
+/// <= 32767), so blocks of 64 products are summed exactly in i32 (< 2^30) before widening, which
+/// lets the compiler use 16-bit multiply-add instructions.
+#[inline]
+fn dot(a: &[i32], b: &[i32]) -> i64 {
+    a.chunks(64)
+        .zip(b.chunks(64))
+        .map(|(a, b)| {
+            a.iter()
+                .zip(b)
+                .map(|(&p, &x)| (p as i16 as i32) * (x as i16 as i32))
+                .sum::<i32>() as i64
+        })
+        .sum()
 }
 
 /// Sum of squared differences of two equal-length runs. |values| < 2^15, so each square fits a
