@@ -10,7 +10,7 @@
 //!   neighbourhood (top strip, corner, lower-left strip), the principal components of a sample of
 //!   the source's blocks, computed once, as are the source's projections onto them. A query is
 //!   projected once; a candidate's bound then costs a few subtractions and multiplications.
-//!   Projections are accumulated in stages (2, 4, 8, 16 kernels); candidates whose bound exceeds
+//!   Projections are accumulated in stages (2, 4, 8, 16, 32 kernels); candidates whose bound exceeds
 //!   the threshold of the best distance found so far are rejected; survivors get exact distances
 //!   (which themselves stop early once a partial sum exceeds the threshold).
 //!
@@ -180,18 +180,18 @@ pub struct SearchStats {
 }
 
 /// Kernels per rectangle, and the stages at which bounds are evaluated (kernels used so far).
-pub const KERNELS: usize = 16;
-pub const STAGES: [usize; 4] = [2, 4, 8, 16];
+pub const KERNELS: usize = 32;
+pub const STAGES: [usize; 5] = [2, 4, 8, 16, 32];
 /// Blocks sampled for the principal components.
-const PCA_SAMPLE: usize = 256;
+const PCA_SAMPLE: usize = 160;
 /// The unit basis vectors are scaled by this before rounding to integers.
 const BASIS_SCALE: f64 = 256.0;
 
 /// The integer projection kernels of one rectangle and the source's projections onto them.
 struct Projection {
     rect: Rect,
-    /// KERNELS x (pixels x dims), row-major.
-    basis: Vec<i32>,
+    /// KERNELS x (pixels x dims), row-major; |values| <= 256.
+    basis: Vec<i16>,
     /// For each stage, S: an integer >= the largest eigenvalue of the Gram matrix of the
     /// stage's kernels (Gershgorin: the largest absolute row sum).
     norm: [u128; STAGES.len()],
@@ -207,6 +207,8 @@ pub struct Searcher {
     /// Candidate block origins per row and column: (width - block + 1, height - block + 1).
     pub cand_w: u32,
     pub cand_h: u32,
+    /// The source features as i16 (they are clamped to its range), for the projections.
+    source16: Vec<i16>,
     parts: std::sync::Mutex<[Option<std::sync::Arc<Projection>>; 3]>,
 }
 
@@ -215,7 +217,9 @@ impl Searcher {
     pub fn new(source: FeatureImage, block: u32, overlap: u32) -> Self {
         let cand_w = source.width - block + 1;
         let cand_h = source.height - block + 1;
+        let source16 = source.data.iter().map(|&v| v as i16).collect();
         Searcher {
+            source16,
             source,
             block,
             overlap,
@@ -261,11 +265,21 @@ impl Searcher {
         acc
     }
 
-    /// The values of rectangle `r` of the block at (x, y) of `img`, row by row.
-    fn gather(img: &FeatureImage, x: u32, y: u32, r: &Rect, out: &mut Vec<i32>) {
+    /// The values of rectangle `r` of the block at (x, y) of `img`, row by row, as i16.
+    fn gather(img: &FeatureImage, x: u32, y: u32, r: &Rect, out: &mut Vec<i16>) {
         out.clear();
         for row in 0..r.h {
-            out.extend_from_slice(img.run(x + r.x, y + r.y + row, r.w));
+            out.extend(img.run(x + r.x, y + r.y + row, r.w).iter().map(|&v| v as i16));
+        }
+    }
+
+    /// [`Searcher::gather`] from the source's i16 copy.
+    fn gather_source(&self, x: u32, y: u32, r: &Rect, out: &mut Vec<i16>) {
+        out.clear();
+        let (w, d) = (self.source.width as usize, self.source.dims);
+        for row in 0..r.h as usize {
+            let i = ((y + r.y) as usize + row) * w + (x + r.x) as usize;
+            out.extend_from_slice(&self.source16[i * d..(i + r.w as usize) * d]);
         }
     }
 
@@ -284,7 +298,7 @@ impl Searcher {
         let mut buf = Vec::with_capacity(n);
         for s in 0..m {
             let (cx, cy) = self.origin((s * cands / m) as u32);
-            Self::gather(&self.source, cx, cy, &rect, &mut buf);
+            self.gather_source(cx, cy, &rect, &mut buf);
             for (j, &v) in buf.iter().enumerate() {
                 x[(s, j)] = v as f64;
             }
@@ -299,13 +313,13 @@ impl Searcher {
         let eig = gram.symmetric_eigen();
         let mut order: Vec<usize> = (0..m).collect();
         order.sort_by(|&a, &b| eig.eigenvalues[b].total_cmp(&eig.eigenvalues[a]).then(a.cmp(&b)));
-        let mut basis = vec![0i32; KERNELS * n];
+        let mut basis = vec![0i16; KERNELS * n];
         for (k, &e) in order.iter().take(KERNELS).enumerate() {
             let u = x.transpose() * eig.eigenvectors.column(e);
             let len = u.norm();
             if len > 0.0 {
                 for j in 0..n {
-                    basis[k * n + j] = (u[j] / len * BASIS_SCALE).round() as i32;
+                    basis[k * n + j] = (u[j] / len * BASIS_SCALE).round() as i16;
                 }
             }
         }
@@ -332,7 +346,7 @@ impl Searcher {
             .enumerate()
             .for_each_init(Vec::new, |buf, (i, out)| {
                 let (cx, cy) = self.origin(i as u32);
-                Self::gather(&self.source, cx, cy, &rect, buf);
+                self.gather_source(cx, cy, &rect, buf);
                 for (k, o) in out.iter_mut().enumerate() {
                     *o = dot(&basis[k * n..(k + 1) * n], buf);
                 }
@@ -402,7 +416,9 @@ impl Searcher {
             .map(|st| projections.iter().map(|p| p.norm[st]).max().unwrap_or(1))
             .collect();
         // Survivors with their accumulated squared projection differences.
-        let mut survivors: Vec<(u32, u128)> =
+        // Accumulated in u64 with each difference capped at 2^32 - 1 and saturating sums: both
+        // only lower the bound, which stays a bound (and is exact at realistic magnitudes).
+        let mut survivors: Vec<(u32, u64)> =
             (0..self.candidates() as u32).map(|i| (i, 0)).collect();
         let mut best = u64::MAX;
         stats.queries += 1;
@@ -414,8 +430,8 @@ impl Searcher {
                 for (p, q) in projections.iter().zip(&query) {
                     let c = &p.proj[*i as usize * KERNELS..][..KERNELS];
                     for t in done..k {
-                        let d = (q[t] - c[t]).unsigned_abs() as u128;
-                        *acc += d * d;
+                        let d = (q[t] - c[t]).unsigned_abs().min(u32::MAX as u64);
+                        *acc = acc.saturating_add(d * d);
                     }
                 }
             });
@@ -429,7 +445,7 @@ impl Searcher {
             }
             // Reject when floor(acc / S) > thr, i.e. acc >= (thr + 1) * S.
             let reject_at = (tol.threshold(best) as u128 + 1) * norms[stage];
-            survivors.retain(|&(_, acc)| acc < reject_at);
+            survivors.retain(|&(_, acc)| (acc as u128) < reject_at);
             stats.survivors[stage] += survivors.len() as u64;
             if survivors.len() <= 1 {
                 break;
@@ -449,17 +465,17 @@ impl Searcher {
     }
 }
 
-/// Integer dot product of a kernel and a neighbourhood. Both fit i16 (|kernel| <= 256, |feature|
-/// <= 32767), so blocks of 64 products are summed exactly in i32 (< 2^30) before widening, which
-/// lets the compiler use 16-bit multiply-add instructions.
+/// Integer dot product of a kernel (|values| <= 256) and a neighbourhood (|values| <= 32767):
+/// blocks of 64 products are summed exactly in i32 (< 2^30) before widening, which lets the
+/// compiler use 16-bit multiply-add instructions.
 #[inline]
-fn dot(a: &[i32], b: &[i32]) -> i64 {
+fn dot(a: &[i16], b: &[i16]) -> i64 {
     a.chunks(64)
         .zip(b.chunks(64))
         .map(|(a, b)| {
             a.iter()
                 .zip(b)
-                .map(|(&p, &x)| (p as i16 as i32) * (x as i16 as i32))
+                .map(|(&p, &x)| p as i32 * x as i32)
                 .sum::<i32>() as i64
         })
         .sum()
