@@ -53,7 +53,12 @@ fn ptm_relight_matches_its_reference() {
     let Some(gpu) = crate::gpu() else { return };
     for (format, seed) in [(PtmFormat::Lrgb, 1), (PtmFormat::Rgb, 2)] {
         let ptm = random_ptm(format, 67, 45, seed);
-        for (lu, lv, specular) in [(0.0, 0.0, 0.0), (0.6, -0.3, 0.0), (-0.2, 0.9, 0.7), (0.7, 0.7, 1.5)] {
+        for (lu, lv, specular) in [
+            (0.0, 0.0, 0.0),
+            (0.6, -0.3, 0.0),
+            (-0.2, 0.9, 0.7),
+            (0.7, 0.7, 1.5),
+        ] {
             let light = Lighting { lu, lv, specular };
             let cpu = ptm_relight(&ptm, &light);
             let out = solidsynth::gpu::ptm_relight::ptm_relight(gpu, &ptm, &light).unwrap();
@@ -65,7 +70,11 @@ fn ptm_relight_matches_its_reference() {
     opts.max_binding_bytes = Some(4096);
     let small = crate::open(opts).expect("adapter");
     let ptm = random_ptm(PtmFormat::Lrgb, 50, 31, 3);
-    let light = Lighting { lu: 0.3, lv: 0.2, specular: 0.4 };
+    let light = Lighting {
+        lu: 0.3,
+        lv: 0.2,
+        specular: 0.4,
+    };
     let out = solidsynth::gpu::ptm_relight::ptm_relight(&small, &ptm, &light).unwrap();
     close("chunked", &ptm_relight(&ptm, &light), &out, 0.4).unwrap();
     // The comparison fails on a perturbed result and on a never-written (sentinel NaN) value.

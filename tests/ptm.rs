@@ -39,7 +39,14 @@ fn fit_recovers_exact_biquadratics() {
     let polys: Vec<[f64; 6]> = (0..w * h * 3)
         .map(|_| {
             let r = |rng: &mut SeededRng, s: f64| (rng.below(2001) as f64 / 1000.0 - 1.0) * s;
-            [r(&mut rng, 0.1), r(&mut rng, 0.1), r(&mut rng, 0.1), r(&mut rng, 0.15), r(&mut rng, 0.15), 0.5 + r(&mut rng, 0.1)]
+            [
+                r(&mut rng, 0.1),
+                r(&mut rng, 0.1),
+                r(&mut rng, 0.1),
+                r(&mut rng, 0.15),
+                r(&mut rng, 0.15),
+                0.5 + r(&mut rng, 0.1),
+            ]
         })
         .collect();
     let images = lights
@@ -48,7 +55,12 @@ fn fit_recovers_exact_biquadratics() {
             image::RgbImage::from_fn(w, h, |x, y| {
                 image::Rgb([0, 1, 2].map(|c| {
                     let a = &polys[((y * w + x) * 3 + c) as usize];
-                    let v = a[0] * l.lu * l.lu + a[1] * l.lv * l.lv + a[2] * l.lu * l.lv + a[3] * l.lu + a[4] * l.lv + a[5];
+                    let v = a[0] * l.lu * l.lu
+                        + a[1] * l.lv * l.lv
+                        + a[2] * l.lu * l.lv
+                        + a[3] * l.lu
+                        + a[4] * l.lv
+                        + a[5];
                     (v * 255.0).round() as u8
                 }))
             })
@@ -73,22 +85,41 @@ fn degenerate_and_too_few_lights_are_refused() {
     let one_elevation: Vec<Light> = (0..12)
         .map(|i| {
             let p = i as f64 * 0.5;
-            Light { lu: 0.6 * p.cos(), lv: 0.6 * p.sin() }
+            Light {
+                lu: 0.6 * p.cos(),
+                lv: 0.6 * p.sin(),
+            }
         })
         .collect();
-    let e = fit::pseudo_inverse(&one_elevation, "lights").unwrap_err().to_string();
+    let e = fit::pseudo_inverse(&one_elevation, "lights")
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("degenerate") && e.contains("lights"), "{e}");
-    let on_a_line: Vec<Light> = (0..10).map(|i| Light { lu: i as f64 / 10.0 - 0.45, lv: 0.0 }).collect();
-    assert!(fit::pseudo_inverse(&on_a_line, "l").unwrap_err().to_string().contains("degenerate"));
+    let on_a_line: Vec<Light> = (0..10)
+        .map(|i| Light {
+            lu: i as f64 / 10.0 - 0.45,
+            lv: 0.0,
+        })
+        .collect();
+    assert!(fit::pseudo_inverse(&on_a_line, "l")
+        .unwrap_err()
+        .to_string()
+        .contains("degenerate"));
     assert!(fit::pseudo_inverse(&capture::spiral_lights(5), "l").is_err());
     assert!(fit::pseudo_inverse(&capture::spiral_lights(6), "l").is_ok());
     let mut cap = capture::synthetic(16, 8, 0);
     cap.images.truncate(5);
     cap.lights.truncate(5);
-    assert!(fit::fit(&cap, PtmFormat::Lrgb, "c").unwrap_err().to_string().contains("at least 6"));
+    assert!(fit::fit(&cap, PtmFormat::Lrgb, "c")
+        .unwrap_err()
+        .to_string()
+        .contains("at least 6"));
     let mut cap = capture::synthetic(16, 8, 0);
     cap.images[3] = image::RgbImage::new(16, 15);
-    assert!(fit::fit(&cap, PtmFormat::Lrgb, "c").unwrap_err().to_string().contains("one size"));
+    assert!(fit::fit(&cap, PtmFormat::Lrgb, "c")
+        .unwrap_err()
+        .to_string()
+        .contains("one size"));
 }
 
 #[test]
@@ -98,12 +129,23 @@ fn light_files_parse_and_mismatches_are_named() {
     assert_eq!(l.len(), 3);
     assert!((l[1].1.lu - 0.5f64.sqrt()).abs() < 1e-12);
     assert!((l[2].1.lv + 0.5f64.sqrt()).abs() < 1e-12);
-    assert!(capture::parse_lights("4\na.png 0 0 1\n", "f", false).unwrap_err().to_string().contains("announces 4"));
-    assert!(capture::parse_lights("1\na.png 0 0 -1\n", "f", false).unwrap_err().to_string().contains("z > 0"));
+    assert!(capture::parse_lights("4\na.png 0 0 1\n", "f", false)
+        .unwrap_err()
+        .to_string()
+        .contains("announces 4"));
+    assert!(capture::parse_lights("1\na.png 0 0 -1\n", "f", false)
+        .unwrap_err()
+        .to_string()
+        .contains("z > 0"));
     let json = r#"{"lights": [{"file": "a.png", "lu": 0.1, "lv": 0.2}, {"file": "b.png", "direction": [0, 1, 1]}]}"#;
     let l = capture::parse_lights(json, "f", true).unwrap();
     assert_eq!(l[0].1, Light { lu: 0.1, lv: 0.2 });
-    assert!(capture::parse_lights(r#"{"lights": [{"file": "a", "lu": 1, "lv": 1}]}"#, "f", true).is_err());
+    assert!(capture::parse_lights(
+        r#"{"lights": [{"file": "a", "lu": 1, "lv": 1}]}"#,
+        "f",
+        true
+    )
+    .is_err());
 }
 
 // ---------------------------------------------------------------- format
@@ -117,7 +159,10 @@ fn ptm_files_round_trip_byte_identical() {
         assert_eq!(back, ptm);
         assert_eq!(format::to_bytes(&back), bytes);
         let text = String::from_utf8_lossy(&bytes[..40]).to_string();
-        assert!(text.starts_with(&format!("PTM_1.2\n{}\n24\n24\n", format.header_name())), "{text}");
+        assert!(
+            text.starts_with(&format!("PTM_1.2\n{}\n24\n24\n", format.header_name())),
+            "{text}"
+        );
     }
 }
 
@@ -125,13 +170,29 @@ fn ptm_files_round_trip_byte_identical() {
 fn ptm_payload_runs_bottom_to_top_in_blocks() {
     // A 2x2 LRGB map with distinct bytes: the file holds the bottom row first, coefficients of
     // all pixels, then colours of all pixels.
-    let texels: Vec<u8> = (0..4u8).flat_map(|p| (0..9u8).map(move |k| p * 10 + k)).collect();
-    let ptm = Ptm { format: PtmFormat::Lrgb, width: 2, height: 2, scale: [1.0; 6], bias: [0; 6], texels };
+    let texels: Vec<u8> = (0..4u8)
+        .flat_map(|p| (0..9u8).map(move |k| p * 10 + k))
+        .collect();
+    let ptm = Ptm {
+        format: PtmFormat::Lrgb,
+        width: 2,
+        height: 2,
+        scale: [1.0; 6],
+        bias: [0; 6],
+        texels,
+    };
     let bytes = format::to_bytes(&ptm);
     let payload = &bytes[bytes.len() - 36..];
     assert_eq!(&payload[..6], &[20, 21, 22, 23, 24, 25]); // pixel (0, 1): bottom-left
     assert_eq!(&payload[24..27], &[26, 27, 28]);
-    let rgb = Ptm { format: PtmFormat::Rgb, width: 1, height: 2, scale: [0.5; 6], bias: [3; 6], texels: (0..36).collect() };
+    let rgb = Ptm {
+        format: PtmFormat::Rgb,
+        width: 1,
+        height: 2,
+        scale: [0.5; 6],
+        bias: [3; 6],
+        texels: (0..36).collect(),
+    };
     let bytes = format::to_bytes(&rgb);
     let payload = &bytes[bytes.len() - 36..];
     assert_eq!(&payload[..6], &[18, 19, 20, 21, 22, 23]); // red plane, bottom pixel
@@ -143,24 +204,39 @@ fn ptm_payload_runs_bottom_to_top_in_blocks() {
 #[test]
 fn damaged_ptm_files_are_named() {
     let good = format::to_bytes(&source(16, PtmFormat::Lrgb, 2));
-    assert!(format::from_bytes(b"PTM_1.1\nPTM_FORMAT_LRGB\n").unwrap_err().contains("PTM_1.2"));
+    assert!(format::from_bytes(b"PTM_1.1\nPTM_FORMAT_LRGB\n")
+        .unwrap_err()
+        .contains("PTM_1.2"));
     let mut bad = good.clone();
     bad[12] = b'X';
-    assert!(format::from_bytes(&bad).unwrap_err().contains("unsupported PTM format"));
-    assert!(format::from_bytes(&good[..good.len() - 1]).unwrap_err().contains("truncated"));
-    assert!(format::from_bytes(&good[..30]).unwrap_err().contains("truncated"));
+    assert!(format::from_bytes(&bad)
+        .unwrap_err()
+        .contains("unsupported PTM format"));
+    assert!(format::from_bytes(&good[..good.len() - 1])
+        .unwrap_err()
+        .contains("truncated"));
+    assert!(format::from_bytes(&good[..30])
+        .unwrap_err()
+        .contains("truncated"));
     let mut long = good.clone();
     long.push(0);
-    assert!(format::from_bytes(&long).unwrap_err().contains("unexpected bytes"));
+    assert!(format::from_bytes(&long)
+        .unwrap_err()
+        .contains("unexpected bytes"));
     assert!(format::from_bytes(&[]).is_err());
     let huge = b"PTM_1.2\nPTM_FORMAT_RGB\n99999 99999\n1 1 1 1 1 1\n0 0 0 0 0 0\n";
-    assert!(format::from_bytes(huge).unwrap_err().contains("out of range"));
+    assert!(format::from_bytes(huge)
+        .unwrap_err()
+        .contains("out of range"));
 }
 
 /// Truncations, bit flips and header mutations in a loop: errors, never panics.
 #[test]
 fn fuzz_ptm_reader() {
-    let good = [format::to_bytes(&source(12, PtmFormat::Lrgb, 4)), format::to_bytes(&source(12, PtmFormat::Rgb, 4))];
+    let good = [
+        format::to_bytes(&source(12, PtmFormat::Lrgb, 4)),
+        format::to_bytes(&source(12, PtmFormat::Rgb, 4)),
+    ];
     let mut rng = SeededRng::new(2026);
     let (mut rejected, mut accepted) = (0, 0);
     for i in 0..4000 {
@@ -196,7 +272,10 @@ fn fuzz_ptm_reader() {
             Err(_) => panic!("reader panicked on mutation {i}"),
         }
     }
-    assert!(rejected > 1000 && accepted > 100, "rejected {rejected}, accepted {accepted}");
+    assert!(
+        rejected > 1000 && accepted > 100,
+        "rejected {rejected}, accepted {accepted}"
+    );
 }
 
 // ---------------------------------------------------------------- Legendre basis
@@ -218,8 +297,13 @@ fn legendre_distances_are_reflectance_function_distances() {
         let mut f = 0.0;
         for i in 0..n {
             for j in 0..n {
-                let (u, v) = (-1.0 + (i as f64 + 0.5) * 2.0 / n as f64, -1.0 + (j as f64 + 0.5) * 2.0 / n as f64);
-                let g = |a: &[f64; 6]| a[0] * u * u + a[1] * v * v + a[2] * u * v + a[3] * u + a[4] * v + a[5];
+                let (u, v) = (
+                    -1.0 + (i as f64 + 0.5) * 2.0 / n as f64,
+                    -1.0 + (j as f64 + 0.5) * 2.0 / n as f64,
+                );
+                let g = |a: &[f64; 6]| {
+                    a[0] * u * u + a[1] * v * v + a[2] * u * v + a[3] * u + a[4] * v + a[5]
+                };
                 f += (g(&a1) - g(&a2)).powi(2) * (2.0 / n as f64).powi(2);
             }
         }
@@ -239,7 +323,10 @@ fn query_image(src: &FeatureImage, format: PtmFormat, w: u32, h: u32, seed: u64)
     for y in 0..h {
         for x in 0..w {
             let v: Vec<i32> = if rng.below(3) == 0 {
-                let (sx, sy) = (rng.below(src.width as u64) as u32, rng.below(src.height as u64) as u32);
+                let (sx, sy) = (
+                    rng.below(src.width as u64) as u32,
+                    rng.below(src.height as u64) as u32,
+                );
                 src.run(sx, sy, 1).to_vec()
             } else {
                 other.run(x, y, 1).to_vec()
@@ -252,31 +339,63 @@ fn query_image(src: &FeatureImage, format: PtmFormat, w: u32, h: u32, seed: u64)
 
 #[test]
 fn projection_search_equals_brute_force_on_many_queries() {
-    for (format, block, overlap) in [(PtmFormat::Lrgb, 12, 3), (PtmFormat::Rgb, 10, 4), (PtmFormat::Lrgb, 16, 6)] {
+    for (format, block, overlap) in [
+        (PtmFormat::Lrgb, 12, 3),
+        (PtmFormat::Rgb, 10, 4),
+        (PtmFormat::Lrgb, 16, 6),
+    ] {
         let src = search::features(&source(40, format, 7));
         let searcher = Searcher::new(src.clone(), block, overlap);
         let q = query_image(&src, format, 64, 64, 11);
         let mut rng = SeededRng::new(1);
         let mut stats = SearchStats::default();
         for k in 0..60 {
-            let (qx, qy) = (rng.below((64 - block) as u64) as u32, rng.below((64 - block) as u64) as u32);
+            let (qx, qy) = (
+                rng.below((64 - block) as u64) as u32,
+                rng.below((64 - block) as u64) as u32,
+            );
             let shape = [Shape::Left, Shape::Top, Shape::Both][k % 3];
             for permille in [0, 100, 500] {
                 let tol = Tolerance { permille };
                 let brute = searcher.brute(&q, qx, qy, shape, tol);
                 let proj = searcher.projection(&q, qx, qy, shape, tol, &mut stats);
-                assert_eq!(brute, proj, "{format:?} query {k} at ({qx}, {qy}) {shape:?} tol {permille}");
+                assert_eq!(
+                    brute, proj,
+                    "{format:?} query {k} at ({qx}, {qy}) {shape:?} tol {permille}"
+                );
                 assert!(!brute.within.is_empty());
             }
         }
         // Queries copied from the source have distance 0 at their own position (ties: all the
         // zero-distance candidates, smallest index first).
         for k in 0..20 {
-            let (sx, sy) = (rng.below(searcher.cand_w as u64) as u32, rng.below(searcher.cand_h as u64) as u32);
-            let m = searcher.projection(&src, sx, sy, [Shape::Left, Shape::Top, Shape::Both][k % 3], Tolerance { permille: 0 }, &mut stats);
+            let (sx, sy) = (
+                rng.below(searcher.cand_w as u64) as u32,
+                rng.below(searcher.cand_h as u64) as u32,
+            );
+            let m = searcher.projection(
+                &src,
+                sx,
+                sy,
+                [Shape::Left, Shape::Top, Shape::Both][k % 3],
+                Tolerance { permille: 0 },
+                &mut stats,
+            );
             assert_eq!(m.best, 0);
-            assert!(m.within.iter().any(|&(i, _)| searcher.origin(i) == (sx, sy)));
-            assert_eq!(m, searcher.brute(&src, sx, sy, [Shape::Left, Shape::Top, Shape::Both][k % 3], Tolerance { permille: 0 }));
+            assert!(m
+                .within
+                .iter()
+                .any(|&(i, _)| searcher.origin(i) == (sx, sy)));
+            assert_eq!(
+                m,
+                searcher.brute(
+                    &src,
+                    sx,
+                    sy,
+                    [Shape::Left, Shape::Top, Shape::Both][k % 3],
+                    Tolerance { permille: 0 }
+                )
+            );
         }
     }
 }
@@ -297,7 +416,10 @@ fn quilting_is_seeded_identical_across_searches_and_threads() {
     let (b, rb) = quilt::synthesize(&src, &brute, &mut |_, _| {}).unwrap();
     assert_eq!(ra.choices, rb.choices);
     assert!(a == b, "projection and brute force outputs differ");
-    let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+    let one = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap();
     let (c, _) = one.install(|| quilt::synthesize(&src, &p, &mut |_, _| {}).unwrap());
     assert!(a == c, "output depends on the thread count");
     p.seed = 4;
@@ -329,7 +451,9 @@ fn blending_and_rgb_quilting_work() {
     for bad in [(2, 1), (50, 6), (12, 0), (12, 7)] {
         let mut q = p.clone();
         (q.block, q.overlap) = bad;
-        let e = quilt::synthesize(&src, &q, &mut |_, _| {}).unwrap_err().to_string();
+        let e = quilt::synthesize(&src, &q, &mut |_, _| {})
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("--block") || e.contains("--overlap"), "{e}");
     }
 }
@@ -343,24 +467,60 @@ fn relighting_follows_the_light() {
     // Relit at a captured light, the PTM is close to that photograph, closer than to the
     // photograph under the most different light.
     let diff = |img: &image::RgbImage, rgb: &[f32]| -> f64 {
-        let s: f64 = img.pixels().enumerate().map(|(i, p)| (0..3).map(|c| ((rgb[3 * i + c] * 255.0).clamp(0.0, 255.0) as f64 - p.0[c] as f64).powi(2)).sum::<f64>()).sum();
+        let s: f64 = img
+            .pixels()
+            .enumerate()
+            .map(|(i, p)| {
+                (0..3)
+                    .map(|c| {
+                        ((rgb[3 * i + c] * 255.0).clamp(0.0, 255.0) as f64 - p.0[c] as f64).powi(2)
+                    })
+                    .sum::<f64>()
+            })
+            .sum();
         (s / (img.len() as f64)).sqrt()
     };
     for k in [2usize, 9, 17] {
         let l = cap.lights[k];
-        let rgb = ptm_relight(&ptm, &Lighting { lu: l.lu as f32, lv: l.lv as f32, specular: 0.0 });
+        let rgb = ptm_relight(
+            &ptm,
+            &Lighting {
+                lu: l.lu as f32,
+                lv: l.lv as f32,
+                specular: 0.0,
+            },
+        );
         let far = (0..cap.lights.len())
             .max_by(|&a, &b| {
-                let d = |j: usize| (cap.lights[j].lu - l.lu).powi(2) + (cap.lights[j].lv - l.lv).powi(2);
+                let d = |j: usize| {
+                    (cap.lights[j].lu - l.lu).powi(2) + (cap.lights[j].lv - l.lv).powi(2)
+                };
                 d(a).total_cmp(&d(b))
             })
             .unwrap();
         let (near_err, far_err) = (diff(&cap.images[k], &rgb), diff(&cap.images[far], &rgb));
-        assert!(near_err * 2.0 < far_err, "light {k}: {near_err} vs {far_err}");
+        assert!(
+            near_err * 2.0 < far_err,
+            "light {k}: {near_err} vs {far_err}"
+        );
     }
     // A specular term only adds light.
-    let plain = ptm_relight(&ptm, &Lighting { lu: 0.3, lv: 0.1, specular: 0.0 });
-    let shiny = ptm_relight(&ptm, &Lighting { lu: 0.3, lv: 0.1, specular: 0.5 });
+    let plain = ptm_relight(
+        &ptm,
+        &Lighting {
+            lu: 0.3,
+            lv: 0.1,
+            specular: 0.0,
+        },
+    );
+    let shiny = ptm_relight(
+        &ptm,
+        &Lighting {
+            lu: 0.3,
+            lv: 0.1,
+            specular: 0.5,
+        },
+    );
     assert!(plain.iter().zip(&shiny).all(|(a, b)| b >= a));
     assert!(plain.iter().zip(&shiny).any(|(a, b)| b - a > 0.05));
 }
@@ -393,29 +553,102 @@ fn assert_refused(out: &Output, needle: &str, path: &Path) {
 fn cli_capture_fit_synth_relight() {
     let dir = tempfile::tempdir().unwrap();
     let cap = dir.path().join("cap");
-    let o = run(&["ptm", "capture", "--size", "40", "--lights", "12", "-o", p(&cap)]);
+    let o = run(&[
+        "ptm",
+        "capture",
+        "--size",
+        "40",
+        "--lights",
+        "12",
+        "-o",
+        p(&cap),
+    ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert_eq!(std::fs::read_dir(&cap).unwrap().count(), 13);
     let tex = dir.path().join("t.ptm");
-    let o = run(&["ptm", "fit", p(&cap), "--format", "rgb", "--json", "-o", p(&tex)]);
+    let o = run(&[
+        "ptm",
+        "fit",
+        p(&cap),
+        "--format",
+        "rgb",
+        "--json",
+        "-o",
+        p(&tex),
+    ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert!(v["rms_error_levels"].as_f64().unwrap() < 16.0);
     let big = dir.path().join("big.ptm");
-    let o = run(&["ptm", "synth", p(&tex), "--size", "72", "--block", "16", "--overlap", "4", "--seed", "2", "-o", p(&big)]);
+    let o = run(&[
+        "ptm",
+        "synth",
+        p(&tex),
+        "--size",
+        "72",
+        "--block",
+        "16",
+        "--overlap",
+        "4",
+        "--seed",
+        "2",
+        "-o",
+        p(&big),
+    ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let brute = dir.path().join("brute.ptm");
-    let o = run(&["ptm", "synth", p(&tex), "--size", "72", "--block", "16", "--overlap", "4", "--seed", "2", "--search", "brute", "-o", p(&brute)]);
+    let o = run(&[
+        "ptm",
+        "synth",
+        p(&tex),
+        "--size",
+        "72",
+        "--block",
+        "16",
+        "--overlap",
+        "4",
+        "--seed",
+        "2",
+        "--search",
+        "brute",
+        "-o",
+        p(&brute),
+    ]);
     assert!(o.status.success());
     assert_eq!(std::fs::read(&big).unwrap(), std::fs::read(&brute).unwrap());
     let ptm = format::load(&big).unwrap();
-    assert_eq!((ptm.width, ptm.height, ptm.format), (72, 72, PtmFormat::Rgb));
+    assert_eq!(
+        (ptm.width, ptm.height, ptm.format),
+        (72, 72, PtmFormat::Rgb)
+    );
     let png = dir.path().join("lit.png");
-    let o = run(&["ptm", "relight", p(&big), "--light", "0.5,-0.2", "--specular", "0.3", "--backend", "cpu", "-o", p(&png)]);
+    let o = run(&[
+        "ptm",
+        "relight",
+        p(&big),
+        "--light",
+        "0.5,-0.2",
+        "--specular",
+        "0.3",
+        "--backend",
+        "cpu",
+        "-o",
+        p(&png),
+    ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert_eq!(image::open(&png).unwrap().width(), 72);
     let sheet = dir.path().join("sheet.png");
-    let o = run(&["ptm", "relight", p(&big), "--sweep", "6", "--backend", "cpu", "-o", p(&sheet)]);
+    let o = run(&[
+        "ptm",
+        "relight",
+        p(&big),
+        "--sweep",
+        "6",
+        "--backend",
+        "cpu",
+        "-o",
+        p(&sheet),
+    ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let s = image::open(&sheet).unwrap();
     assert_eq!((s.width(), s.height()), (3 * 76 + 4, 2 * 76 + 4));
@@ -426,25 +659,56 @@ fn cli_bad_ptm_inputs_exit_2_and_write_nothing() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let cap = d.join("cap");
-    assert!(run(&["ptm", "capture", "--size", "24", "--lights", "8", "-o", p(&cap)]).status.success());
+    assert!(run(&[
+        "ptm",
+        "capture",
+        "--size",
+        "24",
+        "--lights",
+        "8",
+        "-o",
+        p(&cap)
+    ])
+    .status
+    .success());
     let out = d.join("o.ptm");
     // Capture into a non-empty directory; too few lights.
-    assert_refused(&run(&["ptm", "capture", "--size", "24", "-o", p(&cap)]), "not an empty directory", &d.join("cap/lights.json"));
-    assert_refused(&run(&["ptm", "capture", "--lights", "5", "-o", p(&d.join("c5"))]), "--lights 5", &d.join("c5"));
+    assert_refused(
+        &run(&["ptm", "capture", "--size", "24", "-o", p(&cap)]),
+        "not an empty directory",
+        &d.join("cap/lights.json"),
+    );
+    assert_refused(
+        &run(&["ptm", "capture", "--lights", "5", "-o", p(&d.join("c5"))]),
+        "--lights 5",
+        &d.join("c5"),
+    );
     // Light file that does not match the images: an extra image, then a missing one.
     std::fs::copy(cap.join("img_000.png"), cap.join("zzz.png")).unwrap();
-    assert_refused(&run(&["ptm", "fit", p(&cap), "-o", p(&out)]), "lists 8 images but", &out);
+    assert_refused(
+        &run(&["ptm", "fit", p(&cap), "-o", p(&out)]),
+        "lists 8 images but",
+        &out,
+    );
     std::fs::remove_file(cap.join("zzz.png")).unwrap();
     // Fewer than 6 images.
     let few = d.join("few");
     std::fs::create_dir(&few).unwrap();
     let mut lp = String::from("5\n");
     for i in 0..5 {
-        std::fs::copy(cap.join(format!("img_00{i}.png")), few.join(format!("img_00{i}.png"))).unwrap();
+        std::fs::copy(
+            cap.join(format!("img_00{i}.png")),
+            few.join(format!("img_00{i}.png")),
+        )
+        .unwrap();
         lp.push_str(&format!("img_00{i}.png 0.{i} 0.3 0.8\n"));
     }
     std::fs::write(few.join("lights.lp"), &lp).unwrap();
-    assert_refused(&run(&["ptm", "fit", p(&few), "-o", p(&out)]), "at least 6", &out);
+    assert_refused(
+        &run(&["ptm", "fit", p(&few), "-o", p(&out)]),
+        "at least 6",
+        &out,
+    );
     // Images of different sizes.
     let mixed = d.join("mixed");
     std::fs::create_dir(&mixed).unwrap();
@@ -452,35 +716,115 @@ fn cli_bad_ptm_inputs_exit_2_and_write_nothing() {
         let e = e.unwrap();
         std::fs::copy(e.path(), mixed.join(e.file_name())).unwrap();
     }
-    image::RgbImage::new(24, 20).save(mixed.join("img_004.png")).unwrap();
-    assert_refused(&run(&["ptm", "fit", p(&mixed), "-o", p(&out)]), "one size", &out);
+    image::RgbImage::new(24, 20)
+        .save(mixed.join("img_004.png"))
+        .unwrap();
+    assert_refused(
+        &run(&["ptm", "fit", p(&mixed), "-o", p(&out)]),
+        "one size",
+        &out,
+    );
     // Degenerate lights: all at one elevation.
     let ring = d.join("ring");
     std::fs::create_dir(&ring).unwrap();
     let mut lp = String::from("8\n");
     for i in 0..8 {
-        std::fs::copy(cap.join(format!("img_00{i}.png")), ring.join(format!("img_00{i}.png"))).unwrap();
+        std::fs::copy(
+            cap.join(format!("img_00{i}.png")),
+            ring.join(format!("img_00{i}.png")),
+        )
+        .unwrap();
         let a = i as f64 * std::f64::consts::TAU / 8.0;
-        lp.push_str(&format!("img_00{i}.png {} {} 0.8\n", a.cos() * 0.6, a.sin() * 0.6));
+        lp.push_str(&format!(
+            "img_00{i}.png {} {} 0.8\n",
+            a.cos() * 0.6,
+            a.sin() * 0.6
+        ));
     }
     std::fs::write(ring.join("lights.lp"), &lp).unwrap();
-    assert_refused(&run(&["ptm", "fit", p(&ring), "-o", p(&out)]), "degenerate light set", &out);
+    assert_refused(
+        &run(&["ptm", "fit", p(&ring), "-o", p(&out)]),
+        "degenerate light set",
+        &out,
+    );
     // Corrupt and truncated .ptm files, for synth and relight.
     let tex = d.join("t.ptm");
-    assert!(run(&["ptm", "fit", p(&cap), "-o", p(&tex)]).status.success());
+    assert!(run(&["ptm", "fit", p(&cap), "-o", p(&tex)])
+        .status
+        .success());
     let bytes = std::fs::read(&tex).unwrap();
     let trunc = d.join("trunc.ptm");
     std::fs::write(&trunc, &bytes[..bytes.len() - 10]).unwrap();
     let garbage = d.join("garbage.ptm");
     std::fs::write(&garbage, b"PTM_1.2\nPTM_FORMAT_LRGB\n24 x\n").unwrap();
     let png = d.join("o.png");
-    assert_refused(&run(&["ptm", "synth", p(&trunc), "--size", "32", "--block", "8", "--overlap", "2", "-o", p(&out)]), "truncated", &out);
-    assert_refused(&run(&["ptm", "relight", p(&garbage), "--light", "0,0", "--backend", "cpu", "-o", p(&png)]), "garbage.ptm", &png);
+    assert_refused(
+        &run(&[
+            "ptm",
+            "synth",
+            p(&trunc),
+            "--size",
+            "32",
+            "--block",
+            "8",
+            "--overlap",
+            "2",
+            "-o",
+            p(&out),
+        ]),
+        "truncated",
+        &out,
+    );
+    assert_refused(
+        &run(&[
+            "ptm",
+            "relight",
+            p(&garbage),
+            "--light",
+            "0,0",
+            "--backend",
+            "cpu",
+            "-o",
+            p(&png),
+        ]),
+        "garbage.ptm",
+        &png,
+    );
     // Bad flags.
-    assert_refused(&run(&["ptm", "synth", p(&tex), "--block", "64", "-o", p(&out)]), "--block 64", &out);
-    assert_refused(&run(&["ptm", "relight", p(&tex), "--light", "0.9,0.9", "--backend", "cpu", "-o", p(&png)]), "--light", &png);
+    assert_refused(
+        &run(&["ptm", "synth", p(&tex), "--block", "64", "-o", p(&out)]),
+        "--block 64",
+        &out,
+    );
+    assert_refused(
+        &run(&[
+            "ptm",
+            "relight",
+            p(&tex),
+            "--light",
+            "0.9,0.9",
+            "--backend",
+            "cpu",
+            "-o",
+            p(&png),
+        ]),
+        "--light",
+        &png,
+    );
     // The input is never overwritten.
-    let o = run(&["ptm", "synth", p(&tex), "--size", "32", "--block", "8", "--overlap", "2", "-o", p(&tex)]);
+    let o = run(&[
+        "ptm",
+        "synth",
+        p(&tex),
+        "--size",
+        "32",
+        "--block",
+        "8",
+        "--overlap",
+        "2",
+        "-o",
+        p(&tex),
+    ]);
     assert_eq!(o.status.code(), Some(2));
     assert_eq!(std::fs::read(&tex).unwrap(), bytes);
 }

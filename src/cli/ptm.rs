@@ -146,7 +146,10 @@ fn capture_cmd(a: CaptureArgs, quiet: bool) -> anyhow::Result<()> {
     if (a.lights as usize) < capture::MIN_IMAGES || a.lights > 1000 {
         return Err(Error::invalid(
             format!("--lights {}", a.lights),
-            format!("must be {}..=1000 (a PTM has 6 coefficients)", capture::MIN_IMAGES),
+            format!(
+                "must be {}..=1000 (a PTM has 6 coefficients)",
+                capture::MIN_IMAGES
+            ),
         )
         .into());
     }
@@ -236,7 +239,9 @@ fn synth_cmd(a: SynthArgs, quiet: bool) -> anyhow::Result<()> {
     atomic::check_output_path(&a.output, "-o")?;
     check_not_input(&a.output, &a.input)?;
     if !(0.0..=10.0).contains(&a.tolerance) {
-        return Err(Error::invalid(format!("--tolerance {}", a.tolerance), "must be 0..=10").into());
+        return Err(
+            Error::invalid(format!("--tolerance {}", a.tolerance), "must be 0..=10").into(),
+        );
     }
     let src = format::load(&a.input)?;
     let params = QuiltParams {

@@ -92,7 +92,11 @@ pub fn run(a: BenchPtmArgs) -> anyhow::Result<()> {
     let st = &report.stats;
     println!(
         "synthesis {0}x{0}, blocks {1} overlap {2} ({3}x{4} blocks, {5} candidates per query):",
-        a.size, a.block, a.overlap, report.blocks.0, report.blocks.1,
+        a.size,
+        a.block,
+        a.overlap,
+        report.blocks.0,
+        report.blocks.1,
         st.candidates / st.queries.max(1)
     );
     println!("  {:<18} {:>10.3} s", "exact-projection", t_proj);
@@ -126,7 +130,9 @@ pub fn run(a: BenchPtmArgs) -> anyhow::Result<()> {
     let (t_cpu, cpu) = timed(a.runs.max(5), || Ok(ptm_relight(&big, &light)))?;
     println!("  {:<34} {:>10.2} ms", "cpu", t_cpu * 1e3);
     if !a.no_gpu {
-        let Compute::Gpu(gpu) = Compute::open(BackendChoice::Gpu, &solidsynth::gpu::GpuOptions::from_env())? else {
+        let Compute::Gpu(gpu) =
+            Compute::open(BackendChoice::Gpu, &solidsynth::gpu::GpuOptions::from_env())?
+        else {
             unreachable!()
         };
         let (t_up, resident) = timed(a.runs, || Ok(GpuPtm::upload(&gpu, &big)))?;

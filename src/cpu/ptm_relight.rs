@@ -21,7 +21,9 @@ pub struct Lighting {
 impl Lighting {
     /// The z component of the unit light direction (0 for lights on or beyond the horizon).
     pub fn lw(&self) -> f32 {
-        (1.0 - self.lu * self.lu - self.lv * self.lv).max(0.0).sqrt()
+        (1.0 - self.lu * self.lu - self.lv * self.lv)
+            .max(0.0)
+            .sqrt()
     }
 }
 
@@ -61,10 +63,7 @@ pub fn relight_texel(ptm: &Ptm, texel: &[u8], light: &Lighting) -> [f32; 3] {
         PtmFormat::Lrgb => {
             let a = decode(0);
             let l = poly(&a, lu, lv);
-            (
-                [6, 7, 8].map(|k| l * (texel[k] as f32 / 255.0)),
-                a,
-            )
+            ([6, 7, 8].map(|k| l * (texel[k] as f32 / 255.0)), a)
         }
         PtmFormat::Rgb => {
             let (r, g, b) = (decode(0), decode(1), decode(2));

@@ -37,7 +37,9 @@ impl Light {
         [
             self.lu,
             self.lv,
-            (1.0 - self.lu * self.lu - self.lv * self.lv).max(0.0).sqrt(),
+            (1.0 - self.lu * self.lu - self.lv * self.lv)
+                .max(0.0)
+                .sqrt(),
         ]
     }
 }
@@ -290,7 +292,12 @@ pub fn load(dir: &Path, lights: Option<&Path>) -> Result<Capture> {
 pub fn save(capture: &Capture, dir: &Path) -> Result<()> {
     std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
     let mut lp = format!("{}\n", capture.images.len());
-    for ((img, light), name) in capture.images.iter().zip(&capture.lights).zip(&capture.names) {
+    for ((img, light), name) in capture
+        .images
+        .iter()
+        .zip(&capture.lights)
+        .zip(&capture.names)
+    {
         let rgba = image::DynamicImage::ImageRgb8(img.clone()).to_rgba8();
         crate::io::atomic::save_png(&dir.join(name), &rgba)?;
         let d = light.direction();
@@ -306,7 +313,11 @@ pub fn spiral_lights(n: usize) -> Vec<Light> {
     let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
     (0..n)
         .map(|i| {
-            let t = if n > 1 { i as f64 / (n - 1) as f64 } else { 0.5 };
+            let t = if n > 1 {
+                i as f64 / (n - 1) as f64
+            } else {
+                0.5
+            };
             let z = 0.3 + 0.65 * t;
             let r = (1.0 - z * z).sqrt();
             let phi = i as f64 * golden;
@@ -417,7 +428,9 @@ pub fn render(s: &Surface, light: Light) -> image::RgbImage {
     const AMBIENT: f64 = 0.08;
     let n = s.size as usize;
     let l = light.direction();
-    let h = |x: i64, y: i64| s.height[(y.rem_euclid(n as i64) as usize) * n + x.rem_euclid(n as i64) as usize];
+    let h = |x: i64, y: i64| {
+        s.height[(y.rem_euclid(n as i64) as usize) * n + x.rem_euclid(n as i64) as usize]
+    };
     image::RgbImage::from_fn(s.size, s.size, |x, y| {
         let (xi, yi) = (x as i64, y as i64);
         let dhdx = (h(xi + 1, yi) - h(xi - 1, yi)) / 2.0;

@@ -119,7 +119,8 @@ pub fn fit(capture: &Capture, format: PtmFormat, what: &str) -> Result<Ptm> {
     let mut texels = vec![0u8; pixels * s];
     for p in 0..pixels {
         let t = &mut texels[p * s..(p + 1) * s];
-        t[..planes * COEFFS].copy_from_slice(&bytes[p * planes * COEFFS..(p + 1) * planes * COEFFS]);
+        t[..planes * COEFFS]
+            .copy_from_slice(&bytes[p * planes * COEFFS..(p + 1) * planes * COEFFS]);
         if format == PtmFormat::Lrgb {
             for c in 0..3 {
                 t[COEFFS + c] = (colours[p][c] * 255.0).round().clamp(0.0, 255.0) as u8;

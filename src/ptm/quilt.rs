@@ -179,7 +179,14 @@ pub fn synthesize_with(
             report.choices.push(choice);
             let (sx, sy) = searcher.origin(choice);
             place(
-                src, searcher, &mut texels, &mut feats, (ox, oy), (sx, sy), shape, p,
+                src,
+                searcher,
+                &mut texels,
+                &mut feats,
+                (ox, oy),
+                (sx, sy),
+                shape,
+                p,
             );
             progress((index + 1) as usize, total);
         }
@@ -248,7 +255,13 @@ fn place(
             }
         }
         Boundary::Blend => {
-            let ramp = |t: u32| if t < ov { 256 * (t + 1) / (ov + 1) } else { 256 };
+            let ramp = |t: u32| {
+                if t < ov {
+                    256 * (t + 1) / (ov + 1)
+                } else {
+                    256
+                }
+            };
             for y in 0..b {
                 for x in 0..b {
                     let wx = if has_left { ramp(x) } else { 256 };
@@ -305,11 +318,8 @@ fn min_cut(len: u32, width: u32, err: impl Fn(u32, u32) -> u64) -> Vec<u32> {
         }
     }
     let mut path = vec![0u32; n];
-    let argmin = |a: usize, lo: usize, hi: usize| {
-        (lo..=hi)
-            .min_by_key(|&k| (cost[a * w + k], k))
-            .unwrap()
-    };
+    let argmin =
+        |a: usize, lo: usize, hi: usize| (lo..=hi).min_by_key(|&k| (cost[a * w + k], k)).unwrap();
     let mut c = argmin(n - 1, 0, w - 1);
     for a in (0..n).rev() {
         if a + 1 < n {

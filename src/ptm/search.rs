@@ -132,15 +132,33 @@ fn parts(shape: Shape) -> &'static [usize] {
 
 fn part_rect(part: usize, block: u32, overlap: u32) -> Rect {
     match part {
-        TOP => Rect { x: 0, y: 0, w: block, h: overlap },
-        CORNER => Rect { x: 0, y: 0, w: overlap, h: overlap },
-        _ => Rect { x: 0, y: overlap, w: overlap, h: block - overlap },
+        TOP => Rect {
+            x: 0,
+            y: 0,
+            w: block,
+            h: overlap,
+        },
+        CORNER => Rect {
+            x: 0,
+            y: 0,
+            w: overlap,
+            h: overlap,
+        },
+        _ => Rect {
+            x: 0,
+            y: overlap,
+            w: overlap,
+            h: block - overlap,
+        },
     }
 }
 
 /// The disjoint rectangles of a neighbourhood shape for blocks of side `block`, overlap `overlap`.
 pub fn template(shape: Shape, block: u32, overlap: u32) -> Vec<Rect> {
-    parts(shape).iter().map(|&p| part_rect(p, block, overlap)).collect()
+    parts(shape)
+        .iter()
+        .map(|&p| part_rect(p, block, overlap))
+        .collect()
 }
 
 /// Which candidates are acceptable: those with distance <= best + best * permille / 1000
@@ -269,7 +287,11 @@ impl Searcher {
     fn gather(img: &FeatureImage, x: u32, y: u32, r: &Rect, out: &mut Vec<i16>) {
         out.clear();
         for row in 0..r.h {
-            out.extend(img.run(x + r.x, y + r.y + row, r.w).iter().map(|&v| v as i16));
+            out.extend(
+                img.run(x + r.x, y + r.y + row, r.w)
+                    .iter()
+                    .map(|&v| v as i16),
+            );
         }
     }
 
@@ -312,7 +334,11 @@ impl Searcher {
         let gram = &x * x.transpose();
         let eig = gram.symmetric_eigen();
         let mut order: Vec<usize> = (0..m).collect();
-        order.sort_by(|&a, &b| eig.eigenvalues[b].total_cmp(&eig.eigenvalues[a]).then(a.cmp(&b)));
+        order.sort_by(|&a, &b| {
+            eig.eigenvalues[b]
+                .total_cmp(&eig.eigenvalues[a])
+                .then(a.cmp(&b))
+        });
         let mut basis = vec![0i16; KERNELS * n];
         for (k, &e) in order.iter().take(KERNELS).enumerate() {
             let u = x.transpose() * eig.eigenvectors.column(e);
@@ -398,8 +424,10 @@ impl Searcher {
         stats: &mut SearchStats,
     ) -> Matches {
         let rects = template(shape, self.block, self.overlap);
-        let projections: Vec<std::sync::Arc<Projection>> =
-            parts(shape).iter().map(|&p| self.projection_of(p)).collect();
+        let projections: Vec<std::sync::Arc<Projection>> = parts(shape)
+            .iter()
+            .map(|&p| self.projection_of(p))
+            .collect();
         // The query's projections, per part.
         let mut buf = Vec::new();
         let query: Vec<[i64; KERNELS]> = projections
