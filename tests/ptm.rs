@@ -358,7 +358,9 @@ fn projection_search_equals_brute_force_on_many_queries() {
             for permille in [0, 100, 500] {
                 let tol = Tolerance { permille };
                 let brute = searcher.brute(&q, qx, qy, shape, tol);
-                let proj = searcher.projection(&q, qx, qy, shape, tol, &mut stats);
+                let hints = [rng.below(searcher.candidates() as u64) as u32];
+                let proj =
+                    searcher.projection(&q, qx, qy, shape, tol, &hints[..(k % 2)], &mut stats);
                 assert_eq!(
                     brute, proj,
                     "{format:?} query {k} at ({qx}, {qy}) {shape:?} tol {permille}"
@@ -379,6 +381,7 @@ fn projection_search_equals_brute_force_on_many_queries() {
                 sy,
                 [Shape::Left, Shape::Top, Shape::Both][k % 3],
                 Tolerance { permille: 0 },
+                &[],
                 &mut stats,
             );
             assert_eq!(m.best, 0);

@@ -163,14 +163,31 @@ pub fn synthesize_with(
                 Some(shape) => {
                     let m: Matches = match p.search {
                         SearchMethod::Brute => searcher.brute(&feats, ox, oy, shape, p.tolerance),
-                        SearchMethod::ExactProjection => searcher.projection(
-                            &feats,
-                            ox,
-                            oy,
-                            shape,
-                            p.tolerance,
-                            &mut report.stats,
-                        ),
+                        SearchMethod::ExactProjection => {
+                            // The sources continuing the left and top neighbours: usually
+                            // good matches, so a low starting threshold.
+                            let mut hints = Vec::new();
+                            let continuation = |b: usize, dx: u32, dy: u32| {
+                                let (sx, sy) = searcher.origin(report.choices[b]);
+                                (sx + dx < searcher.cand_w && sy + dy < searcher.cand_h)
+                                    .then(|| (sy + dy) * searcher.cand_w + sx + dx)
+                            };
+                            if bx > 0 {
+                                hints.extend(continuation(index as usize - 1, step, 0));
+                            }
+                            if by > 0 {
+                                hints.extend(continuation((index - nbx as u64) as usize, 0, step));
+                            }
+                            searcher.projection(
+                                &feats,
+                                ox,
+                                oy,
+                                shape,
+                                p.tolerance,
+                                &hints,
+                                &mut report.stats,
+                            )
+                        }
                     };
                     report.within.push(m.within.len() as u32);
                     m.within[rng.below(m.within.len() as u64) as usize].0

@@ -10,7 +10,7 @@
 //!   neighbourhood (top strip, corner, lower-left strip), the principal components of a sample of
 //!   the source's blocks, computed once, as are the source's projections onto them. A query is
 //!   projected once; a candidate's bound then costs a few subtractions and multiplications.
-//!   Projections are accumulated in stages (2, 4, 8, 16, 32 kernels); candidates whose bound exceeds
+//!   Projections are accumulated in stages (8, 16, 32 kernels); candidates whose bound exceeds
 //!   the threshold of the best distance found so far are rejected; survivors get exact distances
 //!   (which themselves stop early once a partial sum exceeds the threshold).
 //!
@@ -199,11 +199,15 @@ pub struct SearchStats {
 
 /// Kernels per rectangle, and the stages at which bounds are evaluated (kernels used so far).
 pub const KERNELS: usize = 32;
-pub const STAGES: [usize; 5] = [2, 4, 8, 16, 32];
+pub const STAGES: [usize; 3] = [8, 16, 32];
 /// Blocks sampled for the principal components.
 const PCA_SAMPLE: usize = 160;
 /// The unit basis vectors are scaled by this before rounding to integers.
 const BASIS_SCALE: f64 = 256.0;
+/// Every projection (of any neighbourhood: features are clamped to +-32767) stays below this in
+/// magnitude, kernels being scaled down until their L1 norm guarantees it: differences then fit
+/// an i32 and the sum of 2 x 32 squared differences fits a u64, with no overflow checks.
+const PROJECTION_LIMIT: i64 = 1 << 28;
 
 /// The integer projection kernels of one rectangle and the source's projections onto them.
 struct Projection {
@@ -214,7 +218,10 @@ struct Projection {
     /// stage's kernels (Gershgorin: the largest absolute row sum).
     norm: [u128; STAGES.len()],
     /// candidates x KERNELS.
-    proj: Vec<i64>,
+    proj: Vec<i32>,
+    /// The first stage's projections again, kernel-major (STAGES[0] x candidates): the first
+    /// stage bounds every candidate in loops the compiler vectorizes across candidates.
+    first: Vec<i32>,
 }
 
 /// The source features and everything precomputed for searching its blocks.
@@ -343,10 +350,17 @@ impl Searcher {
         for (k, &e) in order.iter().take(KERNELS).enumerate() {
             let u = x.transpose() * eig.eigenvectors.column(e);
             let len = u.norm();
-            if len > 0.0 {
+            let mut scale = BASIS_SCALE;
+            while len > 0.0 {
+                let row = &mut basis[k * n..(k + 1) * n];
                 for j in 0..n {
-                    basis[k * n + j] = (u[j] / len * BASIS_SCALE).round() as i16;
+                    row[j] = (u[j] / len * scale).round() as i16;
                 }
+                let l1: i64 = row.iter().map(|&v| (v as i64).abs()).sum();
+                if l1 * 32767 < PROJECTION_LIMIT {
+                    break;
+                }
+                scale *= 0.75;
             }
         }
         // Gershgorin bounds of the Gram matrices of each stage's kernels, exactly in integers.
@@ -367,21 +381,28 @@ impl Searcher {
                 .unwrap_or(1)
                 .max(1)
         });
-        let mut proj = vec![0i64; cands * KERNELS];
+        let mut proj = vec![0i32; cands * KERNELS];
         proj.par_chunks_mut(KERNELS)
             .enumerate()
             .for_each_init(Vec::new, |buf, (i, out)| {
                 let (cx, cy) = self.origin(i as u32);
                 self.gather_source(cx, cy, &rect, buf);
                 for (k, o) in out.iter_mut().enumerate() {
-                    *o = dot(&basis[k * n..(k + 1) * n], buf);
+                    *o = dot(&basis[k * n..(k + 1) * n], buf) as i32;
                 }
             });
+        let mut first = vec![0i32; STAGES[0] * cands];
+        for (i, row) in proj.chunks_exact(KERNELS).enumerate() {
+            for t in 0..STAGES[0] {
+                first[t * cands + i] = row[t];
+            }
+        }
         let p = std::sync::Arc::new(Projection {
             rect,
             basis,
             norm,
             proj,
+            first,
         });
         self.parts.lock().unwrap()[part] = Some(p.clone());
         p
@@ -413,7 +434,10 @@ impl Searcher {
     }
 
     /// The projection-kernel search: same result as [`Searcher::brute`] (proven in the module
-    /// docs, tested on many queries).
+    /// docs, tested on many queries). `hints` are candidates likely to match well (e.g. the
+    /// continuations of the neighbouring blocks' sources): their exact distances start the best
+    /// distance low, so early stages reject more. They change the cost, never the result.
+    #[allow(clippy::too_many_arguments)]
     pub fn projection(
         &self,
         out: &FeatureImage,
@@ -421,6 +445,7 @@ impl Searcher {
         qy: u32,
         shape: Shape,
         tol: Tolerance,
+        hints: &[u32],
         stats: &mut SearchStats,
     ) -> Matches {
         let rects = template(shape, self.block, self.overlap);
@@ -430,12 +455,12 @@ impl Searcher {
             .collect();
         // The query's projections, per part.
         let mut buf = Vec::new();
-        let query: Vec<[i64; KERNELS]> = projections
+        let query: Vec<[i32; KERNELS]> = projections
             .iter()
             .map(|p| {
                 Self::gather(out, qx, qy, &p.rect, &mut buf);
                 let n = buf.len();
-                std::array::from_fn(|k| dot(&p.basis[k * n..(k + 1) * n], &buf))
+                std::array::from_fn(|k| dot(&p.basis[k * n..(k + 1) * n], &buf) as i32)
             })
             .collect();
         // One normalization for all parts (the largest S): floor(sum_parts |P(q - c)|^2 / S_max)
@@ -443,26 +468,60 @@ impl Searcher {
         let norms: Vec<u128> = (0..STAGES.len())
             .map(|st| projections.iter().map(|p| p.norm[st]).max().unwrap_or(1))
             .collect();
-        // Survivors with their accumulated squared projection differences.
-        // Accumulated in u64 with each difference capped at 2^32 - 1 and saturating sums: both
-        // only lower the bound, which stays a bound (and is exact at realistic magnitudes).
-        let mut survivors: Vec<(u32, u64)> =
-            (0..self.candidates() as u32).map(|i| (i, 0)).collect();
+        // Squared projection differences are accumulated per candidate (|difference| < 2^29, at
+        // most 64 terms: no overflow, see PROJECTION_LIMIT).
+        let n = self.candidates();
         let mut best = u64::MAX;
+        for &h in hints.iter().filter(|&&h| (h as usize) < n) {
+            best = best.min(self.distance(h, out, qx, qy, &rects, u64::MAX));
+            stats.exact += 1;
+        }
         stats.queries += 1;
-        stats.candidates += survivors.len() as u64;
+        stats.candidates += n as u64;
         stats.survivors.resize(STAGES.len(), 0);
-        let mut done = 0;
-        for (stage, &k) in STAGES.iter().enumerate() {
-            survivors.par_iter_mut().for_each(|(i, acc)| {
+        // Stage 0 bounds every candidate.
+        const CHUNK: usize = 2048;
+        let mut acc0 = vec![0u64; n];
+        acc0.par_chunks_mut(CHUNK)
+            .enumerate()
+            .for_each(|(ci, chunk)| {
+                let start = ci * CHUNK;
                 for (p, q) in projections.iter().zip(&query) {
-                    let c = &p.proj[*i as usize * KERNELS..][..KERNELS];
-                    for t in done..k {
-                        let d = (q[t] - c[t]).unsigned_abs().min(u32::MAX as u64);
-                        *acc = acc.saturating_add(d * d);
+                    for (t, &qt) in q.iter().enumerate().take(STAGES[0]) {
+                        let col = &p.first[t * n + start..][..chunk.len()];
+                        for (a, &c) in chunk.iter_mut().zip(col) {
+                            let d = qt as i64 - c as i64;
+                            *a += (d * d) as u64;
+                        }
                     }
                 }
             });
+        let mut survivors: Vec<(u32, u64)> = Vec::new();
+        let mut done = 0;
+        for (stage, &k) in STAGES.iter().enumerate() {
+            if stage == 0 {
+                survivors = acc0
+                    .iter()
+                    .enumerate()
+                    .map(|(i, &a)| (i as u32, a))
+                    .collect();
+            } else {
+                survivors.par_iter_mut().for_each(|(i, acc)| {
+                    let mut sum = 0u64;
+                    for (p, q) in projections.iter().zip(&query) {
+                        let c = &p.proj[*i as usize * KERNELS..][done..k];
+                        sum += c
+                            .iter()
+                            .zip(&q[done..k])
+                            .map(|(&c, &q)| {
+                                let d = (q - c) as i64;
+                                (d * d) as u64
+                            })
+                            .sum::<u64>();
+                    }
+                    *acc += sum;
+                });
+            }
             done = k;
             // Tighten the best distance so far with the most promising survivor (smallest
             // bound, then smallest index): its exact distance is achieved by a candidate.
