@@ -506,21 +506,25 @@ impl Searcher {
                     .map(|(i, &a)| (i as u32, a))
                     .collect();
             } else {
-                survivors.par_iter_mut().for_each(|(i, acc)| {
-                    let mut sum = 0u64;
-                    for (p, q) in projections.iter().zip(&query) {
-                        let c = &p.proj[*i as usize * KERNELS..][done..k];
-                        sum += c
-                            .iter()
-                            .zip(&q[done..k])
-                            .map(|(&c, &q)| {
-                                let d = (q - c) as i64;
-                                (d * d) as u64
-                            })
-                            .sum::<u64>();
-                    }
-                    *acc += sum;
-                });
+                // (Work per candidate is tiny: split only in large pieces.)
+                survivors
+                    .par_iter_mut()
+                    .with_min_len(512)
+                    .for_each(|(i, acc)| {
+                        let mut sum = 0u64;
+                        for (p, q) in projections.iter().zip(&query) {
+                            let c = &p.proj[*i as usize * KERNELS..][done..k];
+                            sum += c
+                                .iter()
+                                .zip(&q[done..k])
+                                .map(|(&c, &q)| {
+                                    let d = (q - c) as i64;
+                                    (d * d) as u64
+                                })
+                                .sum::<u64>();
+                        }
+                        *acc += sum;
+                    });
             }
             done = k;
             // Tighten the best distance so far with the most promising survivor (smallest
@@ -543,6 +547,7 @@ impl Searcher {
         stats.exact += survivors.len() as u64;
         let exact: Vec<(u32, u64)> = survivors
             .par_iter()
+            .with_min_len(32)
             .map(|&i| (i, self.distance(i, out, qx, qy, &rects, limit)))
             .collect();
         let best = exact.iter().map(|e| e.1).min().unwrap_or(best).min(best);
@@ -552,20 +557,29 @@ impl Searcher {
     }
 }
 
-/// Integer dot product of a kernel (|values| <= 256) and a neighbourhood (|values| <= 32767):
-/// blocks of 64 products are summed exactly in i32 (< 2^30) before widening, which lets the
-/// compiler use 16-bit multiply-add instructions.
+/// Integer dot product of a kernel (|values| <= 256) and a neighbourhood (|values| <= 32767).
+/// Sixteen i32 lanes each sum at most 16 products (< 2^27) per block of 256 before widening to
+/// i64: exact, and shaped for 16-bit multiply-add instructions.
 #[inline]
 fn dot(a: &[i16], b: &[i16]) -> i64 {
-    a.chunks(64)
-        .zip(b.chunks(64))
-        .map(|(a, b)| {
-            a.iter()
-                .zip(b)
-                .map(|(&p, &x)| p as i32 * x as i32)
-                .sum::<i32>() as i64
-        })
-        .sum()
+    let mut total = 0i64;
+    for (a, b) in a.chunks(256).zip(b.chunks(256)) {
+        let mut lanes = [0i32; 16];
+        let (xs, ys) = (a.chunks_exact(16), b.chunks_exact(16));
+        let tail: i64 = xs
+            .remainder()
+            .iter()
+            .zip(ys.remainder())
+            .map(|(&x, &y)| x as i64 * y as i64)
+            .sum();
+        for (x, y) in xs.zip(ys) {
+            for l in 0..16 {
+                lanes[l] += x[l] as i32 * y[l] as i32;
+            }
+        }
+        total += lanes.iter().map(|&v| v as i64).sum::<i64>() + tail;
+    }
+    total
 }
 
 /// Sum of squared differences of two equal-length runs. |values| < 2^15, so each square fits a
