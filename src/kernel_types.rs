@@ -172,10 +172,12 @@ gpu_struct! {
     PtmRelightParams size 96 {
         /// Unused (0); pixels of this dispatch, the index of its first, threads per grid row.
         width: u32, count: u32, first: u32, grid_stride: u32,
-        /// 0: PTM_FORMAT_RGB, 1: PTM_FORMAT_LRGB; bytes per texel (18 or 9).
-        format: u32, texel_bytes: u32,
+        /// 0: PTM_FORMAT_RGB, 1: PTM_FORMAT_LRGB; words per texel (5 or 3: texels are padded to
+        /// whole words on upload).
+        format: u32, texel_words: u32,
         light_u: u32, light_v: u32, light_w: u32, specular: u32,
-        scale0: u32, scale1: u32, scale2: u32, scale3: u32, scale4: u32, scale5: u32,
+        /// Per coefficient index: scale / 255 ([`crate::ptm::Ptm::step`]).
+        step0: u32, step1: u32, step2: u32, step3: u32, step4: u32, step5: u32,
         bias0: u32, bias1: u32, bias2: u32, bias3: u32, bias4: u32, bias5: u32,
         _pad0: u32, _pad1: u32,
     }

@@ -1,5 +1,5 @@
 // A polynomial texture map rendered under one light: per pixel, decode the texel's quantized
-// coefficients ((q - bias) * scale / 255), evaluate the biquadratic at (lu, lv), colour it (LRGB:
+// coefficients ((q - bias) * step, step = scale / 255), evaluate the biquadratic at (lu, lv), colour it (LRGB:
 // luminance times the stored colour; RGB: one polynomial per channel), and optionally add a
 // Blinn-Phong highlight around the normal that maximizes the luminance polynomial. CPU reference,
 // same order of operations: src/cpu/ptm_relight.rs. Results are f32 within a named tolerance of
@@ -8,56 +8,46 @@
 
 struct PtmRelightParams {
     width: u32, count: u32, first: u32, grid_stride: u32,
-    // 0: PTM_FORMAT_RGB (18 bytes a texel), 1: PTM_FORMAT_LRGB (9 bytes a texel).
-    format: u32, texel_bytes: u32,
+    // 0: PTM_FORMAT_RGB (18 bytes in 5 words a texel), 1: PTM_FORMAT_LRGB (9 bytes in 3 words).
+    format: u32, texel_words: u32,
     // f32 bits: light (lu, lv, lw) with lw = sqrt(1 - lu^2 - lv^2), specular strength.
     light_u: u32, light_v: u32, light_w: u32, specular: u32,
     // f32 bits / i32 bits, per coefficient index.
-    scale0: u32, scale1: u32, scale2: u32, scale3: u32, scale4: u32, scale5: u32,
+    step0: u32, step1: u32, step2: u32, step3: u32, step4: u32, step5: u32,
     bias0: u32, bias1: u32, bias2: u32, bias3: u32, bias4: u32, bias5: u32,
     _pad0: u32, _pad1: u32,
 }
 
+// 1/255 rounded to f32 (the CPU reference multiplies by the same constant).
+const INV_255: f32 = 0.003921569;
+
 @group(0) @binding(0) var<uniform> params: PtmRelightParams;
-// The texels of this dispatch's pixels, 4 bytes a word, little-endian.
+// The texels of this dispatch's pixels, each padded to whole words, 4 bytes a word,
+// little-endian.
 @group(0) @binding(1) var<storage, read> texels: array<u32>;
 // r, g, b per pixel, unit intensity.
 @group(0) @binding(2) var<storage, read_write> out_rgb: array<f32>;
 
-fn byte_at(k: u32) -> u32 {
-    return (texels[k >> 2u] >> (8u * (k & 3u))) & 0xFFu;
+// Byte k of the texel whose first word is `base` (k is a constant at every call site).
+fn byte_at(base: u32, k: u32) -> u32 {
+    return (texels[base + (k >> 2u)] >> (8u * (k & 3u))) & 0xFFu;
 }
 
-fn scale_of(i: u32) -> f32 {
-    switch i {
-        case 0u: { return bitcast<f32>(params.scale0); }
-        case 1u: { return bitcast<f32>(params.scale1); }
-        case 2u: { return bitcast<f32>(params.scale2); }
-        case 3u: { return bitcast<f32>(params.scale3); }
-        case 4u: { return bitcast<f32>(params.scale4); }
-        default: { return bitcast<f32>(params.scale5); }
-    }
+fn coeff(base: u32, k: u32, bias: u32, step: u32) -> f32 {
+    return f32(i32(byte_at(base, k)) - bitcast<i32>(bias)) * bitcast<f32>(step);
 }
 
-fn bias_of(i: u32) -> i32 {
-    switch i {
-        case 0u: { return bitcast<i32>(params.bias0); }
-        case 1u: { return bitcast<i32>(params.bias1); }
-        case 2u: { return bitcast<i32>(params.bias2); }
-        case 3u: { return bitcast<i32>(params.bias3); }
-        case 4u: { return bitcast<i32>(params.bias4); }
-        default: { return bitcast<i32>(params.bias5); }
-    }
-}
-
-// The 6 coefficients of plane p of the texel starting at byte `base`.
+// The 6 coefficients of plane p of the texel starting at word `base`.
 fn decode(base: u32, p: u32) -> array<f32, 6> {
-    var a: array<f32, 6>;
-    for (var i = 0u; i < 6u; i++) {
-        let q = i32(byte_at(base + p * 6u + i));
-        a[i] = f32(q - bias_of(i)) * scale_of(i) / 255.0;
-    }
-    return a;
+    let k = 6u * p;
+    return array<f32, 6>(
+        coeff(base, k, params.bias0, params.step0),
+        coeff(base, k + 1u, params.bias1, params.step1),
+        coeff(base, k + 2u, params.bias2, params.step2),
+        coeff(base, k + 3u, params.bias3, params.step3),
+        coeff(base, k + 4u, params.bias4, params.step4),
+        coeff(base, k + 5u, params.bias5, params.step5),
+    );
 }
 
 fn poly(a: array<f32, 6>, lu: f32, lv: f32) -> f32 {
@@ -93,7 +83,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (tid >= params.count) {
         return;
     }
-    let base = tid * params.texel_bytes;
+    let base = tid * params.texel_words;
     let lu = bitcast<f32>(params.light_u);
     let lv = bitcast<f32>(params.light_v);
     var rgb: vec3<f32>;
@@ -102,9 +92,9 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         lum = decode(base, 0u);
         let l = poly(lum, lu, lv);
         rgb = vec3<f32>(
-            l * (f32(byte_at(base + 6u)) / 255.0),
-            l * (f32(byte_at(base + 7u)) / 255.0),
-            l * (f32(byte_at(base + 8u)) / 255.0),
+            l * (f32(byte_at(base, 6u)) * INV_255),
+            l * (f32(byte_at(base, 7u)) * INV_255),
+            l * (f32(byte_at(base, 8u)) * INV_255),
         );
     } else {
         let r = decode(base, 0u);

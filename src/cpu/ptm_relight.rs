@@ -6,6 +6,9 @@
 use crate::ptm::{Ptm, PtmFormat, COEFFS};
 use rayon::prelude::*;
 
+/// 1/255 rounded to f32; colours are byte * INV_255 on both backends.
+pub const INV_255: f32 = 1.0 / 255.0;
+
 /// Highlight exponent (applied as five squarings, no `pow`).
 pub const SHININESS: u32 = 32;
 
@@ -54,16 +57,14 @@ pub fn normal_of(a: &[f32; COEFFS]) -> [f32; 3] {
 /// One texel under `light`.
 pub fn relight_texel(ptm: &Ptm, texel: &[u8], light: &Lighting) -> [f32; 3] {
     let decode = |p: usize| -> [f32; COEFFS] {
-        std::array::from_fn(|i| {
-            (texel[p * COEFFS + i] as i32 - ptm.bias[i]) as f32 * ptm.scale[i] / 255.0
-        })
+        std::array::from_fn(|i| (texel[p * COEFFS + i] as i32 - ptm.bias[i]) as f32 * ptm.step(i))
     };
     let (lu, lv) = (light.lu, light.lv);
     let (mut rgb, lum) = match ptm.format {
         PtmFormat::Lrgb => {
             let a = decode(0);
             let l = poly(&a, lu, lv);
-            ([6, 7, 8].map(|k| l * (texel[k] as f32 / 255.0)), a)
+            ([6, 7, 8].map(|k| l * (texel[k] as f32 * INV_255)), a)
         }
         PtmFormat::Rgb => {
             let (r, g, b) = (decode(0), decode(1), decode(2));

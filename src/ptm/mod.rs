@@ -97,10 +97,17 @@ impl Ptm {
         &self.texels[i..i + s]
     }
 
-    /// Coefficient i of a stored byte, in unit intensity (1.0 = full intensity).
+    /// The unit-intensity value of one quantization step of coefficient i: scale / 255.
+    #[inline]
+    pub fn step(&self, i: usize) -> f32 {
+        self.scale[i] / 255.0
+    }
+
+    /// Coefficient i of a stored byte, in unit intensity (1.0 = full intensity). The relight
+    /// kernel decodes with the same expression.
     #[inline]
     pub fn decode(&self, i: usize, q: u8) -> f32 {
-        (q as i32 - self.bias[i]) as f32 * self.scale[i] / 255.0
+        (q as i32 - self.bias[i]) as f32 * self.step(i)
     }
 
     /// The decoded polynomials of one texel in unit intensity (`planes` x 6 values) and, for
