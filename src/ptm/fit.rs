@@ -145,8 +145,8 @@ pub fn rms_error(capture: &Capture, ptm: &Ptm) -> f64 {
     for (img, light) in capture.images.iter().zip(&capture.lights) {
         for (x, y, p) in img.enumerate_pixels() {
             let c = ptm.shade(x, y, light.lu as f32, light.lv as f32);
-            for k in 0..3 {
-                let d = (c[k] * 255.0).clamp(0.0, 255.0) as f64 - p.0[k] as f64;
+            for (&v, &q) in c.iter().zip(&p.0) {
+                let d = (v * 255.0).clamp(0.0, 255.0) as f64 - q as f64;
                 sum += d * d;
                 count += 1;
             }

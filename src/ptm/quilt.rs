@@ -263,7 +263,7 @@ fn place(
                 }
             }
             if has_top {
-                let cut = min_cut(b, ov, |along, across| error(along, across));
+                let cut = min_cut(b, ov, error);
                 for x in 0..b {
                     for y in 0..cut[x as usize] {
                         weight[(y * b + x) as usize] = 0;

@@ -350,11 +350,14 @@ impl Searcher {
         for (k, &e) in order.iter().take(KERNELS).enumerate() {
             let u = x.transpose() * eig.eigenvectors.column(e);
             let len = u.norm();
+            if len == 0.0 {
+                continue;
+            }
+            let row = &mut basis[k * n..(k + 1) * n];
             let mut scale = BASIS_SCALE;
-            while len > 0.0 {
-                let row = &mut basis[k * n..(k + 1) * n];
-                for j in 0..n {
-                    row[j] = (u[j] / len * scale).round() as i16;
+            loop {
+                for (r, &v) in row.iter_mut().zip(u.iter()) {
+                    *r = (v / len * scale).round() as i16;
                 }
                 let l1: i64 = row.iter().map(|&v| (v as i64).abs()).sum();
                 if l1 * 32767 < PROJECTION_LIMIT {
