@@ -200,6 +200,8 @@ pub struct SearchStats {
 /// Kernels per rectangle, and the stages at which bounds are evaluated (kernels used so far).
 pub const KERNELS: usize = 32;
 pub const STAGES: [usize; 3] = [8, 16, 32];
+/// Exact distances computed at each stage, for the survivors with the smallest bounds.
+const TIGHTEN: usize = 4;
 /// Blocks sampled for the principal components.
 const PCA_SAMPLE: usize = 160;
 /// The unit basis vectors are scaled by this before rounding to integers.
@@ -530,12 +532,16 @@ impl Searcher {
                     });
             }
             done = k;
-            // Tighten the best distance so far with the most promising survivor (smallest
-            // bound, then smallest index): its exact distance is achieved by a candidate.
-            if let Some(&(i, _)) = survivors.iter().min_by_key(|(i, acc)| (*acc, *i)) {
-                let d = self.distance(i, out, qx, qy, &rects, u64::MAX);
+            // Tighten the best distance so far with the most promising survivors (smallest
+            // bounds, then smallest indices): their exact distances are achieved by candidates.
+            let mut promising: Vec<(u64, u32)> = survivors.iter().map(|&(i, a)| (a, i)).collect();
+            let take = TIGHTEN.min(promising.len());
+            if take > 0 && take < promising.len() {
+                promising.select_nth_unstable(take - 1);
+            }
+            for &(_, i) in &promising[..take] {
+                best = best.min(self.distance(i, out, qx, qy, &rects, best));
                 stats.exact += 1;
-                best = best.min(d);
             }
             // Reject when floor(acc / S) > thr, i.e. acc >= (thr + 1) * S.
             let reject_at = (tol.threshold(best) as u128 + 1) * norms[stage];
@@ -560,29 +566,37 @@ impl Searcher {
     }
 }
 
-/// Integer dot product of a kernel (|values| <= 256) and a neighbourhood (|values| <= 32767).
-/// Sixteen i32 lanes each sum at most 16 products (< 2^27) per block of 256 before widening to
-/// i64: exact, and shaped for 16-bit multiply-add instructions.
+/// Integer dot product of a kernel (|values| <= 256) and a neighbourhood (|values| <= 32767):
+/// blocks of 64 products are summed exactly in i32 (< 2^30) before widening to i64, a reduction
+/// the compiler turns into 16-bit multiply-adds. On x86-64 with AVX2 (detected at run time) the
+/// same code is compiled for 256-bit registers; integer arithmetic, so the result is identical.
 #[inline]
 fn dot(a: &[i16], b: &[i16]) -> i64 {
-    let mut total = 0i64;
-    for (a, b) in a.chunks(256).zip(b.chunks(256)) {
-        let mut lanes = [0i32; 16];
-        let (xs, ys) = (a.chunks_exact(16), b.chunks_exact(16));
-        let tail: i64 = xs
-            .remainder()
-            .iter()
-            .zip(ys.remainder())
-            .map(|(&x, &y)| x as i64 * y as i64)
-            .sum();
-        for (x, y) in xs.zip(ys) {
-            for l in 0..16 {
-                lanes[l] += x[l] as i32 * y[l] as i32;
-            }
-        }
-        total += lanes.iter().map(|&v| v as i64).sum::<i64>() + tail;
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: the CPU supports AVX2 (checked just above).
+        return unsafe { dot_avx2(a, b) };
     }
-    total
+    dot_portable(a, b)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn dot_avx2(a: &[i16], b: &[i16]) -> i64 {
+    dot_portable(a, b)
+}
+
+#[inline(always)]
+fn dot_portable(a: &[i16], b: &[i16]) -> i64 {
+    a.chunks(64)
+        .zip(b.chunks(64))
+        .map(|(a, b)| {
+            a.iter()
+                .zip(b)
+                .map(|(&p, &x)| p as i32 * x as i32)
+                .sum::<i32>() as i64
+        })
+        .sum()
 }
 
 /// Sum of squared differences of two equal-length runs. |values| < 2^15, so each square fits a
