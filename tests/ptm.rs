@@ -640,6 +640,38 @@ fn cli_capture_fit_synth_relight() {
     ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert_eq!(image::open(&png).unwrap().width(), 72);
+    // The GPU (lavapipe in CI) renders the same image, within one 8-bit level.
+    let gpu_png = dir.path().join("lit-gpu.png");
+    let o = run(&[
+        "ptm",
+        "relight",
+        p(&big),
+        "--light",
+        "0.5,-0.2",
+        "--specular",
+        "0.3",
+        "--backend",
+        "gpu",
+        "-o",
+        p(&gpu_png),
+    ]);
+    if o.status.success() {
+        let (a, b) = (
+            image::open(&png).unwrap().to_rgba8(),
+            image::open(&gpu_png).unwrap().to_rgba8(),
+        );
+        assert!(a
+            .pixels()
+            .zip(b.pixels())
+            .all(|(x, y)| (0..4).all(|c| x.0[c].abs_diff(y.0[c]) <= 1)));
+    } else {
+        assert!(
+            std::env::var_os("CI").is_none(),
+            "no GPU in CI: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        eprintln!("SKIPPED the GPU relight (no adapter, CI unset)");
+    }
     let sheet = dir.path().join("sheet.png");
     let o = run(&[
         "ptm",
