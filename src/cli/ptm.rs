@@ -278,7 +278,7 @@ fn synth_cmd(a: SynthArgs, quiet: bool) -> anyhow::Result<()> {
             "{}",
             serde_json::json!({"output": a.output, "size": a.size, "blocks": report.blocks,
                 "seconds": secs, "search": format!("{:?}", a.search),
-                "surviving_fraction_per_level": survivors,
+                "surviving_fraction_per_stage": survivors,
                 "exact_distances_per_query": st.exact as f64 / st.queries.max(1) as f64})
         );
     } else if !quiet {
@@ -294,7 +294,7 @@ fn synth_cmd(a: SynthArgs, quiet: bool) -> anyhow::Result<()> {
         );
         if st.queries > 0 {
             eprintln!(
-                "projection search: fraction of candidates left after each level {:?}; {:.1} exact distances per query (of {})",
+                "projection search: fraction of candidates left after each stage (8, 16, 32 kernels) {:?}; {:.1} exact distances per query (of {})",
                 survivors.iter().map(|f| format!("{f:.4}")).collect::<Vec<_>>(),
                 st.exact as f64 / st.queries as f64,
                 st.candidates / st.queries

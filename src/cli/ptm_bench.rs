@@ -107,8 +107,8 @@ pub fn run(a: BenchPtmArgs) -> anyhow::Result<()> {
         if out_proj == out_brute { "yes" } else { "NO" }
     );
     println!(
-        "  candidates left after projection levels 0..{}: {}; exact distances per query: {:.1}",
-        st.survivors.len(),
+        "  candidates left after projection stages ({:?} kernels): {}; exact distances per query: {:.1}",
+        &solidsynth::ptm::search::STAGES[..st.survivors.len()],
         st.survivors
             .iter()
             .map(|&s| format!("{:.2}%", 100.0 * s as f64 / st.candidates.max(1) as f64))
