@@ -64,10 +64,11 @@ impl QuiltParams {
     }
 
     pub fn validate(&self, src: &Ptm) -> Result<()> {
-        if !(8..=8192).contains(&self.width) || !(8..=8192).contains(&self.height) {
+        // The output's texels and features are held in memory (4096^2 RGB: ~1.5 GB).
+        if !(8..=4096).contains(&self.width) || !(8..=4096).contains(&self.height) {
             return Err(Error::invalid(
                 format!("--size {}x{}", self.width, self.height),
-                "must be 8..=8192",
+                "must be 8..=4096",
             ));
         }
         if self.block < 4 || self.block > src.width.min(src.height) {
