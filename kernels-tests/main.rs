@@ -5,6 +5,7 @@
 mod bucket;
 mod compare;
 mod project;
+mod ptm_relight;
 mod shaders;
 mod synth;
 mod tricubic;

@@ -167,6 +167,22 @@ gpu_struct! {
     }
 }
 
+gpu_struct! {
+    /// Uniforms of `wgsl/ptm_relight.wgsl`. Floats are stored as their bits, biases as i32 bits.
+    PtmRelightParams size 96 {
+        /// Unused (0); pixels of this dispatch, the index of its first, threads per grid row.
+        width: u32, count: u32, first: u32, grid_stride: u32,
+        /// 0: PTM_FORMAT_RGB, 1: PTM_FORMAT_LRGB; words per texel (5 or 3: texels are padded to
+        /// whole words on upload).
+        format: u32, texel_words: u32,
+        light_u: u32, light_v: u32, light_w: u32, specular: u32,
+        /// Per coefficient index: scale / 255 ([`crate::ptm::Ptm::step`]).
+        step0: u32, step1: u32, step2: u32, step3: u32, step4: u32, step5: u32,
+        bias0: u32, bias1: u32, bias2: u32, bias3: u32, bias4: u32, bias5: u32,
+        _pad0: u32, _pad1: u32,
+    }
+}
+
 /// Every shared struct: (WGSL kernel, struct name, Rust layout, Rust size).
 pub fn all_layouts() -> Vec<(
     &'static str,
@@ -217,6 +233,12 @@ pub fn all_layouts() -> Vec<(
             "TricubicParams",
             TricubicParams::layout(),
             size_of::<TricubicParams>(),
+        ),
+        (
+            "ptm_relight",
+            "PtmRelightParams",
+            PtmRelightParams::layout(),
+            size_of::<PtmRelightParams>(),
         ),
     ]
 }

@@ -16,6 +16,7 @@ pub mod kernel_types;
 pub mod lazy;
 pub mod mesh;
 pub mod metrics;
+pub mod ptm;
 pub mod util;
 pub mod volume;
 

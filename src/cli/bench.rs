@@ -16,6 +16,9 @@ pub enum BenchCommand {
     /// Direct gradient-solid synthesis per size and backend: median wall time, peak memory,
     /// per-level match/update times (each run in a fresh process).
     GradientSynth(BenchGradientArgs),
+    /// PTM synthesis (projection vs brute-force search, identical output) and relighting (CPU vs
+    /// GPU) on a synthetic capture.
+    Ptm(super::ptm_bench::BenchPtmArgs),
 }
 
 #[derive(Args, Debug)]
@@ -85,6 +88,7 @@ pub fn run(cmd: BenchCommand) -> anyhow::Result<()> {
         BenchCommand::Analyze(args) => bench_analyze(args),
         BenchCommand::Synth(args) => bench_synth(args),
         BenchCommand::GradientSynth(args) => bench_gradient_synth(args),
+        BenchCommand::Ptm(args) => super::ptm_bench::run(args),
     }
 }
 

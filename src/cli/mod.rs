@@ -6,6 +6,8 @@ pub mod cut;
 pub mod eval;
 pub mod gradient;
 pub mod inspect;
+pub mod ptm;
+pub mod ptm_bench;
 pub mod surface;
 pub mod synth;
 
@@ -47,6 +49,9 @@ pub enum Command {
     /// Gradient solid textures: vectorize a volume into a .gsolid, render one.
     #[command(subcommand)]
     Gradient(gradient::GradientCommand),
+    /// Relightable textures (polynomial texture maps): capture, fit, synthesize, relight.
+    #[command(subcommand)]
+    Ptm(ptm::PtmCommand),
     /// Benchmarks printed as tables.
     #[command(subcommand)]
     Bench(bench::BenchCommand),
@@ -87,6 +92,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Cut(a) => cut::run(a, cli.quiet),
         Command::Surface(a) => surface::run(a, cli.quiet),
         Command::Gradient(g) => gradient::run(g, cli.quiet),
+        Command::Ptm(p) => ptm::run(p, cli.quiet),
         Command::Bench(b) => bench::run(b),
         Command::Adapters => {
             let list = solidsynth::gpu::context::list_adapters();

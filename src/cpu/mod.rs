@@ -7,6 +7,7 @@ pub mod colorize;
 pub mod correct;
 pub mod init;
 pub mod project;
+pub mod ptm_relight;
 pub mod synth_common;
 pub mod tricubic_eval;
 pub mod upsample;

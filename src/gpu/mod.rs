@@ -4,6 +4,7 @@
 pub mod bucket_accumulate;
 pub mod context;
 pub mod project;
+pub mod ptm_relight;
 pub mod shaders;
 pub mod synth;
 pub mod tricubic_eval;

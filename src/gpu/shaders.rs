@@ -22,6 +22,7 @@ pub const KERNELS: &[(&str, &str)] = &[
         "tricubic_eval",
         include_str!("../../wgsl/tricubic_eval.wgsl"),
     ),
+    ("ptm_relight", include_str!("../../wgsl/ptm_relight.wgsl")),
     (
         "bucket_accumulate",
         include_str!("../../wgsl/bucket_accumulate.wgsl"),

@@ -1,0 +1,349 @@
+//! Block-based synthesis over reflectance functions (the paper's sections IV and VI): image
+//! quilting (Efros-Freeman) where pixels are PTM texels and neighbourhoods are compared in the
+//! orthonormal Legendre coefficients, so distances are distances between reflectance functions.
+//!
+//! Blocks of `block` x `block` pixels are placed in raster order with `overlap` pixels shared with
+//! the left and top neighbours. Each block is drawn at random (seeded per block) among the source
+//! blocks whose overlap distance is within the tolerance of the best ([`search`]); the seam is a
+//! minimum-error cut through the overlap (errors in the orthonormal basis) or an alpha blend.
+//! With cuts every output texel is a source texel, byte for byte. The result is a pure function
+//! of (source, parameters, seed): the search is exact and integer, choices are seeded per block,
+//! so any thread count gives byte-identical output.
+
+use super::search::{self, FeatureImage, Matches, SearchStats, Searcher, Shape, Tolerance};
+use super::Ptm;
+use crate::error::{Error, Result};
+use crate::util::hash::{mix64, SeededRng};
+
+/// How a block joins its neighbours in the overlap.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Boundary {
+    /// Minimum-error boundary cut (dynamic programming through the overlap).
+    Cut,
+    /// Linear alpha blend across the overlap (the paper's choice; blending coefficients blends
+    /// the reflectance functions with the same weights).
+    Blend,
+}
+
+/// Which search finds the candidate blocks (same result, different cost).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum SearchMethod {
+    /// The exact projection-kernel rejection scheme.
+    ExactProjection,
+    /// Every candidate's full distance.
+    Brute,
+}
+
+/// Synthesis parameters; [`QuiltParams::validate`] checks them against the source, naming flags.
+#[derive(Clone, Debug)]
+pub struct QuiltParams {
+    pub width: u32,
+    pub height: u32,
+    pub block: u32,
+    pub overlap: u32,
+    pub seed: u64,
+    pub tolerance: Tolerance,
+    pub boundary: Boundary,
+    pub search: SearchMethod,
+}
+
+impl QuiltParams {
+    /// Output `size` x `size`, blocks of 32 with overlap 6, tolerance 10% (Efros-Freeman's),
+    /// minimum-error cuts, the projection search.
+    pub fn new(size: u32) -> Self {
+        QuiltParams {
+            width: size,
+            height: size,
+            block: 32,
+            overlap: 6,
+            seed: 0,
+            tolerance: Tolerance { permille: 100 },
+            boundary: Boundary::Cut,
+            search: SearchMethod::ExactProjection,
+        }
+    }
+
+    pub fn validate(&self, src: &Ptm) -> Result<()> {
+        // The output's texels and features are held in memory (4096^2 RGB: ~1.5 GB).
+        if !(8..=4096).contains(&self.width) || !(8..=4096).contains(&self.height) {
+            return Err(Error::invalid(
+                format!("--size {}x{}", self.width, self.height),
+                "must be 8..=4096",
+            ));
+        }
+        if self.block < 4 || self.block > src.width.min(src.height) {
+            return Err(Error::invalid(
+                format!("--block {}", self.block),
+                format!(
+                    "must be 4..={} (the source is {}x{})",
+                    src.width.min(src.height),
+                    src.width,
+                    src.height
+                ),
+            ));
+        }
+        if self.overlap == 0 || 2 * self.overlap > self.block {
+            return Err(Error::invalid(
+                format!("--overlap {}", self.overlap),
+                format!("must be 1..={} (at most half of --block)", self.block / 2),
+            ));
+        }
+        if self.tolerance.permille > 10_000 {
+            return Err(Error::invalid(
+                "--tolerance",
+                "must be 0..=10 (a fraction of the best distance)",
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// What a synthesis did.
+#[derive(Clone, Debug, Default)]
+pub struct QuiltReport {
+    /// Blocks per row and column.
+    pub blocks: (u32, u32),
+    /// Source candidate (block origin index) chosen per block, raster order.
+    pub choices: Vec<u32>,
+    /// Candidates within the tolerance per block (the random choice was among them).
+    pub within: Vec<u32>,
+    /// Projection search counters (empty for brute force).
+    pub stats: SearchStats,
+}
+
+/// Synthesize a PTM with the source's format, scale and bias. `progress(done, total)` is called
+/// after each block.
+pub fn synthesize(
+    src: &Ptm,
+    p: &QuiltParams,
+    progress: &mut dyn FnMut(usize, usize),
+) -> Result<(Ptm, QuiltReport)> {
+    p.validate(src)?;
+    let searcher = Searcher::new(search::features(src), p.block, p.overlap);
+    synthesize_with(src, &searcher, p, progress)
+}
+
+/// [`synthesize`] with a prepared searcher (benchmarks reuse its precomputed projections).
+pub fn synthesize_with(
+    src: &Ptm,
+    searcher: &Searcher,
+    p: &QuiltParams,
+    progress: &mut dyn FnMut(usize, usize),
+) -> Result<(Ptm, QuiltReport)> {
+    p.validate(src)?;
+    let (b, ov) = (p.block, p.overlap);
+    let step = b - ov;
+    let nbx = (p.width.saturating_sub(ov)).div_ceil(step).max(1);
+    let nby = (p.height.saturating_sub(ov)).div_ceil(step).max(1);
+    let (cw, ch) = (nbx * step + ov, nby * step + ov);
+    let s = src.format.texel_bytes();
+    let dims = searcher.source.dims;
+    let mut texels = vec![0u8; cw as usize * ch as usize * s];
+    let mut feats = FeatureImage::new(cw, ch, dims);
+    let mut report = QuiltReport {
+        blocks: (nbx, nby),
+        ..Default::default()
+    };
+    let total = (nbx * nby) as usize;
+    for by in 0..nby {
+        for bx in 0..nbx {
+            let (ox, oy) = (bx * step, by * step);
+            let index = (by * nbx + bx) as u64;
+            let mut rng = SeededRng::new(mix64(p.seed ^ mix64(index.wrapping_add(0x5054_4d51))));
+            let shape = match (bx, by) {
+                (0, 0) => None,
+                (_, 0) => Some(Shape::Left),
+                (0, _) => Some(Shape::Top),
+                _ => Some(Shape::Both),
+            };
+            let choice = match shape {
+                None => {
+                    report.within.push(searcher.candidates() as u32);
+                    rng.below(searcher.candidates() as u64) as u32
+                }
+                Some(shape) => {
+                    let m: Matches = match p.search {
+                        SearchMethod::Brute => searcher.brute(&feats, ox, oy, shape, p.tolerance),
+                        SearchMethod::ExactProjection => {
+                            // The sources continuing the left and top neighbours: usually
+                            // good matches, so a low starting threshold.
+                            let mut hints = Vec::new();
+                            let continuation = |b: usize, dx: u32, dy: u32| {
+                                let (sx, sy) = searcher.origin(report.choices[b]);
+                                (sx + dx < searcher.cand_w && sy + dy < searcher.cand_h)
+                                    .then(|| (sy + dy) * searcher.cand_w + sx + dx)
+                            };
+                            if bx > 0 {
+                                hints.extend(continuation(index as usize - 1, step, 0));
+                            }
+                            if by > 0 {
+                                hints.extend(continuation((index - nbx as u64) as usize, 0, step));
+                            }
+                            searcher.projection(
+                                &feats,
+                                ox,
+                                oy,
+                                shape,
+                                p.tolerance,
+                                &hints,
+                                &mut report.stats,
+                            )
+                        }
+                    };
+                    report.within.push(m.within.len() as u32);
+                    m.within[rng.below(m.within.len() as u64) as usize].0
+                }
+            };
+            report.choices.push(choice);
+            let (sx, sy) = searcher.origin(choice);
+            place(
+                src,
+                searcher,
+                &mut texels,
+                &mut feats,
+                (ox, oy),
+                (sx, sy),
+                shape,
+                p,
+            );
+            progress((index + 1) as usize, total);
+        }
+    }
+    // Crop the canvas to the requested size.
+    let mut out = Vec::with_capacity(p.width as usize * p.height as usize * s);
+    for y in 0..p.height as usize {
+        let row = y * cw as usize * s;
+        out.extend_from_slice(&texels[row..row + p.width as usize * s]);
+    }
+    Ok((
+        Ptm {
+            format: src.format,
+            width: p.width,
+            height: p.height,
+            scale: src.scale,
+            bias: src.bias,
+            texels: out,
+        },
+        report,
+    ))
+}
+
+/// Copy source block (sx, sy) to output (ox, oy), joining it to what is there in the overlaps.
+#[allow(clippy::too_many_arguments)]
+fn place(
+    src: &Ptm,
+    searcher: &Searcher,
+    texels: &mut [u8],
+    feats: &mut FeatureImage,
+    (ox, oy): (u32, u32),
+    (sx, sy): (u32, u32),
+    shape: Option<Shape>,
+    p: &QuiltParams,
+) {
+    let (b, ov) = (p.block, p.overlap);
+    let s = src.format.texel_bytes();
+    let cw = feats.width as usize;
+    let has_left = matches!(shape, Some(Shape::Left | Shape::Both));
+    let has_top = matches!(shape, Some(Shape::Top | Shape::Both));
+    let error = |x: u32, y: u32| -> u64 {
+        search::squared_difference(
+            feats.run(ox + x, oy + y, 1),
+            searcher.source.run(sx + x, sy + y, 1),
+        )
+    };
+    // Per pixel of the block: the new texel's weight out of 256.
+    let mut weight = vec![256u32; (b * b) as usize];
+    match p.boundary {
+        Boundary::Cut => {
+            if has_left {
+                let cut = min_cut(b, ov, |along, across| error(across, along));
+                for y in 0..b {
+                    for x in 0..cut[y as usize] {
+                        weight[(y * b + x) as usize] = 0;
+                    }
+                }
+            }
+            if has_top {
+                let cut = min_cut(b, ov, error);
+                for x in 0..b {
+                    for y in 0..cut[x as usize] {
+                        weight[(y * b + x) as usize] = 0;
+                    }
+                }
+            }
+        }
+        Boundary::Blend => {
+            let ramp = |t: u32| {
+                if t < ov {
+                    256 * (t + 1) / (ov + 1)
+                } else {
+                    256
+                }
+            };
+            for y in 0..b {
+                for x in 0..b {
+                    let wx = if has_left { ramp(x) } else { 256 };
+                    let wy = if has_top { ramp(y) } else { 256 };
+                    weight[(y * b + x) as usize] = wx * wy / 256;
+                }
+            }
+        }
+    }
+    for y in 0..b {
+        for x in 0..b {
+            let w = weight[(y * b + x) as usize];
+            if w == 0 {
+                continue;
+            }
+            let (tx, ty) = ((ox + x) as usize, (oy + y) as usize);
+            let dst = &mut texels[(ty * cw + tx) * s..][..s];
+            let new = src.texel(sx + x, sy + y);
+            if w == 256 {
+                dst.copy_from_slice(new);
+                feats
+                    .pixel_mut(ox + x, oy + y)
+                    .copy_from_slice(searcher.source.run(sx + x, sy + y, 1));
+            } else {
+                // Integer blend of the quantized coefficients: all texels share one scale and
+                // bias, so this blends the coefficients (and the functions) linearly.
+                for (d, &n) in dst.iter_mut().zip(new) {
+                    *d = ((*d as u32 * (256 - w) + n as u32 * w + 128) >> 8) as u8;
+                }
+                let blended = dst.to_vec();
+                search::texel_features(src, &blended, feats.pixel_mut(ox + x, oy + y));
+            }
+        }
+    }
+}
+
+/// Minimum-error path through a `len` x `width` overlap strip (one position across the strip
+/// per step along it, moving at most one across per step): for each step, the first position
+/// across that takes the new block. `err(along, across)`. Integer costs; ties go to the smaller
+/// position, so the cut is deterministic.
+fn min_cut(len: u32, width: u32, err: impl Fn(u32, u32) -> u64) -> Vec<u32> {
+    let (n, w) = (len as usize, width as usize);
+    let mut cost = vec![0u64; n * w];
+    for a in 0..n {
+        for c in 0..w {
+            let e = err(a as u32, c as u32);
+            cost[a * w + c] = if a == 0 {
+                e
+            } else {
+                let lo = c.saturating_sub(1);
+                let hi = (c + 1).min(w - 1);
+                e + (lo..=hi).map(|k| cost[(a - 1) * w + k]).min().unwrap()
+            };
+        }
+    }
+    let mut path = vec![0u32; n];
+    let argmin =
+        |a: usize, lo: usize, hi: usize| (lo..=hi).min_by_key(|&k| (cost[a * w + k], k)).unwrap();
+    let mut c = argmin(n - 1, 0, w - 1);
+    for a in (0..n).rev() {
+        if a + 1 < n {
+            c = argmin(a, c.saturating_sub(1), (c + 1).min(w - 1));
+        }
+        path[a] = c as u32;
+    }
+    path
+}
