@@ -22,6 +22,7 @@ fn samples(seed: u64, n: usize, voxels: u32, clusters: u32, channels: u32) -> Ve
 
 #[test]
 fn bucket_accumulate_matches_its_reference_in_any_order() {
+    let _serial = crate::serial();
     let Some(gpu) = crate::gpu() else { return };
     let (voxels, clusters, channels) = (500usize, 12u32, 3u32);
     let s = samples(4, 20_000, voxels as u32, clusters, channels);
@@ -57,6 +58,7 @@ fn bucket_accumulate_matches_its_reference_in_any_order() {
 /// listed and dispatched) gives the same solid, bit for bit, as the CPU's streamed buckets.
 #[test]
 fn gradient_synthesis_buckets_bit_exact_on_gpu_and_cpu() {
+    let _serial = crate::serial();
     use solidsynth::backend::{BackendChoice, Compute};
     use solidsynth::gpu::GpuOptions;
     use solidsynth::gradient::synth::{synthesize, GradientSynthParams};

@@ -23,6 +23,7 @@ pub fn words_equal(what: &str, cpu: &[u32], gpu: &[u32]) -> Result<(), String> {
 
 #[test]
 fn comparator_rejects_a_perturbed_buffer() {
+    let _serial = crate::serial();
     let cpu: Vec<u32> = (0..1000u32).map(|i| i.wrapping_mul(2654435761)).collect();
     assert!(words_equal("same", &cpu, &cpu.clone()).is_ok());
     for (index, bit) in [(0usize, 0u32), (517, 13), (999, 31)] {

@@ -41,6 +41,7 @@ fn check(
 
 #[test]
 fn project_random_inputs_bit_exact() {
+    let _serial = crate::serial();
     let Some(ctx) = crate::gpu() else { return };
     let mut rng = SeededRng::new(42);
     for (w, h, c) in [
@@ -68,6 +69,7 @@ fn project_random_inputs_bit_exact() {
 
 #[test]
 fn project_edge_cases_bit_exact() {
+    let _serial = crate::serial();
     let Some(ctx) = crate::gpu() else { return };
     let mut rng = SeededRng::new(7);
     // Tiny images: mirror and wrap resolve offsets far outside (1- and 2-pixel sides).
@@ -117,6 +119,7 @@ fn project_edge_cases_bit_exact() {
 
 #[test]
 fn project_chunked_dispatch_matches_cpu() {
+    let _serial = crate::serial();
     // A storage-binding limit of 1 KiB forces many chunks (each a separate dispatch).
     let opts = GpuOptions {
         max_binding_bytes: Some(1024),
@@ -132,6 +135,7 @@ fn project_chunked_dispatch_matches_cpu() {
 
 #[test]
 fn analysis_is_identical_on_gpu_and_cpu() {
+    let _serial = crate::serial();
     let Some(ctx) = crate::gpu() else { return };
     let _ = ctx;
     let img = solidsynth::exemplar::decode_image(

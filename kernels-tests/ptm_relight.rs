@@ -50,6 +50,7 @@ fn random_ptm(format: PtmFormat, w: u32, h: u32, seed: u64) -> Ptm {
 
 #[test]
 fn ptm_relight_matches_its_reference() {
+    let _serial = crate::serial();
     let Some(gpu) = crate::gpu() else { return };
     for (format, seed) in [(PtmFormat::Lrgb, 1), (PtmFormat::Rgb, 2)] {
         let ptm = random_ptm(format, 67, 45, seed);

@@ -5,6 +5,7 @@ use solidsynth::gpu::shaders;
 
 #[test]
 fn every_wgsl_file_validates_and_is_registered() {
+    let _serial = crate::serial();
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("wgsl");
     let mut on_disk = Vec::new();
     for entry in std::fs::read_dir(&dir).unwrap() {
@@ -32,6 +33,7 @@ fn every_wgsl_file_validates_and_is_registered() {
 
 #[test]
 fn validation_rejects_a_broken_shader() {
+    let _serial = crate::serial();
     let broken =
         shaders::source("project").replace("acc[j] += centred", "acc[j] += undefined_name");
     assert!(shaders::validate("broken", &broken).is_err());
@@ -39,6 +41,7 @@ fn validation_rejects_a_broken_shader() {
 
 #[test]
 fn shared_struct_layouts_match_wgsl() {
+    let _serial = crate::serial();
     for (kernel, name, rust, size) in solidsynth::kernel_types::all_layouts() {
         let (module, _) = shaders::validate(kernel, shaders::source(kernel)).unwrap();
         let (members, span) = shaders::struct_layout(&module, name)

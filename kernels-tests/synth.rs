@@ -43,6 +43,7 @@ fn analysis(three: bool, border: Border) -> Analysis {
 /// level, colorize) on both backends; any kernel differing makes the volumes differ.
 #[test]
 fn synthesis_kernels_bit_exact_on_gpu_and_cpu() {
+    let _serial = crate::serial();
     let Some(_) = crate::gpu() else { return };
     let gpu = Compute::open(BackendChoice::Gpu, &GpuOptions::from_env()).unwrap();
     let cases = [
@@ -136,6 +137,7 @@ fn bytes_to_words(b: &[u8]) -> Vec<u32> {
 /// Single kernels in isolation: each GPU kernel against its CPU reference on the same inputs.
 #[test]
 fn each_synthesis_kernel_matches_its_reference() {
+    let _serial = crate::serial();
     let Some(_) = crate::gpu() else { return };
     use solidsynth::kernel_types::{InitParams, UpsampleParams};
     use solidsynth::lazy::{jitter, pack::LevelPack};

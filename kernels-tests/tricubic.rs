@@ -39,6 +39,7 @@ fn solid() -> GradientSolid {
 
 #[test]
 fn tricubic_eval_matches_its_reference() {
+    let _serial = crate::serial();
     let Some(gpu) = crate::gpu() else { return };
     let s = solid();
     let r = 1.0 / 2f32.sqrt();
