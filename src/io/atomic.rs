@@ -40,9 +40,16 @@ pub fn write_with(
         .parent()
         .filter(|p| !p.as_os_str().is_empty())
         .unwrap_or(Path::new("."));
-    let mut tmp = tempfile::Builder::new()
-        .prefix(".solidsynth-")
-        .suffix(".partial")
+    let mut builder = tempfile::Builder::new();
+    builder.prefix(".solidsynth-").suffix(".partial");
+    // A temporary file is private (0600) by default; an output is an ordinary file: 0666 less
+    // the user's umask, as any other tool would create it.
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        builder.permissions(std::fs::Permissions::from_mode(0o666));
+    }
+    let mut tmp = builder
         .tempfile_in(parent)
         .map_err(|e| Error::io(parent, e))?;
     fill(tmp.as_file_mut()).map_err(|e| Error::io(path, e))?;
@@ -62,4 +69,26 @@ pub fn png_bytes(img: &image::RgbaImage) -> Result<Vec<u8>> {
     img.write_to(&mut std::io::Cursor::new(&mut buf), image::ImageFormat::Png)
         .map_err(|e| Error::Gpu(format!("PNG encoding failed: {e}")))?;
     Ok(buf)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    #[cfg(unix)]
+    fn outputs_are_ordinary_files_not_private_temporaries() {
+        use std::os::unix::fs::PermissionsExt;
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("out.bin");
+        write_file(&path, b"abc").unwrap();
+        assert_eq!(std::fs::read(&path).unwrap(), b"abc");
+        // Readable by the group and others unless the umask forbids it (the usual 022 or 002
+        // does not); the temporary's 0600 would fail this.
+        let mode = std::fs::metadata(&path).unwrap().permissions().mode();
+        assert_eq!(mode & 0o600, 0o600, "{mode:o}");
+        assert_ne!(mode & 0o044, 0, "{mode:o}");
+        // No temporary left beside it.
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+    }
 }
