@@ -123,3 +123,20 @@ fn a_direction_field_turns_the_slices_deterministically() {
     assert_ne!(a, run(&small()));
     assert!(a.value_spread() > 20.0, "{}", a.value_spread());
 }
+
+#[test]
+fn two_matched_slices_leave_the_z_slice_free_and_still_texture_the_solid() {
+    let two = GradientSynthParams {
+        matched_slices: 2,
+        ..small()
+    };
+    let a = run(&two);
+    assert_eq!(a, run(&two));
+    assert_ne!(a, run(&small()));
+    assert!(a.value_spread() > 20.0, "{}", a.value_spread());
+    let bad = GradientSynthParams {
+        matched_slices: 1,
+        ..small()
+    };
+    assert!(bad.validate().unwrap_err().is_user_error());
+}

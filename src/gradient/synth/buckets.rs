@@ -166,13 +166,6 @@ impl Layer<'_> {
         }
     }
 
-    /// Eq. 2 for every control point of the layer: f + grad f . (x - p) ~ bucket value, over
-    /// the non-empty buckets whose nearest point it is. Points without samples keep their
-    /// values. Returns the layer's new values and how many points were refitted.
-    fn fit(&self, buckets: &Buckets) -> (Vec<f32>, usize) {
-        self.fit_points(buckets)
-    }
-
     /// The average of every bucket of the layer (per voxel, per channel; NaN when empty), z
     /// from the layer's first voxel.
     fn bucket_values(&self, buckets: &Buckets) -> Vec<f32> {
@@ -194,7 +187,10 @@ impl Layer<'_> {
             .collect()
     }
 
-    fn fit_points(&self, buckets: &Buckets) -> (Vec<f32>, usize) {
+    /// Eq. 2 for every control point of the layer: f + grad f . (x - p) ~ bucket value, over
+    /// the non-empty buckets whose nearest point it is. Points without samples keep their
+    /// values. Returns the layer's new values and how many points were refitted.
+    fn fit(&self, buckets: &Buckets) -> (Vec<f32>, usize) {
         let solid = self.solid;
         let (m, c) = (solid.m as i64, solid.channels);
         let p_len = self.period();

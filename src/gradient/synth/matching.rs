@@ -109,6 +109,9 @@ fn project_slices(
     let frame = ctx.frame(p, solid.period());
     let (n, c) = (ctx.patches.size, solid.channels);
     std::array::from_fn(|o| {
+        if o as u32 >= ctx.params.matched_slices {
+            return [0.0; KEPT]; // a slice left free is never searched
+        }
         if frame.is_identity() {
             // Axis-aligned slices: whole-voxel steps along two axes.
             let (u, v) = ctx.params.slice_axes().of(o);
