@@ -28,8 +28,8 @@ fn close(what: &str, cpu: &[f32], gpu: &[f32], scale: f32) -> Result<(), String>
     Ok(())
 }
 
-fn solid() -> GradientSolid {
-    let mut s = GradientSolid::new([5, 4, 6], 3).unwrap();
+fn solid(channels: u32) -> GradientSolid {
+    let mut s = GradientSolid::new([5, 4, 6], channels).unwrap();
     let mut rng = SeededRng::new(17);
     for v in s.data.iter_mut() {
         *v = rng.below(40_000) as f32 / 100.0 - 200.0;
@@ -41,7 +41,7 @@ fn solid() -> GradientSolid {
 fn tricubic_eval_matches_its_reference() {
     let _serial = crate::serial();
     let Some(gpu) = crate::gpu() else { return };
-    let s = solid();
+    let s = solid(3);
     let r = 1.0 / 2f32.sqrt();
     let mut rng = SeededRng::new(3);
     let queries = [
@@ -71,6 +71,15 @@ fn tricubic_eval_matches_its_reference() {
         let cpu = tricubic_eval(&s, q);
         let out = solidsynth::gpu::tricubic_eval::tricubic_eval(gpu, &s, q).unwrap();
         close(what, &cpu, &out, scale).unwrap();
+    }
+    // Other channel counts (the kernel's channel count is a pipeline constant).
+    for channels in [1, 4, 16] {
+        let s = solid(channels);
+        let scale = 1.0 + 4.0 * s.data.iter().fold(0f32, |m, v| m.max(v.abs()));
+        let q = Query::volume([9, 7, 11]);
+        let cpu = tricubic_eval(&s, &q);
+        let out = solidsynth::gpu::tricubic_eval::tricubic_eval(gpu, &s, &q).unwrap();
+        close(&format!("{channels} channels"), &cpu, &out, scale).unwrap();
     }
     // The comparison fails on a perturbed result.
     let q = Query::volume([9, 9, 9]);
