@@ -582,41 +582,31 @@ fn cli_capture_fit_synth_relight() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert!(v["rms_error_levels"].as_f64().unwrap() < 16.0);
+    // The same synthesis with both searches.
+    let synth = |search: &str, out: &Path| {
+        run(&[
+            "ptm",
+            "synth",
+            p(&tex),
+            "--size",
+            "72",
+            "--block",
+            "16",
+            "--overlap",
+            "4",
+            "--seed",
+            "2",
+            "--search",
+            search,
+            "-o",
+            p(out),
+        ])
+    };
     let big = dir.path().join("big.ptm");
-    let o = run(&[
-        "ptm",
-        "synth",
-        p(&tex),
-        "--size",
-        "72",
-        "--block",
-        "16",
-        "--overlap",
-        "4",
-        "--seed",
-        "2",
-        "-o",
-        p(&big),
-    ]);
+    let o = synth("exact-projection", &big);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let brute = dir.path().join("brute.ptm");
-    let o = run(&[
-        "ptm",
-        "synth",
-        p(&tex),
-        "--size",
-        "72",
-        "--block",
-        "16",
-        "--overlap",
-        "4",
-        "--seed",
-        "2",
-        "--search",
-        "brute",
-        "-o",
-        p(&brute),
-    ]);
+    let o = synth("brute", &brute);
     assert!(o.status.success());
     assert_eq!(std::fs::read(&big).unwrap(), std::fs::read(&brute).unwrap());
     let ptm = format::load(&big).unwrap();
@@ -624,37 +614,28 @@ fn cli_capture_fit_synth_relight() {
         (ptm.width, ptm.height, ptm.format),
         (72, 72, PtmFormat::Rgb)
     );
+    let relight = |backend: &str, out: &Path| {
+        run(&[
+            "ptm",
+            "relight",
+            p(&big),
+            "--light",
+            "0.5,-0.2",
+            "--specular",
+            "0.3",
+            "--backend",
+            backend,
+            "-o",
+            p(out),
+        ])
+    };
     let png = dir.path().join("lit.png");
-    let o = run(&[
-        "ptm",
-        "relight",
-        p(&big),
-        "--light",
-        "0.5,-0.2",
-        "--specular",
-        "0.3",
-        "--backend",
-        "cpu",
-        "-o",
-        p(&png),
-    ]);
+    let o = relight("cpu", &png);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert_eq!(image::open(&png).unwrap().width(), 72);
     // The GPU (lavapipe in CI) renders the same image, within one 8-bit level.
     let gpu_png = dir.path().join("lit-gpu.png");
-    let o = run(&[
-        "ptm",
-        "relight",
-        p(&big),
-        "--light",
-        "0.5,-0.2",
-        "--specular",
-        "0.3",
-        "--backend",
-        "gpu",
-        "-o",
-        p(&gpu_png),
-    ]);
+    let o = relight("gpu", &gpu_png);
     if o.status.success() {
         let (a, b) = (
             image::open(&png).unwrap().to_rgba8(),
