@@ -6,6 +6,7 @@ pub mod cut;
 pub mod eval;
 pub mod gradient;
 pub mod inspect;
+pub mod lapped;
 pub mod ptm;
 pub mod ptm_bench;
 pub mod surface;
@@ -52,6 +53,9 @@ pub enum Command {
     /// Relightable textures (polynomial texture maps): capture, fit, synthesize, relight.
     #[command(subcommand)]
     Ptm(ptm::PtmCommand),
+    /// Lapped solid textures: fill a mesh with pasted solid exemplars; cut, render, bake.
+    #[command(subcommand)]
+    Lapped(lapped::LappedCommand),
     /// Benchmarks printed as tables.
     #[command(subcommand)]
     Bench(bench::BenchCommand),
@@ -93,6 +97,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Surface(a) => surface::run(a, cli.quiet),
         Command::Gradient(g) => gradient::run(g, cli.quiet),
         Command::Ptm(p) => ptm::run(p, cli.quiet),
+        Command::Lapped(l) => lapped::run(l, cli.quiet),
         Command::Bench(b) => bench::run(b),
         Command::Adapters => {
             let list = solidsynth::gpu::context::list_adapters();

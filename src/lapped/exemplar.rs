@@ -154,15 +154,34 @@ pub struct Mask {
 }
 
 impl Mask {
-    /// Alpha in [0, 1] at `w`: trilinear inside the cube, 0 outside it.
+    /// Alpha in [0, 1] at `w`: trilinear inside the cube (clamped to the edge voxels), 0
+    /// outside it. Scalar code: this is the innermost loop of cuts, bakes and the fill.
     pub fn sample(&self, w: DVec3) -> f32 {
         if w.min_element() < 0.0 || w.max_element() > 1.0 {
             return 0.0;
         }
+        let n = self.size as usize;
+        let axis = |x: f64| {
+            let x = x * n as f64 - 0.5;
+            let f = x.floor();
+            let i0 = (f as i64).clamp(0, n as i64 - 1) as usize;
+            let i1 = (f as i64 + 1).clamp(0, n as i64 - 1) as usize;
+            (i0, i1, (x - f) as f32)
+        };
+        let (x0, x1, fx) = axis(w.x);
+        let (y0, y1, fy) = axis(w.y);
+        let (z0, z1, fz) = axis(w.z);
         let a = &self.alpha;
-        trilinear(self.size as usize, w, [false; 3], |i| {
-            [a[i] as f32 / 255.0, 0.0, 0.0, 0.0]
-        })[0]
+        let at = |x: usize, y: usize, z: usize| a[(z * n + y) * n + x] as f32;
+        let lerp = |p: f32, q: f32, t: f32| p + (q - p) * t;
+        let plane = |z: usize| {
+            lerp(
+                lerp(at(x0, y0, z), at(x1, y0, z), fx),
+                lerp(at(x0, y1, z), at(x1, y1, z), fx),
+                fy,
+            )
+        };
+        lerp(plane(z0), plane(z1), fz) / 255.0
     }
 
     /// True where the mask is not zero.

@@ -8,6 +8,7 @@
 //! ([`bake`]) and the GPU render (`crate::gpu::lapped_render`).
 
 pub mod bake;
+pub mod camera;
 pub mod cut;
 pub mod exemplar;
 pub mod field;

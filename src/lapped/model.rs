@@ -34,6 +34,8 @@ use serde::{Deserialize, Serialize};
 use std::path::Path;
 
 const MAGIC: &[u8; 8] = b"SSLST001";
+/// Coverage past which further (lower) layers cannot change an 8-bit colour by half a level.
+pub const OPAQUE: f32 = 1.0 - 1.0 / 512.0;
 const MAX_HEADER: usize = 1 << 16;
 
 /// One layer of a tet: a patch's texture coordinates at the tet's vertices.
@@ -111,10 +113,14 @@ impl LstModel {
 
     /// Composited RGBA (0..255) at barycentric `b` of tet `t`; alpha is the accumulated mask
     /// coverage (255 where fully covered).
+    ///
+    /// Layers composite "over" in paste order; evaluated front to back (last pasted first),
+    /// which gives the same result and lets the loop stop once the coverage is opaque to 8 bits
+    /// ([`OPAQUE`]): the layers below then contribute less than half a level.
     pub fn shade(&self, t: usize, b: [f32; 4]) -> [f32; 4] {
         let depth_varying = self.kind.depth_varying();
         let (mut color, mut cover) = ([0.0f32; 3], 0.0f32);
-        for layer in &self.layers[t] {
+        for layer in self.layers[t].iter().rev() {
             let c = &layer.coords;
             let mut w = [0.0f32; 3];
             for k in 0..4 {
@@ -128,20 +134,19 @@ impl LstModel {
                 continue;
             }
             let e = self.exemplar.sample(w, depth_varying);
+            let weight = (1.0 - cover) * alpha;
             for a in 0..3 {
-                color[a] = alpha * e[a] + (1.0 - alpha) * color[a];
+                color[a] += weight * e[a];
             }
-            cover = alpha + (1.0 - alpha) * cover;
+            cover += weight;
+            if cover >= OPAQUE {
+                break;
+            }
         }
         if cover <= 0.0 {
             return [0.0; 4];
         }
-        [
-            color[0] / cover,
-            color[1] / cover,
-            color[2] / cover,
-            cover * 255.0,
-        ]
+        [color[0] / cover, color[1] / cover, color[2] / cover, cover * 255.0]
     }
 
     pub fn header(&self) -> Header {
