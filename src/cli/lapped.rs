@@ -31,7 +31,9 @@ pub enum LappedCommand {
 
 #[derive(Args, Debug)]
 pub struct FillArgs {
-    /// Closed (or nearly closed) triangle mesh: .obj, .ply or .ply.gz.
+    /// Closed (or nearly closed) triangle mesh: .obj, .ply or .ply.gz, or a built-in shape:
+    /// `builtin:sphere` (unit sphere) or `builtin:bent-cylinder` (radius 0.3 around a quarter
+    /// circle of radius 1 from (1,0,0) to (0,1,0)).
     #[arg(long)]
     pub mesh: PathBuf,
     /// Solid exemplar: a cubic NRRD volume (e.g. from `solidsynth synth --tileable --size 64`).
@@ -130,7 +132,7 @@ pub fn run(cmd: LappedCommand, quiet: bool) -> anyhow::Result<()> {
 fn fill(args: FillArgs, quiet: bool) -> anyhow::Result<()> {
     atomic::check_output_path(&args.output, "-o")?;
     let mesh_name = args.mesh.display().to_string();
-    let surface = mesh::load(&args.mesh)?;
+    let surface = load_mesh(&args.mesh)?;
     let exemplar_name = args.exemplar.display().to_string();
     let volume = nrrd::load(&args.exemplar)?;
     let exemplar = SolidExemplar::from_volume(&volume, &exemplar_name)?;
@@ -184,6 +186,13 @@ fn fill(args: FillArgs, quiet: bool) -> anyhow::Result<()> {
             })
         );
     } else if !quiet {
+        if report.fill.forced > 0 {
+            eprintln!(
+                "warning: {} tets never reached full coverage (too large for the patch scale): \
+                 raise --scale or --resolution",
+                report.fill.forced
+            );
+        }
         eprintln!(
             "tet mesh: {} tets, {} vertices, dihedral angles {:.1}..{:.1} degrees, {} inverted \
              ({:.2} s)\nfilled with {} patches (type {}, {:.1} layers per tet, {} tets forced) in \
@@ -207,19 +216,31 @@ fn fill(args: FillArgs, quiet: bool) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// A mesh file or a `builtin:` shape.
+fn load_mesh(path: &std::path::Path) -> solidsynth::Result<mesh::Mesh> {
+    match path.to_str() {
+        Some("builtin:sphere") => Ok(lapped::shapes::sphere(48, 24)),
+        Some("builtin:bent-cylinder") => Ok(lapped::shapes::bent_cylinder(0.3, 1.0, 32, 32)),
+        Some(other) if other.starts_with("builtin:") => Err(Error::invalid(
+            format!("--mesh {other}"),
+            "unknown built-in shape (builtin:sphere, builtin:bent-cylinder)",
+        )),
+        _ => mesh::load(path),
+    }
+}
+
 fn cut(args: CutArgs, quiet: bool) -> anyhow::Result<()> {
     atomic::check_output_path(&args.output, "-o")?;
     let model = LstModel::load(&args.model)?;
-    let (lo, hi) = model
-        .mesh
-        .vertices
-        .iter()
-        .fold((glam::DVec3::INFINITY, glam::DVec3::NEG_INFINITY), |(l, h), p| {
-            (l.min(*p), h.max(*p))
-        });
+    let (lo, hi) = model.mesh.vertices.iter().fold(
+        (glam::DVec3::INFINITY, glam::DVec3::NEG_INFINITY),
+        |(l, h), p| (l.min(*p), h.max(*p)),
+    );
     let extent = args.extent.unwrap_or((hi - lo).length());
     if !(extent.is_finite() && extent > 0.0) {
-        return Err(Error::invalid(format!("--extent {extent}"), "must be a positive number").into());
+        return Err(
+            Error::invalid(format!("--extent {extent}"), "must be a positive number").into(),
+        );
     }
     if !(1..=8192).contains(&args.size) {
         return Err(Error::invalid(format!("--size {}", args.size), "must be 1..=8192").into());
@@ -331,10 +352,7 @@ fn bake(args: BakeArgs, quiet: bool) -> anyhow::Result<()> {
     let atlas = mesh_bake::Atlas::new(surface.triangles.len(), texels)?;
     let image = lapped::bake::bake(&model, &surface, &tets, &atlas)?;
     let png = atomic::png_bytes(&image)?;
-    atomic::write_file(
-        &args.output,
-        &mesh::glb::glb_bytes(&surface, &atlas, &png),
-    )?;
+    atomic::write_file(&args.output, &mesh::glb::glb_bytes(&surface, &atlas, &png))?;
     let seconds = start.elapsed().as_secs_f64();
     if args.json {
         println!(

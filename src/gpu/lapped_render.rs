@@ -29,10 +29,15 @@ pub fn vertex_streams(model: &LstModel) -> (Vec<f32>, Vec<f32>) {
                 continue;
             }
             let p = face.map(|i| model.mesh.vertices[tet[i] as usize]);
-            let n = (p[1] - p[0]).cross(p[2] - p[0]).normalize_or_zero().as_vec3();
+            let n = (p[1] - p[0])
+                .cross(p[2] - p[0])
+                .normalize_or_zero()
+                .as_vec3();
             let corner = |c: usize, coord: [f32; 3], mask: f32| {
                 let q = p[c].as_vec3();
-                [q.x, q.y, q.z, n.x, n.y, n.z, coord[0], coord[1], coord[2], mask]
+                [
+                    q.x, q.y, q.z, n.x, n.y, n.z, coord[0], coord[1], coord[2], mask,
+                ]
             };
             for c in 0..3 {
                 prepass.extend_from_slice(&corner(c, [0.0; 3], 0.0));
@@ -56,7 +61,12 @@ pub fn vertex_streams(model: &LstModel) -> (Vec<f32>, Vec<f32>) {
 }
 
 /// Render the model from `camera` into a size x size RGBA image (transparent off the model).
-pub fn render(gpu: &GpuContext, model: &LstModel, camera: &Camera, size: u32) -> Result<image::RgbaImage> {
+pub fn render(
+    gpu: &GpuContext,
+    model: &LstModel,
+    camera: &Camera,
+    size: u32,
+) -> Result<image::RgbaImage> {
     if !(16..=MAX_RENDER_SIZE).contains(&size) {
         return Err(Error::invalid(
             format!("--size {size}"),
@@ -275,7 +285,8 @@ fn render_inner(
             usage: wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        gpu.queue.write_buffer(&buffer, 0, bytemuck::cast_slice(data));
+        gpu.queue
+            .write_buffer(&buffer, 0, bytemuck::cast_slice(data));
         buffer
     };
     let prepass_buffer = vertex_buffer("depth pre-pass vertices", &prepass);

@@ -127,7 +127,10 @@ pub fn reference_pixel(
     let (t, i) = best?;
     let (f, tet) = faces[i];
     let hit = o + d * t;
-    let b = model.mesh.barycentric(tet as usize, hit).map(|x| x.max(0.0));
+    let b = model
+        .mesh
+        .barycentric(tet as usize, hit)
+        .map(|x| x.max(0.0));
     let sum: f64 = b.iter().sum();
     let rgba = model.shade(tet as usize, b.map(|x| (x / sum) as f32));
     let [a, bb, c] = f.map(|v| model.mesh.vertices[v as usize]);

@@ -94,6 +94,16 @@ impl LstModel {
                 });
             }
         }
+        // Positions as the file stores them (f32), so a model shades the same before and
+        // after a save and load.
+        let mesh = TetMesh {
+            vertices: mesh
+                .vertices
+                .iter()
+                .map(|v| v.as_vec3().as_dvec3())
+                .collect(),
+            tets: mesh.tets,
+        };
         LstModel {
             kind,
             seed,
@@ -146,7 +156,12 @@ impl LstModel {
         if cover <= 0.0 {
             return [0.0; 4];
         }
-        [color[0] / cover, color[1] / cover, color[2] / cover, cover * 255.0]
+        [
+            color[0] / cover,
+            color[1] / cover,
+            color[2] / cover,
+            cover * 255.0,
+        ]
     }
 
     pub fn header(&self) -> Header {
