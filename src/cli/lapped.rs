@@ -27,6 +27,20 @@ pub enum LappedCommand {
     Render(RenderArgs),
     /// The model's surface as a textured binary glTF (.glb).
     Bake(BakeArgs),
+    /// Write a procedural depth-varying exemplar (texture y = depth) as NRRD, for the kiwi
+    /// example (types 1-b and 2-b).
+    Exemplar(ExemplarArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct ExemplarArgs {
+    /// The procedural exemplar (only `kiwi` so far).
+    #[arg(long, default_value = "kiwi")]
+    pub kind: String,
+    #[arg(long, default_value_t = 64, value_parser = clap::value_parser!(u32).range(8..=256))]
+    pub size: u32,
+    #[arg(short, long)]
+    pub output: PathBuf,
 }
 
 #[derive(Args, Debug)]
@@ -63,7 +77,8 @@ pub struct FillArgs {
 pub struct CutArgs {
     /// The model (.lst).
     pub model: PathBuf,
-    /// A point of the cut plane (the image centre), X,Y,Z in model units.
+    /// A point of the cut plane (the image centre), X,Y,Z in model units, or `center` (of the
+    /// model's bounding box).
     #[arg(long, allow_hyphen_values = true)]
     pub origin: String,
     /// Normal of the plane, NX,NY,NZ (any length but zero).
@@ -126,6 +141,18 @@ pub fn run(cmd: LappedCommand, quiet: bool) -> anyhow::Result<()> {
         LappedCommand::Cut(a) => cut(a, quiet),
         LappedCommand::Render(a) => render(a, quiet),
         LappedCommand::Bake(a) => bake(a, quiet),
+        LappedCommand::Exemplar(a) => {
+            atomic::check_output_path(&a.output, "-o")?;
+            if a.kind != "kiwi" {
+                return Err(Error::invalid(
+                    format!("--kind {}", a.kind),
+                    "the only procedural exemplar is `kiwi`",
+                )
+                .into());
+            }
+            nrrd::save(&lapped::exemplar::kiwi(a.size).to_volume(), &a.output)?;
+            Ok(())
+        }
     }
 }
 
@@ -246,7 +273,11 @@ fn cut(args: CutArgs, quiet: bool) -> anyhow::Result<()> {
         return Err(Error::invalid(format!("--size {}", args.size), "must be 1..=8192").into());
     }
     let spec = CutSpec {
-        origin: triple(&args.origin, "--origin")?,
+        origin: if args.origin == "center" {
+            ((lo + hi) / 2.0).to_array()
+        } else {
+            triple(&args.origin, "--origin")?
+        },
         normal: triple(&args.normal, "--normal")?,
         up: args.up.as_deref().map(|u| triple(u, "--up")).transpose()?,
         size: args.size,

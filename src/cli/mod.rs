@@ -7,6 +7,7 @@ pub mod eval;
 pub mod gradient;
 pub mod inspect;
 pub mod lapped;
+pub mod lapped_bench;
 pub mod ptm;
 pub mod ptm_bench;
 pub mod surface;

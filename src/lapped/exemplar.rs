@@ -89,7 +89,6 @@ impl SolidExemplar {
     /// Trilinear RGBA (0..255 floats) at texture coordinate `w`; s clamps when `depth_varying`.
     pub fn sample(&self, w: DVec3, depth_varying: bool) -> [f32; 4] {
         let n = self.size as usize;
-        let mut out = [0.0f32; 4];
         trilinear(n, w, [true, !depth_varying, true], |i| {
             let o = i * 4;
             [
@@ -99,10 +98,51 @@ impl SolidExemplar {
                 self.rgba[o + 3] as f32,
             ]
         })
-        .iter()
-        .zip(&mut out)
-        .for_each(|(a, b)| *b = *a);
+    }
+
+    /// [`Self::sample`]'s colour channels in f32 arithmetic: the inner loop of cuts and bakes.
+    pub fn sample_rgb(&self, w: [f32; 3], depth_varying: bool) -> [f32; 3] {
+        let n = self.size as usize;
+        let (x0, x1, fx) = cell(w[0], n, true);
+        let (y0, y1, fy) = cell(w[1], n, !depth_varying);
+        let (z0, z1, fz) = cell(w[2], n, true);
+        let rgba = &self.rgba;
+        let mut out = [0.0f32; 3];
+        for (z, wz) in [(z0, 1.0 - fz), (z1, fz)] {
+            for (y, wy) in [(y0, 1.0 - fy), (y1, fy)] {
+                let row = (z * n + y) * n;
+                for (x, wx) in [(x0, 1.0 - fx), (x1, fx)] {
+                    let weight = wx * wy * wz;
+                    let o = (row + x) * 4;
+                    for c in 0..3 {
+                        out[c] += weight * rgba[o + c] as f32;
+                    }
+                }
+            }
+        }
         out
+    }
+}
+
+/// The two grid cells a cell-centred linear filter reads along one axis, and the weight of the
+/// second: wrapping around or clamped to the edge.
+#[inline]
+fn cell(x: f32, n: usize, wrap: bool) -> (usize, usize, f32) {
+    let x = x * n as f32 - 0.5;
+    let f = x.floor();
+    let i = f as i64;
+    if wrap {
+        (
+            i.rem_euclid(n as i64) as usize,
+            (i + 1).rem_euclid(n as i64) as usize,
+            x - f,
+        )
+    } else {
+        (
+            i.clamp(0, n as i64 - 1) as usize,
+            (i + 1).clamp(0, n as i64 - 1) as usize,
+            x - f,
+        )
     }
 }
 
@@ -155,22 +195,20 @@ pub struct Mask {
 
 impl Mask {
     /// Alpha in [0, 1] at `w`: trilinear inside the cube (clamped to the edge voxels), 0
-    /// outside it. Scalar code: this is the innermost loop of cuts, bakes and the fill.
+    /// outside it.
     pub fn sample(&self, w: DVec3) -> f32 {
-        if w.min_element() < 0.0 || w.max_element() > 1.0 {
+        self.sample_f32(w.as_vec3().to_array())
+    }
+
+    /// [`Self::sample`] in f32 arithmetic: the innermost loop of cuts, bakes and the fill.
+    pub fn sample_f32(&self, w: [f32; 3]) -> f32 {
+        if w.iter().any(|&c| !(0.0..=1.0).contains(&c)) {
             return 0.0;
         }
         let n = self.size as usize;
-        let axis = |x: f64| {
-            let x = x * n as f64 - 0.5;
-            let f = x.floor();
-            let i0 = (f as i64).clamp(0, n as i64 - 1) as usize;
-            let i1 = (f as i64 + 1).clamp(0, n as i64 - 1) as usize;
-            (i0, i1, (x - f) as f32)
-        };
-        let (x0, x1, fx) = axis(w.x);
-        let (y0, y1, fy) = axis(w.y);
-        let (z0, z1, fz) = axis(w.z);
+        let (x0, x1, fx) = cell(w[0], n, false);
+        let (y0, y1, fy) = cell(w[1], n, false);
+        let (z0, z1, fz) = cell(w[2], n, false);
         let a = &self.alpha;
         let at = |x: usize, y: usize, z: usize| a[(z * n + y) * n + x] as f32;
         let lerp = |p: f32, q: f32, t: f32| p + (q - p) * t;
@@ -328,4 +366,59 @@ mod tests {
             .to_string();
         assert!(err.contains("cube"), "{err}");
     }
+}
+
+/// A procedural depth-varying exemplar for the kiwi example (texture y = depth: 0 at the skin,
+/// 1 at the core; periodic in x and z): a thin brown skin, green flesh with fibres along depth,
+/// a band of dark seeds at depth 0.55-0.72, and a pale core.
+pub fn kiwi(size: u32) -> SolidExemplar {
+    let n = size as usize;
+    let mut rgba = Vec::with_capacity(n * n * n * 4);
+    // Seeds: hashed centres on a coarse x-z grid inside the seed band, ellipsoids elongated
+    // along depth.
+    let cells = 7usize;
+    let seeds: Vec<[f64; 3]> = (0..cells * cells)
+        .map(|k| {
+            let h = crate::util::hash::hash32(k as u32 * 7 + 3);
+            let jitter = |b: u32| ((h >> b) & 0xff) as f64 / 255.0;
+            [
+                ((k % cells) as f64 + 0.2 + 0.6 * jitter(0)) / cells as f64,
+                0.58 + 0.1 * jitter(8),
+                ((k / cells) as f64 + 0.2 + 0.6 * jitter(16)) / cells as f64,
+            ]
+        })
+        .collect();
+    for z in 0..n {
+        for y in 0..n {
+            for x in 0..n {
+                let p = [x, y, z].map(|c| (c as f64 + 0.5) / n as f64);
+                let d = p[1];
+                let fibre = 0.5
+                    + 0.5
+                        * (std::f64::consts::TAU * 6.0 * p[0]).sin()
+                        * (std::f64::consts::TAU * 5.0 * p[2]).cos();
+                let mut c = if d < 0.05 {
+                    [110.0, 80.0, 45.0]
+                } else if d > 0.82 {
+                    [235.0, 235.0, 200.0]
+                } else {
+                    let g = 150.0 + 60.0 * d + 20.0 * fibre;
+                    [90.0 + 40.0 * d, g, 40.0 + 30.0 * fibre]
+                };
+                for s in &seeds {
+                    // Periodic distance in x and z.
+                    let wrap = |a: f64, b: f64| {
+                        let t = (a - b).abs();
+                        t.min(1.0 - t)
+                    };
+                    let (dx, dy, dz) = (wrap(p[0], s[0]), (p[1] - s[1]).abs(), wrap(p[2], s[2]));
+                    if (dx / 0.03).powi(2) + (dy / 0.07).powi(2) + (dz / 0.03).powi(2) < 1.0 {
+                        c = [25.0, 20.0, 15.0];
+                    }
+                }
+                rgba.extend_from_slice(&[c[0] as u8, c[1] as u8, c[2] as u8, 255]);
+            }
+        }
+    }
+    SolidExemplar { size, rgba }
 }

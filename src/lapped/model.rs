@@ -138,12 +138,11 @@ impl LstModel {
                     w[a] += b[k] * c[k][a];
                 }
             }
-            let w = DVec3::new(w[0] as f64, w[1] as f64, w[2] as f64);
-            let alpha = self.masks[layer.mask as usize].sample(w);
+            let alpha = self.masks[layer.mask as usize].sample_f32(w);
             if alpha <= 0.0 {
                 continue;
             }
-            let e = self.exemplar.sample(w, depth_varying);
+            let e = self.exemplar.sample_rgb(w, depth_varying);
             let weight = (1.0 - cover) * alpha;
             for a in 0..3 {
                 color[a] += weight * e[a];
