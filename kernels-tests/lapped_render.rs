@@ -39,13 +39,16 @@ fn model() -> LstModel {
         resolution: 6,
         ..Default::default()
     };
+    let mesh = shapes::sphere(32, 16);
     lapped::build(
-        &shapes::sphere(32, 16),
-        "sphere",
-        e,
-        "e",
-        &c,
-        "c",
+        lapped::FillInputs {
+            mesh: &mesh,
+            mesh_name: "sphere",
+            exemplar: e,
+            exemplar_source: "e",
+            constraints: &c,
+            constraints_name: "c",
+        },
         &opts,
         &|_, _| {},
     )

@@ -7,7 +7,7 @@ use solidsynth::io::nrrd;
 use solidsynth::lapped::exemplar::SolidExemplar;
 use solidsynth::lapped::field::Constraints;
 use solidsynth::lapped::model::LstModel;
-use solidsynth::lapped::{self, shapes, FillOptions};
+use solidsynth::lapped::{self, shapes, FillInputs, FillOptions};
 use solidsynth::lazy::cut::CutSpec;
 use solidsynth::util::hash::SeededRng;
 use solidsynth::volume::Volume;
@@ -40,13 +40,16 @@ fn sphere_model(json: &str, resolution: u32) -> LstModel {
         resolution,
         ..Default::default()
     };
+    let mesh = shapes::sphere(32, 16);
     lapped::build(
-        &shapes::sphere(32, 16),
-        "sphere",
-        e,
-        "e",
-        &c,
-        "c.json",
+        FillInputs {
+            mesh: &mesh,
+            mesh_name: "sphere",
+            exemplar: e,
+            exemplar_source: "e",
+            constraints: &c,
+            constraints_name: "c.json",
+        },
         &opts,
         &|_, _| {},
     )
@@ -219,8 +222,19 @@ fn example_constraint_files_parse_and_fill_their_shapes() {
         ),
     ] {
         let c = Constraints::load(&dir.join(name)).unwrap();
-        let (model, report) =
-            lapped::build(&mesh, name, e.clone(), "e", &c, name, &opts, &|_, _| {}).unwrap();
+        let (model, report) = lapped::build(
+            FillInputs {
+                mesh: &mesh,
+                mesh_name: name,
+                exemplar: e.clone(),
+                exemplar_source: "e",
+                constraints: &c,
+                constraints_name: name,
+            },
+            &opts,
+            &|_, _| {},
+        )
+        .unwrap();
         assert_eq!(report.quality.inverted, 0, "{name}");
         assert!(model.layers.iter().all(|l| !l.is_empty()), "{name}");
     }

@@ -180,12 +180,14 @@ fn fill(args: FillArgs, quiet: bool) -> anyhow::Result<()> {
     };
     let start = Instant::now();
     let (model, report) = lapped::build(
-        &surface,
-        &mesh_name,
-        exemplar,
-        &exemplar_name,
-        &constraints,
-        &constraints_name,
+        lapped::FillInputs {
+            mesh: &surface,
+            mesh_name: &mesh_name,
+            exemplar,
+            exemplar_source: &exemplar_name,
+            constraints: &constraints,
+            constraints_name: &constraints_name,
+        },
         &opts,
         &report_progress,
     )?;

@@ -323,51 +323,6 @@ pub fn layer_for_depth(d: f64) -> usize {
     }
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn splotch_is_opaque_inside_and_zero_at_the_faces() {
-        let m = splotch(1);
-        assert!((m.sample(DVec3::splat(0.5)) - 1.0).abs() < 1e-6);
-        assert_eq!(m.sample(DVec3::new(0.02, 0.5, 0.5)), 0.0);
-        assert_eq!(m.sample(DVec3::new(1.2, 0.5, 0.5)), 0.0);
-        // Fall-off: some voxels strictly between 0 and 255.
-        assert!(m.alpha.iter().any(|&a| a > 20 && a < 235));
-    }
-
-    #[test]
-    fn layered_masks_cover_skin_and_core() {
-        let [outer, middle, inner] = layered(1);
-        let at = |s: f64| DVec3::new(0.5, s, 0.5);
-        assert!(outer.sample(at(0.0)) > 0.99 && outer.sample(at(0.7)) == 0.0);
-        assert!(middle.sample(at(0.5)) > 0.99 && middle.sample(at(0.05)) == 0.0);
-        assert!(inner.sample(at(1.0)) > 0.99 && inner.sample(at(0.3)) == 0.0);
-        for d in [0.0, 0.2, 0.34, 0.5, 0.66, 0.8, 1.0] {
-            let m = [&outer, &middle, &inner][layer_for_depth(d)];
-            assert!(m.sample(at(d)) > 0.9, "depth {d}");
-        }
-    }
-
-    #[test]
-    fn exemplar_checks_and_wraps() {
-        let mut v = Volume::new(4, 4, 4, 1);
-        v.at_mut(0, 0, 0)[0] = 200;
-        let e = SolidExemplar::from_volume(&v, "e.nrrd").unwrap();
-        // Cell centre of voxel 0 and its wrapped twin at 1 + 1/8.
-        let a = e.sample(DVec3::splat(0.125), false);
-        let b = e.sample(DVec3::splat(1.125), false);
-        assert_eq!(a, b);
-        assert_eq!(a[0], 200.0);
-        let bad = Volume::new(4, 4, 3, 1);
-        let err = SolidExemplar::from_volume(&bad, "e.nrrd")
-            .unwrap_err()
-            .to_string();
-        assert!(err.contains("cube"), "{err}");
-    }
-}
-
 /// A procedural depth-varying exemplar for the kiwi example (texture y = depth: 0 at the skin,
 /// 1 at the core; periodic in x and z): a thin brown skin, green flesh with fibres along depth,
 /// a band of dark seeds at depth 0.55-0.72, and a pale core.
@@ -421,4 +376,49 @@ pub fn kiwi(size: u32) -> SolidExemplar {
         }
     }
     SolidExemplar { size, rgba }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn splotch_is_opaque_inside_and_zero_at_the_faces() {
+        let m = splotch(1);
+        assert!((m.sample(DVec3::splat(0.5)) - 1.0).abs() < 1e-6);
+        assert_eq!(m.sample(DVec3::new(0.02, 0.5, 0.5)), 0.0);
+        assert_eq!(m.sample(DVec3::new(1.2, 0.5, 0.5)), 0.0);
+        // Fall-off: some voxels strictly between 0 and 255.
+        assert!(m.alpha.iter().any(|&a| a > 20 && a < 235));
+    }
+
+    #[test]
+    fn layered_masks_cover_skin_and_core() {
+        let [outer, middle, inner] = layered(1);
+        let at = |s: f64| DVec3::new(0.5, s, 0.5);
+        assert!(outer.sample(at(0.0)) > 0.99 && outer.sample(at(0.7)) == 0.0);
+        assert!(middle.sample(at(0.5)) > 0.99 && middle.sample(at(0.05)) == 0.0);
+        assert!(inner.sample(at(1.0)) > 0.99 && inner.sample(at(0.3)) == 0.0);
+        for d in [0.0, 0.2, 0.34, 0.5, 0.66, 0.8, 1.0] {
+            let m = [&outer, &middle, &inner][layer_for_depth(d)];
+            assert!(m.sample(at(d)) > 0.9, "depth {d}");
+        }
+    }
+
+    #[test]
+    fn exemplar_checks_and_wraps() {
+        let mut v = Volume::new(4, 4, 4, 1);
+        v.at_mut(0, 0, 0)[0] = 200;
+        let e = SolidExemplar::from_volume(&v, "e.nrrd").unwrap();
+        // Cell centre of voxel 0 and its wrapped twin at 1 + 1/8.
+        let a = e.sample(DVec3::splat(0.125), false);
+        let b = e.sample(DVec3::splat(1.125), false);
+        assert_eq!(a, b);
+        assert_eq!(a[0], 200.0);
+        let bad = Volume::new(4, 4, 3, 1);
+        let err = SolidExemplar::from_volume(&bad, "e.nrrd")
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("cube"), "{err}");
+    }
 }

@@ -31,7 +31,7 @@ pub const DEFAULT_RESOLUTION: u32 = 12;
 /// Default patch scale: a third of the model's longest side per exemplar cube.
 pub const DEFAULT_SCALE_FRACTION: f64 = 1.0 / 3.0;
 /// Seed of the procedural splotch masks (part of the model: they are stored in it).
-const MASK_SEED: u64 = 0x5107_c4;
+const MASK_SEED: u64 = 0x0051_07c4;
 
 #[derive(Clone, Debug)]
 pub struct FillOptions {
@@ -63,17 +63,30 @@ pub struct FillReport {
     pub fill_seconds: f64,
 }
 
-/// Tetrahedralize `mesh`, build the field and fill it with `exemplar`.
+/// What a fill reads, each input with the name errors use for it.
+pub struct FillInputs<'a> {
+    pub mesh: &'a Mesh,
+    pub mesh_name: &'a str,
+    pub exemplar: SolidExemplar,
+    pub exemplar_source: &'a str,
+    pub constraints: &'a Constraints,
+    pub constraints_name: &'a str,
+}
+
+/// Tetrahedralize the mesh, build the field and fill it with the exemplar.
 pub fn build(
-    mesh: &Mesh,
-    mesh_name: &str,
-    exemplar: SolidExemplar,
-    exemplar_source: &str,
-    constraints: &Constraints,
-    constraints_name: &str,
+    inputs: FillInputs,
     opts: &FillOptions,
     progress: &dyn Fn(usize, usize),
 ) -> Result<(LstModel, FillReport)> {
+    let FillInputs {
+        mesh,
+        mesh_name,
+        exemplar,
+        exemplar_source,
+        constraints,
+        constraints_name,
+    } = inputs;
     if let Some(s) = opts.scale {
         if !(s.is_finite() && s > 0.0) {
             return Err(crate::Error::invalid(
@@ -168,12 +181,14 @@ mod tests {
             };
             let run = || {
                 build(
-                    &sphere,
-                    "sphere",
-                    wave_exemplar(16),
-                    "waves",
-                    &c,
-                    "c.json",
+                    FillInputs {
+                        mesh: &sphere,
+                        mesh_name: "sphere",
+                        exemplar: wave_exemplar(16),
+                        exemplar_source: "waves",
+                        constraints: &c,
+                        constraints_name: "c.json",
+                    },
                     &opts,
                     &|_, _| {},
                 )

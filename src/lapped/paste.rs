@@ -343,7 +343,10 @@ pub fn fill(
     // Probe points for "partially inside the mask": the order-4 barycentric grid (35 points).
     let probe = coverage_samples()
         .into_iter()
-        .filter(|b| b.iter().all(|x| ((x * 8.0).round() as u32) % 2 == 0))
+        .filter(|b| {
+            b.iter()
+                .all(|x| ((x * 8.0).round() as u32).is_multiple_of(2))
+        })
         .collect();
     let filler = Filler {
         mesh,

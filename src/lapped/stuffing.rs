@@ -129,7 +129,7 @@ pub fn stuff(mesh: &Mesh, resolution: u32, what: &str) -> Result<(TetMesh, Stuff
     mesh.validate(what)?;
     let (lo, hi) = mesh.bounds();
     let extent = (hi - lo).max_element();
-    if !(extent > 0.0) {
+    if extent.is_nan() || extent <= 0.0 {
         return Err(Error::invalid(
             what,
             "the mesh is flat: it encloses no volume",
