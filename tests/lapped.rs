@@ -206,7 +206,15 @@ fn cut_pixels_equal_direct_shading_of_their_points() {
 #[test]
 fn example_constraint_files_parse_and_fill_their_shapes() {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/lapped");
-    for name in ["kiwi.json", "bent-cylinder.json", "bunny.json"] {
+    let names = [
+        "kiwi.json",
+        "bent-cylinder.json",
+        "bunny.json",
+        "onion.json",
+        "fibres.json",
+        "strata.json",
+    ];
+    for name in names {
         Constraints::load(&dir.join(name)).unwrap_or_else(|e| panic!("{name}: {e}"));
     }
     let e = SolidExemplar::from_volume(&exemplar_volume(), "e").unwrap();
@@ -220,6 +228,9 @@ fn example_constraint_files_parse_and_fill_their_shapes() {
             "bent-cylinder.json",
             shapes::bent_cylinder(0.3, 1.0, 24, 24),
         ),
+        ("onion.json", shapes::sphere(32, 16)),
+        ("fibres.json", shapes::bent_cylinder(0.3, 1.0, 24, 24)),
+        ("strata.json", shapes::sphere(32, 16)),
     ] {
         let c = Constraints::load(&dir.join(name)).unwrap();
         let (model, report) = lapped::build(

@@ -7,12 +7,15 @@
 //!   "scale": 0.8,                                // world size of one exemplar cube (default)
 //!   "scales": [{"at": [0, 0, 0], "scale": 0.5}], // scale constraints at points
 //!   "strokes": [[[0, 0, -1], [0, 0, 1]]],        // polylines: primary (1-a) / secondary (2-*)
-//!   "depth": {"inner": [[[0, 0, -0.8], [0, 0, 0.8]]]} // depth 1 strokes; the surface is depth 0
+//!   "depth": {"inner": [[[0, 0, -0.8], [0, 0, 0.8]]],  // depth 1 strokes
+//!             "inner_regions": [{"center": [0, 0, 1], "radius": 0.3}],  // surface painted 1
+//!             "outer_regions": [...]}  // surface painted 0 (default: all the rest)
 //! }
 //! ```
 //! - Depth (1-b, 2-a, 2-b): thin-plate RBF interpolation in 3D (phi(r) = r^3 plus a linear
 //!   polynomial, Turk and O'Brien 1999) of 0 on the surface (boundary vertices, subsampled) and
-//!   1 along the `inner` strokes.
+//!   1 along the `inner` strokes and on the surface inside the `inner_regions` balls (the paper's
+//!   painted surface regions: e.g. the cut face of a cake).
 //! - Vectors and scales: Laplacian smoothing on the tet mesh vertices (eq. 1) with soft
 //!   constraints (eq. 2) at the stroke segments' midpoints (value: the segment's direction) and
 //!   at the scale points, as one sparse least-squares solve (normal equations, sparse Cholesky).
@@ -102,7 +105,19 @@ struct ScaleFile {
 #[derive(Deserialize, Debug, Clone)]
 #[serde(deny_unknown_fields)]
 struct DepthFile {
+    #[serde(default)]
     inner: Vec<Polyline>,
+    #[serde(default)]
+    inner_regions: Vec<RegionFile>,
+    #[serde(default)]
+    outer_regions: Vec<RegionFile>,
+}
+
+#[derive(Deserialize, Debug, Clone)]
+#[serde(deny_unknown_fields)]
+struct RegionFile {
+    center: [f64; 3],
+    radius: f64,
 }
 
 #[derive(Deserialize, Debug, Clone)]
@@ -126,6 +141,10 @@ pub struct Constraints {
     pub scales: Vec<(DVec3, f64)>,
     pub strokes: Vec<Vec<DVec3>>,
     pub inner: Vec<Vec<DVec3>>,
+    /// Surface regions of depth 1: balls (centre, radius) selecting boundary vertices.
+    pub inner_regions: Vec<(DVec3, f64)>,
+    /// Surface regions of depth 0; when given, the rest of the surface is unconstrained.
+    pub outer_regions: Vec<(DVec3, f64)>,
 }
 
 impl Constraints {
@@ -137,6 +156,8 @@ impl Constraints {
             scales: Vec::new(),
             strokes: Vec::new(),
             inner: Vec::new(),
+            inner_regions: Vec::new(),
+            outer_regions: Vec::new(),
         }
     }
 
@@ -203,6 +224,28 @@ impl Constraints {
             Some(d) => polylines(&d.inner, "depth.inner")?,
             None => Vec::new(),
         };
+        let regions = |list: &[RegionFile], field: &str| -> Result<Vec<(DVec3, f64)>> {
+            list.iter()
+                .enumerate()
+                .map(|(i, r)| {
+                    let center = point(&r.center, &format!("depth.{field}[{i}].center"))?;
+                    if !(r.radius.is_finite() && r.radius > 0.0) {
+                        return Err(Error::invalid(
+                            what,
+                            format!("depth.{field}[{i}].radius {}: must be positive", r.radius),
+                        ));
+                    }
+                    Ok((center, r.radius))
+                })
+                .collect()
+        };
+        let (inner_regions, outer_regions) = match &file.depth {
+            Some(d) => (
+                regions(&d.inner_regions, "inner_regions")?,
+                regions(&d.outer_regions, "outer_regions")?,
+            ),
+            None => (Vec::new(), Vec::new()),
+        };
         if kind.uses_strokes() {
             if strokes.is_empty() {
                 return Err(Error::invalid(
@@ -228,11 +271,11 @@ impl Constraints {
             ));
         }
         if kind.uses_depth() {
-            if inner.is_empty() {
+            if inner.is_empty() && inner_regions.is_empty() {
                 return Err(Error::invalid(
                     what,
                     format!(
-                        "type {} needs \"depth\": {{\"inner\": [polylines]}}",
+                        "type {} needs \"depth\" with \"inner\" polylines or \"inner_regions\"",
                         kind.name()
                     ),
                 ));
@@ -258,6 +301,8 @@ impl Constraints {
             scales,
             strokes,
             inner,
+            inner_regions,
+            outer_regions,
         })
     }
 
@@ -318,7 +363,12 @@ impl Field {
         let n = mesh.vertices.len();
         let ring = mesh.vertex_neighbors();
         let depth = if c.kind.uses_depth() {
-            Some(depth_rbf(mesh, &c.inner)?)
+            Some(depth_rbf(
+                mesh,
+                &c.inner,
+                &c.inner_regions,
+                &c.outer_regions,
+            )?)
         } else {
             None
         };
@@ -534,8 +584,13 @@ fn laplacian_fit(
 }
 
 /// Depth at every vertex and its gradient, by thin-plate RBF interpolation of 0 on the boundary
-/// vertices and 1 along the inner polylines.
-fn depth_rbf(mesh: &TetMesh, inner: &[Vec<DVec3>]) -> Result<(Vec<f64>, Vec<DVec3>)> {
+/// vertices (1 inside the inner regions) and 1 along the inner polylines.
+fn depth_rbf(
+    mesh: &TetMesh,
+    inner: &[Vec<DVec3>],
+    regions: &[(DVec3, f64)],
+    outer: &[(DVec3, f64)],
+) -> Result<(Vec<f64>, Vec<DVec3>)> {
     let neighbors = mesh.face_neighbors();
     let mut surface: Vec<u32> = mesh
         .boundary_faces(&neighbors)
@@ -544,12 +599,49 @@ fn depth_rbf(mesh: &TetMesh, inner: &[Vec<DVec3>]) -> Result<(Vec<f64>, Vec<DVec
         .collect();
     surface.sort_unstable();
     surface.dedup();
-    let stride = surface.len().div_ceil(MAX_RBF_SURFACE).max(1);
-    let mut centers: Vec<(DVec3, f64)> = surface
-        .iter()
-        .step_by(stride)
-        .map(|&v| (mesh.vertices[v as usize], 0.0))
-        .collect();
+    // Painted (depth 1) and unpainted (depth 0) surface vertices, each subsampled to at most
+    // MAX_RBF_SURFACE / 2 centres (so a small painted region keeps all its vertices).
+    let painted = |v: &u32| {
+        let p = mesh.vertices[*v as usize];
+        regions.iter().any(|(c, r)| (p - *c).length() <= *r)
+    };
+    let in_any = |v: u32, balls: &[(DVec3, f64)]| {
+        let p = mesh.vertices[v as usize];
+        balls.iter().any(|(c, r)| (p - *c).length() <= *r)
+    };
+    let (ones, rest): (Vec<u32>, Vec<u32>) = surface.iter().partition(|v| painted(v));
+    // With outer regions, only they are depth 0; otherwise the whole unpainted surface is.
+    let zeros: Vec<u32> = if outer.is_empty() {
+        rest
+    } else {
+        rest.into_iter().filter(|&v| in_any(v, outer)).collect()
+    };
+    for (name, balls, set) in [
+        ("inner_regions", regions, &ones),
+        ("outer_regions", outer, &zeros),
+    ] {
+        for (i, (c, r)) in balls.iter().enumerate() {
+            if !set.iter().any(|&v| in_any(v, &[(*c, *r)])) {
+                return Err(Error::invalid(
+                    "--field",
+                    format!(
+                        "depth.{name}[{i}] (centre ({}, {}, {}), radius {r}) contains no \
+                         surface vertex",
+                        c.x, c.y, c.z
+                    ),
+                ));
+            }
+        }
+    }
+    let mut centers: Vec<(DVec3, f64)> = Vec::new();
+    for (set, value) in [(&zeros, 0.0), (&ones, 1.0)] {
+        let stride = set.len().div_ceil(MAX_RBF_SURFACE / 2).max(1);
+        centers.extend(
+            set.iter()
+                .step_by(stride)
+                .map(|&v| (mesh.vertices[v as usize], value)),
+        );
+    }
     // Inner strokes, resampled at about the mesh's edge length.
     let edge = mesh_extent(mesh) / 24.0;
     for line in inner {
