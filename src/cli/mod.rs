@@ -8,6 +8,7 @@ pub mod gradient;
 pub mod inspect;
 pub mod ptm;
 pub mod ptm_bench;
+pub mod serve;
 pub mod surface;
 pub mod synth;
 
@@ -52,6 +53,9 @@ pub enum Command {
     /// Relightable textures (polynomial texture maps): capture, fit, synthesize, relight.
     #[command(subcommand)]
     Ptm(ptm::PtmCommand),
+    /// The interactive viewer: a local web page (built into the binary) to cut through the
+    /// solid, and its HTTP API.
+    Serve(serve::ServeArgs),
     /// Benchmarks printed as tables.
     #[command(subcommand)]
     Bench(bench::BenchCommand),
@@ -93,6 +97,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Surface(a) => surface::run(a, cli.quiet),
         Command::Gradient(g) => gradient::run(g, cli.quiet),
         Command::Ptm(p) => ptm::run(p, cli.quiet),
+        Command::Serve(a) => serve::run(a, cli.quiet),
         Command::Bench(b) => bench::run(b),
         Command::Adapters => {
             let list = solidsynth::gpu::context::list_adapters();
