@@ -301,7 +301,8 @@ const gl3 = { gl: null, prog: null, volTex: null, cutTex: null, haveCut: false, 
 
 function initGL() {
   const canvas = $("view3d");
-  const gl = canvas.getContext("webgl2");
+  // preserveDrawingBuffer: the frame stays readable (tests read it back) between redraws.
+  const gl = canvas.getContext("webgl2", { preserveDrawingBuffer: true });
   if (!gl) { $("view-status").textContent = "WebGL2 is not available in this browser"; return; }
   const compile = (type, src) => {
     const s = gl.createShader(type);
