@@ -321,3 +321,84 @@ fn concurrent_cuts_queue_and_all_succeed() {
     assert_eq!(results[0].1, results[4].1);
     assert_ne!(results[0].1, results[1].1);
 }
+
+fn bin() -> std::process::Command {
+    let mut c = std::process::Command::new(env!("CARGO_BIN_EXE_solidsynth"));
+    c.env("SOLIDSYNTH_LOG", "warn");
+    c
+}
+
+#[test]
+fn the_serve_command_prints_its_address_and_answers() {
+    use std::io::BufRead;
+    let cache = tempfile::tempdir().unwrap();
+    let mut child = bin()
+        .args(["serve", "--port", "0", "--backend", "cpu"])
+        .env("SOLIDSYNTH_CACHE_DIR", cache.path())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut lines = std::io::BufReader::new(child.stderr.take().unwrap()).lines();
+    let line = lines
+        .find_map(|l| l.ok().filter(|l| l.contains("solidsynth viewer: http://")))
+        .expect("address line");
+    let url = line
+        .split("http://")
+        .nth(1)
+        .unwrap()
+        .split('/')
+        .next()
+        .unwrap();
+    let addr: SocketAddr = url.parse().unwrap();
+    assert!(addr.ip().is_loopback(), "{line}");
+    assert_eq!(get(addr, "/api/health").json()["ok"], true);
+    assert_eq!(get(addr, "/").status, 200);
+    // The startup job (built-in exemplar) is listed while it runs or once done.
+    let state = get(addr, "/api/state").json();
+    assert_eq!(state["jobs"][0]["name"], "cells", "{state}");
+    assert_eq!(
+        state["backend"].as_str().unwrap().split(' ').next(),
+        Some("cpu")
+    );
+    // The port is taken now: a second server on it is refused with exit code 2.
+    let o = bin()
+        .args([
+            "serve",
+            "--port",
+            &addr.port().to_string(),
+            "--backend",
+            "cpu",
+        ])
+        .env("SOLIDSYNTH_CACHE_DIR", cache.path())
+        .output()
+        .unwrap();
+    child.kill().unwrap();
+    let _ = child.wait();
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("cannot listen"), "{stderr}");
+}
+
+#[test]
+fn bad_serve_flags_exit_2_naming_the_flag() {
+    for (args, needle) in [
+        (&["serve", "--preview-size", "7"][..], "--preview-size 7"),
+        (&["serve", "--port", "70000"][..], "--port"),
+        (&["serve", "--bind", "nowhere"][..], "--bind"),
+        (&["serve", "--max-cut-size", "5000"][..], "--max-cut-size"),
+        (&["serve", "--jitter", "99"][..], "--jitter"),
+        (&["bench", "serve", "--clients", "0"][..], "--clients"),
+        (
+            &["bench", "serve", "--exemplar", "granite"][..],
+            "--exemplar granite",
+        ),
+    ] {
+        let o = bin().args(args).output().unwrap();
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {stderr}");
+        assert!(
+            stderr.contains(needle),
+            "{args:?}: expected {needle:?} in {stderr}"
+        );
+    }
+}
