@@ -402,3 +402,47 @@ fn bad_serve_flags_exit_2_naming_the_flag() {
         );
     }
 }
+
+/// Send raw bytes and hang up (write side), return the status code of the answer.
+fn raw_status(addr: SocketAddr, bytes: &[u8]) -> u16 {
+    use std::io::{Read, Write};
+    let mut s = std::net::TcpStream::connect(addr).unwrap();
+    s.set_read_timeout(Some(Duration::from_secs(60))).unwrap();
+    let _ = s.write_all(bytes);
+    let _ = s.shutdown(std::net::Shutdown::Write);
+    let mut out = Vec::new();
+    let _ = s.read_to_end(&mut out);
+    let text = String::from_utf8_lossy(&out);
+    text.split_whitespace()
+        .nth(1)
+        .and_then(|c| c.parse().ok())
+        .unwrap_or_else(|| panic!("no status in {text:?}"))
+}
+
+#[test]
+fn hostile_requests_are_refused_without_reading_or_allocating_them() {
+    let (addr, _) = server();
+    // A body claimed far beyond the memory of the machine: refused before reading it (an HTTP
+    // crate tried first allocated the claimed size to skip the body and aborted the server).
+    let huge = b"POST /api/solids HTTP/1.1\r\nHost: x\r\nContent-Length: 100000000000\r\n\r\nabc";
+    assert_eq!(raw_status(addr, huge), 413);
+    let mut head = b"GET / HTTP/1.1\r\nX-Long: ".to_vec();
+    head.extend(std::iter::repeat_n(b'a', 40 << 10));
+    head.extend_from_slice(b"\r\n\r\n");
+    assert_eq!(raw_status(addr, &head), 431);
+    assert_eq!(raw_status(addr, b"garbage\r\n\r\n"), 400);
+    assert_eq!(raw_status(addr, b"GET http://x/ HTTP/1.1\r\n\r\n"), 400);
+    let chunked =
+        b"POST /api/solids HTTP/1.1\r\nTransfer-Encoding: chunked\r\n\r\n5\r\nhello\r\n0\r\n\r\n";
+    assert_eq!(raw_status(addr, chunked), 411);
+    // A client that sends half a body and hangs up.
+    assert_eq!(
+        raw_status(
+            addr,
+            b"POST /api/solids HTTP/1.1\r\nContent-Length: 10\r\n\r\nabc"
+        ),
+        400
+    );
+    // And the server still answers.
+    assert_eq!(get(addr, "/api/health").json()["ok"], true);
+}

@@ -4,13 +4,12 @@
 //! 500 and the worker goes on serving.
 
 use super::assets;
+use super::http::{Request, Response};
 use super::jobs::{self, Source, State};
 use crate::error::Error;
 use crate::lazy::cut::CutSpec;
-use std::io::Read;
 use std::sync::Arc;
 use std::time::Instant;
-use tiny_http::{Header, Method, Request, Response};
 
 /// A response before it is sent.
 pub struct Reply {
@@ -49,41 +48,34 @@ impl Reply {
     }
 }
 
-/// Answer one request (called by a worker thread).
-pub fn handle(state: &Arc<State>, mut request: Request) {
+/// Answer one request (called by a worker thread with the request read whole).
+pub fn handle(state: &Arc<State>, request: Request) -> Response {
     let start = Instant::now();
-    let reply =
-        std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| route(state, &mut request)))
-            .unwrap_or_else(|_| Reply::error(500, "internal error (a bug); the server goes on"));
+    let reply = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| route(state, &request)))
+        .unwrap_or_else(|_| Reply::error(500, "internal error (a bug); the server goes on"));
     tracing::debug!(
         "{} {} -> {} in {:.1} ms",
-        request.method(),
-        request.url(),
+        request.method,
+        request.target,
         reply.status,
         start.elapsed().as_secs_f64() * 1e3
     );
-    let mut response = Response::from_data(reply.body).with_status_code(reply.status);
-    let mut headers = vec![
-        ("Content-Type".to_string(), reply.content_type.to_string()),
-        ("Cache-Control".to_string(), "no-store".to_string()),
-        ("X-Content-Type-Options".to_string(), "nosniff".to_string()),
-    ];
-    headers.extend(reply.headers);
-    for (k, v) in headers {
-        if let Ok(h) = Header::from_bytes(k.as_bytes(), v.as_bytes()) {
-            response.add_header(h);
-        }
+    Response {
+        status: reply.status,
+        content_type: reply.content_type,
+        headers: reply.headers,
+        body: reply.body,
     }
-    // The client may have gone; nothing to do about it.
-    let _ = request.respond(response);
 }
 
-fn route(state: &Arc<State>, request: &mut Request) -> Reply {
-    let url = request.url().to_string();
-    let (path, query) = url.split_once('?').unwrap_or((&url, ""));
-    let method = request.method().clone();
+fn route(state: &Arc<State>, request: &Request) -> Reply {
+    let (path, query) = request
+        .target
+        .split_once('?')
+        .unwrap_or((&request.target, ""));
+    let method = request.method.as_str();
     let segments: Vec<&str> = path.trim_start_matches('/').split('/').collect();
-    let get = method == Method::Get || method == Method::Head;
+    let get = method == "GET";
     let query = match Query::parse(query) {
         Ok(q) => q,
         Err(e) => return Reply::error(400, e),
@@ -93,7 +85,7 @@ fn route(state: &Arc<State>, request: &mut Request) -> Reply {
         (["api", "state"], true) => Ok(state_json(state)),
         (["api", "exemplars"], true) => Ok(exemplars_json()),
         (["api", "exemplars", file], true) => exemplar_png(file),
-        (["api", "solids"], false) if method == Method::Post => new_solid(state, request, &query),
+        (["api", "solids"], false) if method == "POST" => new_solid(state, &request.body, &query),
         (["api", "jobs", id], true) => parse_id(id).and_then(|id| {
             state
                 .job(id)
@@ -117,15 +109,7 @@ fn route(state: &Arc<State>, request: &mut Request) -> Reply {
         },
         (_, false) => Err((405, format!("{method} is not allowed on {path}"))),
     };
-    result.unwrap_or_else(|(status, message)| {
-        let r = Reply::error(status, message);
-        // After refusing a body we did not read, close rather than resynchronize.
-        if status == 413 {
-            r.header("Connection", "close")
-        } else {
-            r
-        }
-    })
+    result.unwrap_or_else(|(status, message)| Reply::error(status, message))
 }
 
 type Answer = Result<Reply, (u16, String)>;
@@ -197,22 +181,10 @@ fn exemplar_png(file: &str) -> Answer {
 }
 
 /// POST /api/solids: a built-in (`?exemplar=NAME`) or the uploaded image in the body.
-fn new_solid(state: &Arc<State>, request: &mut Request, q: &Query) -> Answer {
+fn new_solid(state: &Arc<State>, body: &[u8], q: &Query) -> Answer {
     q.only(&["exemplar", "seed", "periodic"])?;
     let seed = q.u64_in("seed", 0, u32::MAX as u64)?.unwrap_or(0);
-    let max = state.config.max_upload_bytes;
-    if request.body_length().is_some_and(|n| n > max) {
-        return Err((413, format!("upload larger than {max} bytes")));
-    }
-    let mut body = Vec::new();
-    request
-        .as_reader()
-        .take(max as u64 + 1)
-        .read_to_end(&mut body)
-        .map_err(|e| (400, format!("cannot read the request body: {e}")))?;
-    if body.len() > max {
-        return Err((413, format!("upload larger than {max} bytes")));
-    }
+    // The transport refused bodies over `max_upload_bytes` (413) before reading them.
     let source = match (q.get("exemplar"), body.is_empty()) {
         (Some(name), true) => {
             let b = jobs::builtin(name).ok_or_else(|| {
@@ -239,7 +211,7 @@ fn new_solid(state: &Arc<State>, request: &mut Request, q: &Query) -> Answer {
         }
         (None, false) => Source::Image {
             name: "upload".into(),
-            image: jobs::decode_upload(&body, state.config.max_upload_side).map_err(from_error)?,
+            image: jobs::decode_upload(body, state.config.max_upload_side).map_err(from_error)?,
             periodic: q.bool("periodic")?,
         },
         (Some(_), false) => {

@@ -1,6 +1,6 @@
 //! `solidsynth serve`: a local web viewer for the solid, and the HTTP API behind it.
 //!
-//! One synchronous HTTP server (`tiny_http`) with a fixed pool of worker threads. Everything that
+//! A small synchronous HTTP/1.1 server ([`http`]) with a fixed pool of worker threads. Everything that
 //! synthesizes (cuts, volumes, analyses) takes one lock, [`jobs::State::work`], so GPU (or CPU)
 //! work is serialized and concurrent requests queue behind it instead of competing for the device;
 //! the number of requests allowed to queue is bounded ([`ServeConfig::max_queued`]) and the
@@ -15,13 +15,14 @@
 pub mod api;
 pub mod assets;
 pub mod client;
+pub mod http;
 pub mod jobs;
 
 use crate::backend::Compute;
 use crate::error::{Error, Result};
 use crate::lazy::SynthParams;
 use std::net::{IpAddr, Ipv4Addr, SocketAddr};
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 
 /// Server settings; the defaults are what `solidsynth serve` uses.
@@ -94,47 +95,56 @@ impl ServeConfig {
 
 /// A running server.
 pub struct Server {
-    http: Arc<tiny_http::Server>,
     state: Arc<jobs::State>,
     workers: Vec<JoinHandle<()>>,
+    acceptor: Option<JoinHandle<()>>,
+    stop: Arc<Mutex<bool>>,
     addr: SocketAddr,
 }
 
 impl Server {
-    /// Bind and start the worker threads. Nothing is synthesized until asked for.
+    /// Bind and start the acceptor and the worker threads. Nothing is synthesized until asked.
     pub fn start(config: ServeConfig, compute: Compute) -> Result<Server> {
         config.validate()?;
         let want = SocketAddr::new(config.bind, config.port);
-        let http = tiny_http::Server::http(want).map_err(|e| {
+        let (listener, addr) = http::bind(want).map_err(|e| {
             Error::invalid(
                 format!("--bind/--port {want}"),
                 format!("cannot listen: {e}"),
             )
         })?;
-        let addr = http
-            .server_addr()
-            .to_ip()
-            .ok_or_else(|| Error::invalid("--bind", "not an IP address"))?;
-        let http = Arc::new(http);
         let state = Arc::new(jobs::State::new(config, compute));
+        let (tx, rx) = http::queue();
+        let stop = Arc::new(Mutex::new(false));
+        let spawn_err =
+            |e: std::io::Error| Error::Gpu(format!("cannot start a server thread: {e}"));
         let workers = (0..state.config.workers)
             .map(|i| {
-                let (http, state) = (http.clone(), state.clone());
+                let (rx, state) = (rx.clone(), state.clone());
                 std::thread::Builder::new()
                     .name(format!("serve-worker-{i}"))
-                    .spawn(move || {
-                        // recv() fails only when the server is unblocked (shut down).
-                        while let Ok(request) = http.recv() {
-                            api::handle(&state, request);
-                        }
+                    .spawn(move || loop {
+                        // The lock is held only while waiting for the next connection.
+                        let next = jobs::lock(&rx).recv();
+                        let Ok(stream) = next else { return };
+                        let max = state.config.max_upload_bytes;
+                        http::serve_connection(stream, max, |request| api::handle(&state, request));
                     })
-                    .map_err(|e| Error::Gpu(format!("cannot start a worker thread: {e}")))
+                    .map_err(spawn_err)
             })
             .collect::<Result<Vec<_>>>()?;
+        let acceptor = {
+            let stop = stop.clone();
+            std::thread::Builder::new()
+                .name("serve-accept".into())
+                .spawn(move || http::accept_loop(listener, tx, stop))
+                .map_err(spawn_err)?
+        };
         Ok(Server {
-            http,
             state,
             workers,
+            acceptor: Some(acceptor),
+            stop,
             addr,
         })
     }
@@ -149,18 +159,22 @@ impl Server {
     }
 
     /// Serve until the process ends.
-    pub fn join(self) {
-        for w in self.workers {
-            let _ = w.join();
+    pub fn join(mut self) {
+        if let Some(a) = self.acceptor.take() {
+            let _ = a.join();
         }
     }
 
-    /// Stop accepting requests and wait for the workers to finish the ones they hold.
-    pub fn shutdown(self) {
-        for _ in 0..self.workers.len() {
-            self.http.unblock();
+    /// Stop accepting connections and wait for the workers to finish the ones they hold.
+    pub fn shutdown(mut self) {
+        *jobs::lock(&self.stop) = true;
+        // Wake the acceptor (blocked in accept) so it sees the flag and drops the queue, which
+        // ends the workers once the queue is empty.
+        let _ = std::net::TcpStream::connect(self.addr);
+        if let Some(a) = self.acceptor.take() {
+            let _ = a.join();
         }
-        for w in self.workers {
+        for w in self.workers.drain(..) {
             let _ = w.join();
         }
     }
