@@ -1,8 +1,8 @@
 // End-to-end test of `solidsynth serve`, driven as a person would use it, in headless Chromium
 // (Debian's /usr/bin/chromium through playwright-core; no browser download).
 //
-// Builds the binary (cargo, the profile `cargo test` already built, so it is a no-op in CI; set
-// SOLIDSYNTH_BIN to use another binary), starts the server on a free loopback port, then:
+// Uses the binary SOLIDSYNTH_BIN (.ci/run passes the one `cargo test` built), else builds it with
+// `cargo build` (dev profile); starts the server on a free loopback port, then:
 // loads the page, runs a synthesis (picks an exemplar and seed, clicks Synthesize, sees progress),
 // moves the cut slider with the keyboard, checks that a new cut image arrived from the server and
 // that its latency is shown, checks the WebGL view rendered, and saves a screenshot.
