@@ -53,7 +53,7 @@ pub fn from_image(img: &image::RgbaImage, nz: u32, channels: u32) -> Result<Volu
     }
     let cols = columns(nz);
     let rows = nz.div_ceil(cols);
-    if img.width() % cols != 0 || img.height() % rows != 0 || img.width() == 0 {
+    if !img.width().is_multiple_of(cols) || !img.height().is_multiple_of(rows) || img.width() == 0 {
         return Err(Error::invalid(
             "flipbook",
             format!(

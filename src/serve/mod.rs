@@ -77,7 +77,7 @@ impl Default for ServeConfig {
 impl ServeConfig {
     pub fn validate(&self) -> Result<()> {
         self.params.validate()?;
-        if !(8..=256).contains(&self.preview_size) || self.preview_size % 4 != 0 {
+        if !(8..=256).contains(&self.preview_size) || !self.preview_size.is_multiple_of(4) {
             return Err(Error::invalid(
                 format!("--preview-size {}", self.preview_size),
                 "must be a multiple of 4 in 8..=256",
