@@ -4,6 +4,7 @@
 
 mod bucket;
 mod compare;
+mod lapped_render;
 mod project;
 mod ptm_relight;
 mod shaders;

@@ -26,6 +26,10 @@ pub enum Error {
     /// No GPU adapter matched, or the GPU reported an error or timed out.
     #[error("GPU: {0}")]
     Gpu(String),
+
+    /// A numerical step failed where valid input should never make it fail (a bug).
+    #[error("internal error: {0}")]
+    Internal(String),
 }
 
 impl Error {
@@ -69,7 +73,7 @@ impl Error {
                     | std::io::ErrorKind::UnexpectedEof
                     | std::io::ErrorKind::ReadOnlyFilesystem
             ),
-            Error::Gpu(_) => false,
+            Error::Gpu(_) | Error::Internal(_) => false,
         }
     }
 }

@@ -184,6 +184,29 @@ gpu_struct! {
 }
 
 /// Every shared struct: (WGSL kernel, struct name, Rust layout, Rust size).
+/// Uniforms of the render pipeline `wgsl/lapped_render.wgsl` (floats: no `Eq`, so not through
+/// `gpu_struct!`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct RenderParams {
+    /// Column-major world-to-clip matrix.
+    pub view_proj: [f32; 16],
+    /// xyz: eye position.
+    pub eye: [f32; 4],
+    /// Depth clamps (1) or wraps (0); mask layers; exemplar size; mask size.
+    pub flags: [f32; 4],
+}
+const _: () = assert!(std::mem::size_of::<RenderParams>() == 96);
+impl RenderParams {
+    pub fn layout() -> Vec<(&'static str, usize)> {
+        vec![
+            ("view_proj", std::mem::offset_of!(RenderParams, view_proj)),
+            ("eye", std::mem::offset_of!(RenderParams, eye)),
+            ("flags", std::mem::offset_of!(RenderParams, flags)),
+        ]
+    }
+}
+
 pub fn all_layouts() -> Vec<(
     &'static str,
     &'static str,
@@ -239,6 +262,12 @@ pub fn all_layouts() -> Vec<(
             "PtmRelightParams",
             PtmRelightParams::layout(),
             size_of::<PtmRelightParams>(),
+        ),
+        (
+            "lapped_render",
+            "RenderParams",
+            RenderParams::layout(),
+            size_of::<RenderParams>(),
         ),
     ]
 }

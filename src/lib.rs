@@ -13,6 +13,7 @@ pub mod gpu;
 pub mod gradient;
 pub mod io;
 pub mod kernel_types;
+pub mod lapped;
 pub mod lazy;
 pub mod mesh;
 pub mod metrics;

@@ -19,6 +19,9 @@ pub enum BenchCommand {
     /// PTM synthesis (projection vs brute-force search, identical output) and relighting (CPU vs
     /// GPU) on a synthetic capture.
     Ptm(super::ptm_bench::BenchPtmArgs),
+    /// Lapped solid textures: fill time and memory (fresh processes), warm 512^2 cut latency,
+    /// optionally the GPU render.
+    Lapped(super::lapped_bench::BenchLappedArgs),
     /// Load test of `serve`: concurrent cut requests on loopback; throughput, p50/p95 latency,
     /// failures.
     Serve(super::serve::BenchServeArgs),
@@ -92,6 +95,7 @@ pub fn run(cmd: BenchCommand) -> anyhow::Result<()> {
         BenchCommand::Synth(args) => bench_synth(args),
         BenchCommand::GradientSynth(args) => bench_gradient_synth(args),
         BenchCommand::Ptm(args) => super::ptm_bench::run(args),
+        BenchCommand::Lapped(args) => super::lapped_bench::run(args),
         BenchCommand::Serve(args) => super::serve::bench(args),
     }
 }

@@ -6,6 +6,8 @@ pub mod cut;
 pub mod eval;
 pub mod gradient;
 pub mod inspect;
+pub mod lapped;
+pub mod lapped_bench;
 pub mod ptm;
 pub mod ptm_bench;
 pub mod serve;
@@ -53,6 +55,9 @@ pub enum Command {
     /// Relightable textures (polynomial texture maps): capture, fit, synthesize, relight.
     #[command(subcommand)]
     Ptm(ptm::PtmCommand),
+    /// Lapped solid textures: fill a mesh with pasted solid exemplars; cut, render, bake.
+    #[command(subcommand)]
+    Lapped(lapped::LappedCommand),
     /// The interactive viewer: a local web page (built into the binary) to cut through the
     /// solid, and its HTTP API.
     Serve(serve::ServeArgs),
@@ -97,6 +102,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Surface(a) => surface::run(a, cli.quiet),
         Command::Gradient(g) => gradient::run(g, cli.quiet),
         Command::Ptm(p) => ptm::run(p, cli.quiet),
+        Command::Lapped(l) => lapped::run(l, cli.quiet),
         Command::Serve(a) => serve::run(a, cli.quiet),
         Command::Bench(b) => bench::run(b),
         Command::Adapters => {

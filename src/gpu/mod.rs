@@ -3,6 +3,7 @@
 
 pub mod bucket_accumulate;
 pub mod context;
+pub mod lapped_render;
 pub mod project;
 pub mod ptm_relight;
 pub mod shaders;

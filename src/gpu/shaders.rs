@@ -27,6 +27,11 @@ pub const KERNELS: &[(&str, &str)] = &[
         "bucket_accumulate",
         include_str!("../../wgsl/bucket_accumulate.wgsl"),
     ),
+    // A render pipeline (vs_main / fs_main), not a compute kernel.
+    (
+        "lapped_render",
+        include_str!("../../wgsl/lapped_render.wgsl"),
+    ),
 ];
 
 /// The source of kernel `name`.

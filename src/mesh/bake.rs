@@ -114,6 +114,31 @@ impl Atlas {
     }
 }
 
+impl Atlas {
+    /// Every texel's point in the mesh's own coordinates, with its triangle (row-major; texels
+    /// of unused cells get `u32::MAX` and the first corner of triangle 0).
+    pub fn texel_points(&self, mesh: &Mesh) -> Vec<(u32, DVec3)> {
+        let p = |i: u32| {
+            let v = mesh.positions[i as usize];
+            DVec3::new(v[0] as f64, v[1] as f64, v[2] as f64)
+        };
+        let fallback = (u32::MAX, p(mesh.triangles[0][0]));
+        let mut out = vec![fallback; self.width as usize * self.height as usize];
+        let t = self.texels;
+        for (k, tri) in mesh.triangles.iter().enumerate() {
+            let corners = tri.map(p);
+            let (cx, cy) = ((k as u32 % self.cols) * t, (k as u32 / self.cols) * t);
+            for j in 0..t {
+                for i in 0..t {
+                    out[((cy + j) * self.width + cx + i) as usize] =
+                        (k as u32, self.point(&corners, i, j));
+                }
+            }
+        }
+        out
+    }
+}
+
 /// Texels per triangle giving about one texel per voxel along the median edge (2..=64).
 pub fn auto_texels(mesh: &Mesh, place: &Placement) -> u32 {
     let mut edges: Vec<f64> = mesh

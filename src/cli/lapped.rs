@@ -1,0 +1,427 @@
+//! `solidsynth lapped`: lapped solid textures: fill a mesh with pasted solid exemplars, then
+//! cut, render or bake the model.
+
+use super::cut::triple;
+use super::{progress_bar, BackendArgs};
+use clap::{Args, Subcommand};
+use solidsynth::backend::{BackendChoice, Compute};
+use solidsynth::io::{atomic, nrrd};
+use solidsynth::lapped::camera::Camera;
+use solidsynth::lapped::exemplar::SolidExemplar;
+use solidsynth::lapped::field::Constraints;
+use solidsynth::lapped::model::LstModel;
+use solidsynth::lapped::{self, FillOptions};
+use solidsynth::lazy::cut::CutSpec;
+use solidsynth::mesh::{self, bake as mesh_bake};
+use solidsynth::Error;
+use std::path::PathBuf;
+use std::time::Instant;
+
+#[derive(Subcommand, Debug)]
+pub enum LappedCommand {
+    /// Tetrahedralize a closed mesh and fill it with patches of a solid exemplar (.lst model).
+    Fill(FillArgs),
+    /// A planar cross-section of a model as a PNG.
+    Cut(CutArgs),
+    /// An offscreen GPU render of a model's surface as a PNG.
+    Render(RenderArgs),
+    /// The model's surface as a textured binary glTF (.glb).
+    Bake(BakeArgs),
+    /// Write a procedural depth-varying exemplar (texture y = depth) as NRRD, for the kiwi
+    /// example (types 1-b and 2-b).
+    Exemplar(ExemplarArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct ExemplarArgs {
+    /// The procedural exemplar (only `kiwi` so far).
+    #[arg(long, default_value = "kiwi")]
+    pub kind: String,
+    #[arg(long, default_value_t = 64, value_parser = clap::value_parser!(u32).range(8..=256))]
+    pub size: u32,
+    #[arg(short, long)]
+    pub output: PathBuf,
+}
+
+#[derive(Args, Debug)]
+pub struct FillArgs {
+    /// Closed (or nearly closed) triangle mesh: .obj, .ply or .ply.gz, or a built-in shape:
+    /// `builtin:sphere` (unit sphere) or `builtin:bent-cylinder` (radius 0.3 around a quarter
+    /// circle of radius 1 from (1,0,0) to (0,1,0)).
+    #[arg(long)]
+    pub mesh: PathBuf,
+    /// Solid exemplar: a cubic NRRD volume (e.g. from `solidsynth synth --tileable --size 64`).
+    #[arg(long)]
+    pub exemplar: PathBuf,
+    /// Constraints file (JSON: texture type, scales, strokes, depth). Default: type 0, isotropic.
+    #[arg(long)]
+    pub field: Option<PathBuf>,
+    /// World size of one exemplar cube (default: a third of the mesh's longest side; the
+    /// constraints file's "scale" wins over this).
+    #[arg(long)]
+    pub scale: Option<f64>,
+    /// Tet lattice cells along the mesh's longest side (12 gives ~5,000 tets for a bunny).
+    #[arg(long, default_value_t = lapped::DEFAULT_RESOLUTION)]
+    pub resolution: u32,
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Output model (.lst).
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Print a JSON summary on stdout.
+    #[arg(long)]
+    pub json: bool,
+}
+
+#[derive(Args, Debug)]
+pub struct CutArgs {
+    /// The model (.lst).
+    pub model: PathBuf,
+    /// A point of the cut plane (the image centre), X,Y,Z in model units, or `center` (of the
+    /// model's bounding box).
+    #[arg(long, allow_hyphen_values = true)]
+    pub origin: String,
+    /// Normal of the plane, NX,NY,NZ (any length but zero).
+    #[arg(long, allow_hyphen_values = true)]
+    pub normal: String,
+    /// Up direction, projected onto the plane (default +y, or +z when the normal is along y).
+    #[arg(long, allow_hyphen_values = true)]
+    pub up: Option<String>,
+    /// Pixels per side.
+    #[arg(long, default_value_t = 512)]
+    pub size: u32,
+    /// Model units across the image (default: the model's bounding-box diagonal).
+    #[arg(long)]
+    pub extent: Option<f64>,
+    /// Cut K times and print the median and p95 latency.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=10000))]
+    pub repeat: u32,
+    #[arg(short, long)]
+    pub output: PathBuf,
+    #[arg(long)]
+    pub json: bool,
+}
+
+#[derive(Args, Debug)]
+pub struct RenderArgs {
+    /// The model (.lst).
+    pub model: PathBuf,
+    /// Orbit camera: AZ,EL[,DIST]: azimuth about +y from +z and elevation (degrees), distance
+    /// in bounding radii (default 2.6).
+    #[arg(long, default_value = "30,20", allow_hyphen_values = true)]
+    pub camera: String,
+    /// Pixels per side.
+    #[arg(long, default_value_t = 1024)]
+    pub size: u32,
+    #[command(flatten)]
+    pub backend: BackendArgs,
+    #[arg(short, long)]
+    pub output: PathBuf,
+    #[arg(long)]
+    pub json: bool,
+}
+
+#[derive(Args, Debug)]
+pub struct BakeArgs {
+    /// The model (.lst).
+    pub model: PathBuf,
+    /// Texels per triangle cell side (default: about one per exemplar voxel).
+    #[arg(long)]
+    pub texels: Option<u32>,
+    /// Output: .glb.
+    #[arg(short, long)]
+    pub output: PathBuf,
+    #[arg(long)]
+    pub json: bool,
+}
+
+pub fn run(cmd: LappedCommand, quiet: bool) -> anyhow::Result<()> {
+    match cmd {
+        LappedCommand::Fill(a) => fill(a, quiet),
+        LappedCommand::Cut(a) => cut(a, quiet),
+        LappedCommand::Render(a) => render(a, quiet),
+        LappedCommand::Bake(a) => bake(a, quiet),
+        LappedCommand::Exemplar(a) => {
+            atomic::check_output_path(&a.output, "-o")?;
+            if a.kind != "kiwi" {
+                return Err(Error::invalid(
+                    format!("--kind {}", a.kind),
+                    "the only procedural exemplar is `kiwi`",
+                )
+                .into());
+            }
+            nrrd::save(&lapped::exemplar::kiwi(a.size).to_volume(), &a.output)?;
+            Ok(())
+        }
+    }
+}
+
+fn fill(args: FillArgs, quiet: bool) -> anyhow::Result<()> {
+    atomic::check_output_path(&args.output, "-o")?;
+    let mesh_name = args.mesh.display().to_string();
+    let surface = load_mesh(&args.mesh)?;
+    let exemplar_name = args.exemplar.display().to_string();
+    let volume = nrrd::load(&args.exemplar)?;
+    let exemplar = SolidExemplar::from_volume(&volume, &exemplar_name)?;
+    let (constraints, constraints_name) = match &args.field {
+        Some(p) => (Constraints::load(p)?, p.display().to_string()),
+        None => (Constraints::isotropic(), "--field".to_string()),
+    };
+    let opts = FillOptions {
+        resolution: args.resolution,
+        scale: args.scale,
+        seed: args.seed,
+    };
+    let bar = progress_bar(quiet || args.json);
+    let report_progress = |covered: usize, total: usize| {
+        bar.set_length(total as u64);
+        bar.set_position(covered as u64);
+        bar.set_message(format!("{covered}/{total} tets covered"));
+    };
+    let start = Instant::now();
+    let (model, report) = lapped::build(
+        &surface,
+        &mesh_name,
+        exemplar,
+        &exemplar_name,
+        &constraints,
+        &constraints_name,
+        &opts,
+        &report_progress,
+    )?;
+    bar.finish_and_clear();
+    let seconds = start.elapsed().as_secs_f64();
+    let bytes = model.to_bytes();
+    atomic::write_file(&args.output, &bytes)?;
+    let q = &report.quality;
+    if args.json {
+        println!(
+            "{}",
+            serde_json::json!({
+                "output": args.output, "texture_type": model.kind.name(),
+                "tets": q.tets, "vertices": q.vertices,
+                "min_dihedral_degrees": q.min_dihedral, "max_dihedral_degrees": q.max_dihedral,
+                "inverted_tets": q.inverted, "volume": q.volume,
+                "patches": report.fill.patches, "forced_tets": report.fill.forced,
+                "mean_layers_per_tet": model.mean_layers(),
+                "mean_clump_tets": report.fill.mean_clump_tets,
+                "default_scale": report.default_scale,
+                "mesh_seconds": report.mesh_seconds, "field_seconds": report.field_seconds,
+                "fill_seconds": report.fill_seconds, "total_seconds": seconds,
+                "model_bytes": bytes.len(),
+                "peak_rss_bytes": solidsynth::util::memory::peak_rss_bytes(),
+            })
+        );
+    } else if !quiet {
+        if report.fill.forced > 0 {
+            eprintln!(
+                "warning: {} tets never reached full coverage (too large for the patch scale): \
+                 raise --scale or --resolution",
+                report.fill.forced
+            );
+        }
+        eprintln!(
+            "tet mesh: {} tets, {} vertices, dihedral angles {:.1}..{:.1} degrees, {} inverted \
+             ({:.2} s)\nfilled with {} patches (type {}, {:.1} layers per tet, {} tets forced) in \
+             {:.2} s; field {:.2} s; total {seconds:.2} s -> {} ({:.1} MiB)",
+            q.tets,
+            q.vertices,
+            q.min_dihedral,
+            q.max_dihedral,
+            q.inverted,
+            report.mesh_seconds,
+            report.fill.patches,
+            model.kind.name(),
+            model.mean_layers(),
+            report.fill.forced,
+            report.fill_seconds,
+            report.field_seconds,
+            args.output.display(),
+            bytes.len() as f64 / (1 << 20) as f64
+        );
+    }
+    Ok(())
+}
+
+/// A mesh file or a `builtin:` shape.
+fn load_mesh(path: &std::path::Path) -> solidsynth::Result<mesh::Mesh> {
+    match path.to_str() {
+        Some("builtin:sphere") => Ok(lapped::shapes::sphere(48, 24)),
+        Some("builtin:bent-cylinder") => Ok(lapped::shapes::bent_cylinder(0.3, 1.0, 32, 32)),
+        Some(other) if other.starts_with("builtin:") => Err(Error::invalid(
+            format!("--mesh {other}"),
+            "unknown built-in shape (builtin:sphere, builtin:bent-cylinder)",
+        )),
+        _ => mesh::load(path),
+    }
+}
+
+fn cut(args: CutArgs, quiet: bool) -> anyhow::Result<()> {
+    atomic::check_output_path(&args.output, "-o")?;
+    let model = LstModel::load(&args.model)?;
+    let (lo, hi) = model.mesh.vertices.iter().fold(
+        (glam::DVec3::INFINITY, glam::DVec3::NEG_INFINITY),
+        |(l, h), p| (l.min(*p), h.max(*p)),
+    );
+    let extent = args.extent.unwrap_or((hi - lo).length());
+    if !(extent.is_finite() && extent > 0.0) {
+        return Err(
+            Error::invalid(format!("--extent {extent}"), "must be a positive number").into(),
+        );
+    }
+    if !(1..=8192).contains(&args.size) {
+        return Err(Error::invalid(format!("--size {}", args.size), "must be 1..=8192").into());
+    }
+    let spec = CutSpec {
+        origin: if args.origin == "center" {
+            ((lo + hi) / 2.0).to_array()
+        } else {
+            triple(&args.origin, "--origin")?
+        },
+        normal: triple(&args.normal, "--normal")?,
+        up: args.up.as_deref().map(|u| triple(u, "--up")).transpose()?,
+        size: args.size,
+        spacing: extent / args.size as f64,
+    };
+    spec.frame()?;
+    let mut latencies = Vec::new();
+    let mut image = None;
+    for _ in 0..args.repeat {
+        let start = Instant::now();
+        image = Some(lapped::cut::cut(&model, &spec)?);
+        latencies.push(start.elapsed().as_secs_f64() * 1000.0);
+    }
+    let image = image.expect("repeat >= 1");
+    atomic::save_png(&args.output, &image)?;
+    let mut sorted = latencies.clone();
+    sorted.sort_by(f64::total_cmp);
+    let median = sorted[sorted.len() / 2];
+    let p95 = sorted[((sorted.len() as f64 * 0.95).ceil() as usize).clamp(1, sorted.len()) - 1];
+    let inside = image.pixels().filter(|p| p[3] > 0).count();
+    if args.json {
+        println!(
+            "{}",
+            serde_json::json!({"output": args.output, "size": args.size, "repeat": args.repeat,
+                "median_ms": median, "p95_ms": p95, "first_ms": latencies[0],
+                "pixels_inside": inside,
+                "peak_rss_bytes": solidsynth::util::memory::peak_rss_bytes()})
+        );
+    } else if !quiet {
+        eprintln!(
+            "cut {0}x{0} ({inside} pixels inside the model) -> {1}: median {median:.2} ms, p95 \
+             {p95:.2} ms over {2} run(s)",
+            args.size,
+            args.output.display(),
+            args.repeat
+        );
+    }
+    Ok(())
+}
+
+fn render(args: RenderArgs, quiet: bool) -> anyhow::Result<()> {
+    atomic::check_output_path(&args.output, "-o")?;
+    let model = LstModel::load(&args.model)?;
+    let camera = Camera::orbit(&model, &args.camera)?;
+    if args.backend.backend == BackendChoice::Cpu {
+        return Err(Error::invalid(
+            "--backend cpu",
+            "rendering needs a GPU adapter (lavapipe works); use `lapped cut` or `lapped bake` \
+             without one",
+        )
+        .into());
+    }
+    let mut backend = args.backend.clone();
+    // `auto` means the CPU backend on machines with only lavapipe; the render needs wgpu.
+    backend.backend = BackendChoice::Gpu;
+    let gpu = match backend.open()? {
+        Compute::Gpu(g) => g,
+        Compute::Cpu => unreachable!("--backend gpu opens a GPU"),
+    };
+    let start = Instant::now();
+    let image = solidsynth::gpu::lapped_render::render(&gpu, &model, &camera, args.size)?;
+    let ms = start.elapsed().as_secs_f64() * 1000.0;
+    atomic::save_png(&args.output, &image)?;
+    if args.json {
+        println!(
+            "{}",
+            serde_json::json!({"output": args.output, "size": args.size, "render_ms": ms,
+                "adapter": gpu.describe()})
+        );
+    } else if !quiet {
+        eprintln!(
+            "rendered {0}x{0} in {ms:.1} ms on {1} -> {2}",
+            args.size,
+            gpu.describe(),
+            args.output.display()
+        );
+    }
+    Ok(())
+}
+
+fn bake(args: BakeArgs, quiet: bool) -> anyhow::Result<()> {
+    atomic::check_output_path(&args.output, "-o")?;
+    let is_glb = args
+        .output
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("glb"));
+    if !is_glb {
+        return Err(Error::invalid(
+            format!("-o {}", args.output.display()),
+            "the output must end in .glb",
+        )
+        .into());
+    }
+    let model = LstModel::load(&args.model)?;
+    let start = Instant::now();
+    let (surface, tets) = lapped::bake::surface(&model);
+    // The scale a patch was pasted at is in its texture coordinates: one texture unit spans
+    // |grad w|^-1 model units. Estimate it from the first layer of the first surface tet.
+    let scale = layer_scale(&model, tets[0] as usize);
+    let texels = args
+        .texels
+        .unwrap_or_else(|| lapped::bake::auto_texels(&surface, &model, scale));
+    let atlas = mesh_bake::Atlas::new(surface.triangles.len(), texels)?;
+    let image = lapped::bake::bake(&model, &surface, &tets, &atlas)?;
+    let png = atomic::png_bytes(&image)?;
+    atomic::write_file(&args.output, &mesh::glb::glb_bytes(&surface, &atlas, &png))?;
+    let seconds = start.elapsed().as_secs_f64();
+    if args.json {
+        println!(
+            "{}",
+            serde_json::json!({"output": args.output, "triangles": surface.triangles.len(),
+                "texels": texels, "atlas": [atlas.width, atlas.height], "seconds": seconds})
+        );
+    } else if !quiet {
+        eprintln!(
+            "baked {} surface triangles into a {}x{} atlas ({texels} texels per cell) in \
+             {seconds:.2} s -> {}",
+            surface.triangles.len(),
+            atlas.width,
+            atlas.height,
+            args.output.display()
+        );
+    }
+    Ok(())
+}
+
+/// Model units per texture unit of the first layer of tet `t` (the mean stretch of the affine
+/// map from the tet to texture space).
+fn layer_scale(model: &LstModel, t: usize) -> f64 {
+    let Some(layer) = model.layers[t].first() else {
+        return 1.0;
+    };
+    let p = model.mesh.corners(t);
+    let w = layer.coords.map(|c| glam::Vec3::from_array(c).as_dvec3());
+    let (mut world, mut texture) = (0.0, 0.0);
+    for a in 0..4 {
+        for b in a + 1..4 {
+            world += (p[b] - p[a]).length();
+            texture += (w[b] - w[a]).length();
+        }
+    }
+    if texture > 0.0 {
+        world / texture
+    } else {
+        1.0
+    }
+}

@@ -1,0 +1,171 @@
+//! `solidsynth bench lapped`: fill time and memory of a lapped model (each run in a fresh
+//! process), warm cut latency, and the GPU render time.
+
+use clap::Args;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+#[derive(Args, Debug)]
+pub struct BenchLappedArgs {
+    /// Mesh to fill (a file, or builtin:sphere / builtin:bent-cylinder).
+    #[arg(long, default_value = "builtin:sphere")]
+    pub mesh: PathBuf,
+    /// Tet lattice resolution (builtin:sphere at 10: ~5,000 tets).
+    #[arg(long, default_value_t = 10)]
+    pub resolution: u32,
+    /// Solid exemplar (default: `synth --tileable --size 64` of the built-in exemplar).
+    #[arg(long)]
+    pub exemplar: Option<PathBuf>,
+    /// Constraints file.
+    #[arg(long)]
+    pub field: Option<PathBuf>,
+    /// Fill runs (fresh processes); the median is reported.
+    #[arg(long, default_value_t = 5)]
+    pub runs: u32,
+    /// Cuts of 512x512 through the centre (one process, warm); median and p95 reported.
+    #[arg(long, default_value_t = 30)]
+    pub cuts: u32,
+    /// Also time a 1024x1024 GPU render (`--backend gpu`).
+    #[arg(long)]
+    pub render: bool,
+}
+
+fn child(exe: &Path, args: &[&str]) -> anyhow::Result<serde_json::Value> {
+    let out = Command::new(exe).args(args).output()?;
+    if !out.status.success() {
+        anyhow::bail!(
+            "{} failed: {}",
+            args.join(" "),
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+    Ok(serde_json::from_slice(&out.stdout)?)
+}
+
+pub fn run(args: BenchLappedArgs) -> anyhow::Result<()> {
+    let dir = tempfile::tempdir()?;
+    let exe = std::env::current_exe()?;
+    let s = |p: &Path| p.to_string_lossy().into_owned();
+    let exemplar = match &args.exemplar {
+        Some(p) => p.clone(),
+        None => {
+            let p = dir.path().join("exemplar.nrrd");
+            let out = Command::new(&exe)
+                .args(["--quiet", "synth", "--tileable", "--size", "64", "-o"])
+                .arg(&p)
+                .output()?;
+            anyhow::ensure!(out.status.success(), "synth of the exemplar failed");
+            p
+        }
+    };
+    let model = dir.path().join("bench.lst");
+    let mut fill_args = vec![
+        "--quiet".to_string(),
+        "lapped".into(),
+        "fill".into(),
+        "--mesh".into(),
+        s(&args.mesh),
+        "--exemplar".into(),
+        s(&exemplar),
+        "--resolution".into(),
+        args.resolution.to_string(),
+        "--json".into(),
+        "-o".into(),
+        s(&model),
+    ];
+    if let Some(f) = &args.field {
+        fill_args.push("--field".into());
+        fill_args.push(s(f));
+    }
+    let fill_refs: Vec<&str> = fill_args.iter().map(String::as_str).collect();
+    let mut runs = Vec::new();
+    for _ in 0..args.runs.max(1) {
+        runs.push(child(&exe, &fill_refs)?);
+    }
+    let total = |v: &serde_json::Value| v["total_seconds"].as_f64().unwrap_or(f64::NAN);
+    runs.sort_by(|a, b| total(a).total_cmp(&total(b)));
+    let m = &runs[runs.len() / 2];
+    let f = |k: &str| m[k].as_f64().unwrap_or(f64::NAN);
+    println!(
+        "lapped fill of {} at resolution {}: median of {} run(s)",
+        args.mesh.display(),
+        args.resolution,
+        runs.len()
+    );
+    println!(
+        "  {} tets ({} vertices, dihedral {:.1}..{:.1} deg, {} inverted), {} patches, {:.1} \
+         layers/tet",
+        m["tets"],
+        m["vertices"],
+        f("min_dihedral_degrees"),
+        f("max_dihedral_degrees"),
+        m["inverted_tets"],
+        m["patches"],
+        f("mean_layers_per_tet")
+    );
+    println!(
+        "  total {:.3} s = mesh {:.3} s + field {:.3} s + fill {:.3} s; peak RSS {:.1} MiB; \
+         model {:.1} MiB",
+        f("total_seconds"),
+        f("mesh_seconds"),
+        f("field_seconds"),
+        f("fill_seconds"),
+        f("peak_rss_bytes") / (1 << 20) as f64,
+        f("model_bytes") / (1 << 20) as f64
+    );
+    // The cut through the model's centre, warm: the first cut is included in the median only
+    // as one sample of `cuts`.
+    let v = child(
+        &exe,
+        &[
+            "--quiet",
+            "lapped",
+            "cut",
+            &s(&model),
+            "--origin",
+            "0,0,0",
+            "--normal",
+            "0.3,0.2,1",
+            "--size",
+            "512",
+            "--repeat",
+            &args.cuts.max(1).to_string(),
+            "--json",
+            "-o",
+            &s(&dir.path().join("cut.png")),
+        ],
+    )?;
+    println!(
+        "  cut 512x512 ({} pixels inside): median {:.2} ms, p95 {:.2} ms over {} cuts; peak RSS \
+         {:.1} MiB",
+        v["pixels_inside"],
+        v["median_ms"].as_f64().unwrap_or(f64::NAN),
+        v["p95_ms"].as_f64().unwrap_or(f64::NAN),
+        args.cuts.max(1),
+        v["peak_rss_bytes"].as_f64().unwrap_or(f64::NAN) / (1 << 20) as f64
+    );
+    if args.render {
+        let v = child(
+            &exe,
+            &[
+                "--quiet",
+                "lapped",
+                "render",
+                &s(&model),
+                "--size",
+                "1024",
+                "--backend",
+                "gpu",
+                "--json",
+                "-o",
+                &s(&dir.path().join("view.png")),
+            ],
+        )?;
+        println!(
+            "  render 1024x1024: {:.1} ms on {}",
+            v["render_ms"].as_f64().unwrap_or(f64::NAN),
+            v["adapter"].as_str().unwrap_or("?")
+        );
+    }
+    Ok(())
+}
