@@ -446,3 +446,47 @@ fn hostile_requests_are_refused_without_reading_or_allocating_them() {
     // And the server still answers.
     assert_eq!(get(addr, "/api/health").json()["ok"], true);
 }
+
+#[test]
+fn a_gpu_server_cuts_the_same_bytes_as_the_cpu_one() {
+    use solidsynth::backend::BackendChoice;
+    let (cpu_addr, cpu_solid) = server();
+    let compute = match Compute::open(BackendChoice::Gpu, &solidsynth::gpu::GpuOptions::from_env())
+    {
+        Ok(c) => c,
+        Err(e) => {
+            assert!(std::env::var_os("CI").is_none(), "no GPU in CI: {e}");
+            eprintln!("SKIPPED the GPU server (no adapter, CI unset): {e}");
+            return;
+        }
+    };
+    let config = ServeConfig {
+        port: 0,
+        preview_size: PREVIEW,
+        ..ServeConfig::default()
+    };
+    let server = Server::start(config, compute).unwrap();
+    let addr = server.addr();
+    let job = server
+        .state()
+        .start_job(
+            Source::Image {
+                name: "cells32".into(),
+                image: common::fixture("cells32.png"),
+                periodic: true,
+            },
+            3,
+        )
+        .unwrap();
+    let gpu_solid = wait_job(addr, job.id);
+    assert!(get(addr, "/api/state").json()["backend"]
+        .as_str()
+        .unwrap()
+        .starts_with("gpu"));
+    let q = "origin=7,9,6.5&normal=0,0.6,0.8&size=20";
+    let a = get(cpu_addr, &cut_path(cpu_solid, q));
+    let b = get(addr, &cut_path(gpu_solid, q));
+    assert_eq!((a.status, b.status), (200, 200));
+    assert_eq!(a.body, b.body, "GPU and CPU cuts differ");
+    server.shutdown();
+}
