@@ -18,6 +18,7 @@ pub mod lazy;
 pub mod mesh;
 pub mod metrics;
 pub mod ptm;
+pub mod serve;
 pub mod util;
 pub mod volume;
 

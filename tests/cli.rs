@@ -427,6 +427,8 @@ fn synth_writes_nrrd_flipbook_slices_and_sheet_from_an_ssa() {
         let p = f.get_pixel(12 + x, 12 + y);
         assert_eq!(&p.0[..3], v.at(x, y, 5));
     }
+    // And the whole flipbook reads back as the volume (round trip).
+    assert_eq!(solidsynth::io::flipbook::from_image(&f, 12, 3).unwrap(), v);
 }
 
 #[test]

@@ -22,6 +22,9 @@ pub enum BenchCommand {
     /// Lapped solid textures: fill time and memory (fresh processes), warm 512^2 cut latency,
     /// optionally the GPU render.
     Lapped(super::lapped_bench::BenchLappedArgs),
+    /// Load test of `serve`: concurrent cut requests on loopback; throughput, p50/p95 latency,
+    /// failures.
+    Serve(super::serve::BenchServeArgs),
 }
 
 #[derive(Args, Debug)]
@@ -93,6 +96,7 @@ pub fn run(cmd: BenchCommand) -> anyhow::Result<()> {
         BenchCommand::GradientSynth(args) => bench_gradient_synth(args),
         BenchCommand::Ptm(args) => super::ptm_bench::run(args),
         BenchCommand::Lapped(args) => super::lapped_bench::run(args),
+        BenchCommand::Serve(args) => super::serve::bench(args),
     }
 }
 

@@ -10,6 +10,7 @@ pub mod lapped;
 pub mod lapped_bench;
 pub mod ptm;
 pub mod ptm_bench;
+pub mod serve;
 pub mod surface;
 pub mod synth;
 
@@ -57,6 +58,9 @@ pub enum Command {
     /// Lapped solid textures: fill a mesh with pasted solid exemplars; cut, render, bake.
     #[command(subcommand)]
     Lapped(lapped::LappedCommand),
+    /// The interactive viewer: a local web page (built into the binary) to cut through the
+    /// solid, and its HTTP API.
+    Serve(serve::ServeArgs),
     /// Benchmarks printed as tables.
     #[command(subcommand)]
     Bench(bench::BenchCommand),
@@ -99,6 +103,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Gradient(g) => gradient::run(g, cli.quiet),
         Command::Ptm(p) => ptm::run(p, cli.quiet),
         Command::Lapped(l) => lapped::run(l, cli.quiet),
+        Command::Serve(a) => serve::run(a, cli.quiet),
         Command::Bench(b) => bench::run(b),
         Command::Adapters => {
             let list = solidsynth::gpu::context::list_adapters();

@@ -172,20 +172,9 @@ fn check_slices_dir(dir: &Path) -> solidsynth::Result<()> {
     Ok(())
 }
 
-/// All z slices in a grid of ceil(sqrt(N)) columns, row-major, x along rows of each tile.
+/// All z slices in a grid of ceil(sqrt(N)) columns (see [`solidsynth::io::flipbook`]).
 pub fn flipbook(v: &Volume) -> image::RgbaImage {
-    let cols = (v.nz as f64).sqrt().ceil() as u32;
-    let rows = v.nz.div_ceil(cols);
-    let mut img = image::RgbaImage::new(cols * v.nx, rows * v.ny);
-    for z in 0..v.nz {
-        let (ox, oy) = ((z % cols) * v.nx, (z / cols) * v.ny);
-        for y in 0..v.ny {
-            for x in 0..v.nx {
-                img.put_pixel(ox + x, oy + y, rgba(v.at(x, y, z)));
-            }
-        }
-    }
-    img
+    solidsynth::io::flipbook::to_image(v)
 }
 
 fn rgba(p: &[u8]) -> image::Rgba<u8> {

@@ -128,6 +128,11 @@ impl CutSession {
     pub fn synthesizer(&self) -> &Synthesizer {
         &self.synth
     }
+
+    /// The synthesizer, to synthesize boxes of the same solid with the same warm state.
+    pub fn synthesizer_mut(&mut self) -> &mut Synthesizer {
+        &mut self.synth
+    }
 }
 
 #[cfg(test)]

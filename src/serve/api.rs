@@ -1,0 +1,472 @@
+//! Routing and parameter validation. Every answer is JSON (errors: `{"error": MESSAGE}`), a PNG
+//! or a volume file; bad parameters get 400 naming the parameter, unknown paths 404, a wrong
+//! method 405, an oversized upload 413, a full queue 503. A handler that panics (a bug) answers
+//! 500 and the worker goes on serving.
+
+use super::assets;
+use super::http::{Request, Response};
+use super::jobs::{self, Source, State};
+use crate::error::Error;
+use crate::lazy::cut::CutSpec;
+use std::sync::Arc;
+use std::time::Instant;
+
+/// A response before it is sent.
+pub struct Reply {
+    pub status: u16,
+    pub content_type: &'static str,
+    pub body: Vec<u8>,
+    pub headers: Vec<(String, String)>,
+}
+
+impl Reply {
+    pub fn json(status: u16, value: serde_json::Value) -> Reply {
+        Reply {
+            status,
+            content_type: "application/json",
+            body: value.to_string().into_bytes(),
+            headers: vec![],
+        }
+    }
+
+    pub fn error(status: u16, message: impl Into<String>) -> Reply {
+        Reply::json(status, serde_json::json!({"error": message.into()}))
+    }
+
+    fn bytes(content_type: &'static str, body: Vec<u8>) -> Reply {
+        Reply {
+            status: 200,
+            content_type,
+            body,
+            headers: vec![],
+        }
+    }
+
+    fn header(mut self, name: &str, value: impl Into<String>) -> Reply {
+        self.headers.push((name.into(), value.into()));
+        self
+    }
+}
+
+/// Answer one request (called by a worker thread with the request read whole).
+pub fn handle(state: &Arc<State>, request: Request) -> Response {
+    let start = Instant::now();
+    let reply = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| route(state, &request)))
+        .unwrap_or_else(|_| Reply::error(500, "internal error (a bug); the server goes on"));
+    tracing::debug!(
+        "{} {} -> {} in {:.1} ms",
+        request.method,
+        request.target,
+        reply.status,
+        start.elapsed().as_secs_f64() * 1e3
+    );
+    Response {
+        status: reply.status,
+        content_type: reply.content_type,
+        headers: reply.headers,
+        body: reply.body,
+    }
+}
+
+fn route(state: &Arc<State>, request: &Request) -> Reply {
+    let (path, query) = request
+        .target
+        .split_once('?')
+        .unwrap_or((&request.target, ""));
+    let method = request.method.as_str();
+    let segments: Vec<&str> = path.trim_start_matches('/').split('/').collect();
+    let get = method == "GET";
+    let query = match Query::parse(query) {
+        Ok(q) => q,
+        Err(e) => return Reply::error(400, e),
+    };
+    let result = match (segments.as_slice(), get) {
+        (["api", "health"], true) => Ok(Reply::json(200, serde_json::json!({"ok": true}))),
+        (["api", "state"], true) => Ok(state_json(state)),
+        (["api", "exemplars"], true) => Ok(exemplars_json()),
+        (["api", "exemplars", file], true) => exemplar_png(file),
+        (["api", "solids"], false) if method == "POST" => new_solid(state, &request.body, &query),
+        (["api", "jobs", id], true) => parse_id(id).and_then(|id| {
+            state
+                .job(id)
+                .map(|j| Reply::json(200, serde_json::json!(j.status())))
+                .ok_or_else(|| (404, format!("no job {id}")))
+        }),
+        (["api", "solids", id], true) => solid_of(state, id).map(|s| Reply::json(200, s.info())),
+        (["api", "solids", id, "cut"], true) => {
+            solid_of(state, id).and_then(|s| cut(state, &s, &query))
+        }
+        (["api", "solids", id, "volume"], true) => {
+            solid_of(state, id).and_then(|s| volume(state, &s, &query))
+        }
+        (["api", ..], _) if known_api_path(&segments) => {
+            Err((405, format!("{method} is not allowed on {path}")))
+        }
+        (["api", ..], _) => Err((404, format!("no API endpoint {path}"))),
+        (_, true) => match assets::get(path) {
+            Some(a) => Ok(Reply::bytes(a.content_type, a.body.to_vec())),
+            None => Err((404, format!("no page {path}"))),
+        },
+        (_, false) => Err((405, format!("{method} is not allowed on {path}"))),
+    };
+    result.unwrap_or_else(|(status, message)| Reply::error(status, message))
+}
+
+type Answer = Result<Reply, (u16, String)>;
+
+fn known_api_path(segments: &[&str]) -> bool {
+    matches!(
+        segments,
+        ["api", "health" | "state" | "exemplars" | "solids"]
+            | ["api", "exemplars" | "jobs" | "solids", _]
+            | ["api", "solids", _, "cut" | "volume"]
+    )
+}
+
+fn parse_id(text: &str) -> Result<u64, (u16, String)> {
+    text.parse::<u64>()
+        .map_err(|_| (404, format!("{text:?} is not an id")))
+}
+
+fn solid_of(state: &State, id: &str) -> Result<std::sync::Arc<jobs::Solid>, (u16, String)> {
+    let id = parse_id(id)?;
+    state.solid(id).ok_or_else(|| {
+        (
+            404,
+            format!(
+                "no solid {id} (solids are kept while newer ones come: at most {})",
+                state.config.max_solids
+            ),
+        )
+    })
+}
+
+/// A library error: the caller's input (400) or ours (500).
+fn from_error(e: Error) -> (u16, String) {
+    (if e.is_user_error() { 400 } else { 500 }, e.to_string())
+}
+
+fn state_json(state: &State) -> Reply {
+    let c = &state.config;
+    Reply::json(
+        200,
+        serde_json::json!({
+            "solids": state.solids().iter().map(|s| s.info()).collect::<Vec<_>>(),
+            "jobs": state.jobs(),
+            "backend": state.compute.describe(),
+            "limits": {
+                "max_cut_size": c.max_cut_size, "max_volume_size": c.max_volume_size,
+                "preview_size": c.preview_size, "max_upload_bytes": c.max_upload_bytes,
+                "max_upload_side": c.max_upload_side, "max_queued": c.max_queued,
+            },
+        }),
+    )
+}
+
+fn exemplars_json() -> Reply {
+    let list: Vec<_> = jobs::BUILTINS
+        .iter()
+        .map(|b| serde_json::json!({"name": b.name, "description": b.description}))
+        .collect();
+    Reply::json(200, serde_json::json!(list))
+}
+
+fn exemplar_png(file: &str) -> Answer {
+    let b = file
+        .strip_suffix(".png")
+        .and_then(jobs::builtin)
+        .ok_or_else(|| (404, format!("no built-in exemplar {file}")))?;
+    let png = crate::io::atomic::png_bytes(&b.image().to_rgba8()).map_err(from_error)?;
+    Ok(Reply::bytes("image/png", png))
+}
+
+/// POST /api/solids: a built-in (`?exemplar=NAME`) or the uploaded image in the body.
+fn new_solid(state: &Arc<State>, body: &[u8], q: &Query) -> Answer {
+    q.only(&["exemplar", "seed", "periodic"])?;
+    let seed = q.u64_in("seed", 0, u32::MAX as u64)?.unwrap_or(0);
+    // The transport refused bodies over `max_upload_bytes` (413) before reading them.
+    let source = match (q.get("exemplar"), body.is_empty()) {
+        (Some(name), true) => {
+            let b = jobs::builtin(name).ok_or_else(|| {
+                (
+                    400,
+                    format!(
+                        "invalid exemplar {name:?}: built-ins are {}",
+                        jobs::BUILTINS
+                            .iter()
+                            .map(|b| b.name)
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    ),
+                )
+            })?;
+            if q.get("periodic").is_some() {
+                return Err((400, "periodic applies to uploads (built-ins tile)".into()));
+            }
+            Source::Image {
+                name: b.name.into(),
+                image: b.image(),
+                periodic: true,
+            }
+        }
+        (None, false) => Source::Image {
+            name: "upload".into(),
+            image: jobs::decode_upload(body, state.config.max_upload_side).map_err(from_error)?,
+            periodic: q.bool("periodic")?,
+        },
+        (Some(_), false) => {
+            return Err((
+                400,
+                "give either ?exemplar=NAME or an image body, not both".into(),
+            ))
+        }
+        (None, true) => {
+            return Err((
+                400,
+                "give ?exemplar=NAME or an image (PNG, JPEG, ...) as the body".into(),
+            ))
+        }
+    };
+    match state.start_job(source, seed) {
+        Ok(status) => Ok(Reply::json(202, serde_json::json!(status))),
+        Err(jobs::Busy(m)) => Err((503, m)),
+    }
+}
+
+/// GET /api/solids/ID/cut: the cut as a PNG; latency in headers.
+fn cut(state: &State, solid: &jobs::Solid, q: &Query) -> Answer {
+    q.only(&["origin", "normal", "up", "size", "spacing"])?;
+    let max = state.config.max_cut_size;
+    let size = q.u64_in("size", 1, max as u64)?.unwrap_or(128) as u32;
+    let spacing = q.f64_in("spacing", 1.0 / 64.0, 64.0)?.unwrap_or(1.0);
+    if size as f64 * spacing > max as f64 {
+        return Err((
+            400,
+            format!(
+                "invalid size x spacing = {}: a cut spans at most {max} voxels a side",
+                size as f64 * spacing
+            ),
+        ));
+    }
+    let origin = q
+        .triple("origin")?
+        .ok_or((400, "missing origin=X,Y,Z".to_string()))?;
+    if origin.iter().any(|c| c.abs() > 1e6) {
+        return Err((
+            400,
+            "invalid origin: coordinates must lie within +-1e6 voxels".into(),
+        ));
+    }
+    let normal = q
+        .triple("normal")?
+        .ok_or((400, "missing normal=NX,NY,NZ".to_string()))?;
+    let len = normal.iter().map(|c| c * c).sum::<f64>().sqrt();
+    if (len - 1.0).abs() > NORMAL_TOLERANCE {
+        return Err((
+            400,
+            format!("invalid normal: must be a unit vector (its length is {len}; tolerance {NORMAL_TOLERANCE})"),
+        ));
+    }
+    let spec = CutSpec {
+        origin,
+        normal,
+        up: q.triple("up")?,
+        size,
+        spacing,
+    };
+    let (u, v, n) = spec.frame().map_err(from_error)?;
+    let ticket = state.enqueue().map_err(|jobs::Busy(m)| (503, m))?;
+    let (img, queue_ms, synth_ms) = state.cut(&ticket, solid, &spec).map_err(from_error)?;
+    drop(ticket);
+    let t = Instant::now();
+    let png = crate::io::atomic::png_bytes(&img.to_rgba8()).map_err(from_error)?;
+    let encode_ms = t.elapsed().as_secs_f64() * 1e3;
+    let frame = serde_json::json!({"u": u.to_array(), "v": v.to_array(), "n": n.to_array()});
+    Ok(Reply::bytes("image/png", png)
+        .header("X-Synthesis-Ms", format!("{synth_ms:.2}"))
+        .header("X-Queue-Ms", format!("{queue_ms:.2}"))
+        .header("X-Encode-Ms", format!("{encode_ms:.2}"))
+        .header("X-Cut-Frame", frame.to_string()))
+}
+
+/// How far from 1 a normal's length may be. Normals are rejected rather than normalized, so a
+/// client that sends a wrong vector learns about it instead of getting another plane.
+pub const NORMAL_TOLERANCE: f64 = 1e-3;
+
+/// GET /api/solids/ID/volume: the box [0, size)^3 as NRRD, VTI, flipbook PNG or raw RGBA.
+fn volume(state: &State, solid: &jobs::Solid, q: &Query) -> Answer {
+    q.only(&["size", "format"])?;
+    let max = state.config.max_volume_size;
+    let size = q
+        .u64_in("size", 8, max as u64)?
+        .unwrap_or(state.config.preview_size as u64) as u32;
+    let format = q.get("format").unwrap_or("nrrd");
+    if !["nrrd", "vti", "flipbook", "raw"].contains(&format) {
+        return Err((
+            400,
+            format!("invalid format {format:?}: nrrd, vti, flipbook or raw"),
+        ));
+    }
+    let ticket = state.enqueue().map_err(|jobs::Busy(m)| (503, m))?;
+    let v = state.volume(&ticket, solid, size).map_err(from_error)?;
+    drop(ticket);
+    let name = format!("solid-{}-{size}", solid.id);
+    let (content_type, body, ext) = match format {
+        "nrrd" => {
+            let mut b = crate::io::nrrd::header(&v).into_bytes();
+            b.extend_from_slice(&v.data);
+            ("application/octet-stream", b, "nrrd")
+        }
+        "vti" => ("application/xml", crate::io::vti::to_bytes(&v), "vti"),
+        "flipbook" => (
+            "image/png",
+            crate::io::atomic::png_bytes(&crate::io::flipbook::to_image(&v)).map_err(from_error)?,
+            "png",
+        ),
+        _ => (
+            "application/octet-stream",
+            crate::io::flipbook::rgba_bytes(&v),
+            "rgba",
+        ),
+    };
+    Ok(Reply::bytes(content_type, body)
+        .header("X-Volume-Size", size.to_string())
+        .header(
+            "Content-Disposition",
+            format!("attachment; filename=\"{name}.{ext}\""),
+        ))
+}
+
+/// Query parameters: decoded, each at most once.
+pub struct Query(Vec<(String, String)>);
+
+impl Query {
+    pub fn parse(text: &str) -> Result<Query, String> {
+        let mut pairs: Vec<(String, String)> = Vec::new();
+        for part in text.split('&').filter(|p| !p.is_empty()) {
+            let (k, v) = part.split_once('=').unwrap_or((part, ""));
+            let (k, v) = (percent_decode(k)?, percent_decode(v)?);
+            if pairs.iter().any(|(p, _)| *p == k) {
+                return Err(format!("parameter {k} given twice"));
+            }
+            pairs.push((k, v));
+        }
+        Ok(Query(pairs))
+    }
+
+    pub fn get(&self, key: &str) -> Option<&str> {
+        self.0
+            .iter()
+            .find(|(k, _)| k == key)
+            .map(|(_, v)| v.as_str())
+    }
+
+    /// Refuse parameters the endpoint does not know (a typo would otherwise be ignored).
+    fn only(&self, known: &[&str]) -> Result<(), (u16, String)> {
+        match self.0.iter().find(|(k, _)| !known.contains(&k.as_str())) {
+            Some((k, _)) => Err((
+                400,
+                format!("unknown parameter {k:?} (known: {})", known.join(", ")),
+            )),
+            None => Ok(()),
+        }
+    }
+
+    fn u64_in(&self, key: &str, lo: u64, hi: u64) -> Result<Option<u64>, (u16, String)> {
+        self.get(key)
+            .map(|t| match t.trim().parse::<u64>() {
+                Ok(v) if (lo..=hi).contains(&v) => Ok(v),
+                _ => Err((
+                    400,
+                    format!("invalid {key} {t:?}: must be an integer in {lo}..={hi}"),
+                )),
+            })
+            .transpose()
+    }
+
+    fn f64_in(&self, key: &str, lo: f64, hi: f64) -> Result<Option<f64>, (u16, String)> {
+        self.get(key)
+            .map(|t| match t.trim().parse::<f64>() {
+                Ok(v) if v.is_finite() && (lo..=hi).contains(&v) => Ok(v),
+                _ => Err((
+                    400,
+                    format!("invalid {key} {t:?}: must be a finite number in [{lo}, {hi}]"),
+                )),
+            })
+            .transpose()
+    }
+
+    fn bool(&self, key: &str) -> Result<bool, (u16, String)> {
+        match self.get(key) {
+            None | Some("0") | Some("false") => Ok(false),
+            Some("1") | Some("true") | Some("") => Ok(true),
+            Some(t) => Err((400, format!("invalid {key} {t:?}: 0/1 or true/false"))),
+        }
+    }
+
+    fn triple(&self, key: &str) -> Result<Option<[f64; 3]>, (u16, String)> {
+        let Some(t) = self.get(key) else {
+            return Ok(None);
+        };
+        let v: Vec<f64> = t
+            .split(',')
+            .filter_map(|c| c.trim().parse::<f64>().ok())
+            .collect();
+        if v.len() != 3 || t.split(',').count() != 3 || v.iter().any(|c| !c.is_finite()) {
+            return Err((
+                400,
+                format!("invalid {key} {t:?}: expected three finite numbers A,B,C"),
+            ));
+        }
+        Ok(Some([v[0], v[1], v[2]]))
+    }
+}
+
+fn percent_decode(text: &str) -> Result<String, String> {
+    let bytes = text.as_bytes();
+    let mut out = Vec::with_capacity(bytes.len());
+    let mut i = 0;
+    while i < bytes.len() {
+        match bytes[i] {
+            b'%' => {
+                let hex = bytes
+                    .get(i + 1..i + 3)
+                    .and_then(|h| std::str::from_utf8(h).ok())
+                    .and_then(|h| u8::from_str_radix(h, 16).ok())
+                    .ok_or_else(|| format!("bad percent-encoding in {text:?}"))?;
+                out.push(hex);
+                i += 3;
+            }
+            b'+' => {
+                out.push(b' ');
+                i += 1;
+            }
+            b => {
+                out.push(b);
+                i += 1;
+            }
+        }
+    }
+    String::from_utf8(out).map_err(|_| format!("query is not UTF-8: {text:?}"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn queries_decode_and_refuse_repeats_and_garbage() {
+        let q = Query::parse("origin=1%2C2,3&normal=0,0,1&size=64").unwrap();
+        assert_eq!(q.triple("origin").unwrap(), Some([1.0, 2.0, 3.0]));
+        assert_eq!(q.u64_in("size", 1, 512).unwrap(), Some(64));
+        assert!(q.u64_in("size", 1, 32).is_err());
+        assert!(Query::parse("a=1&a=2").is_err());
+        assert!(Query::parse("a=%zz").is_err());
+        for bad in ["1,2", "1,2,3,4", "1,nan,3", "1,inf,2", "a,b,c", "1,,2"] {
+            let q = Query::parse(&format!("origin={bad}")).unwrap();
+            assert!(q.triple("origin").is_err(), "{bad}");
+        }
+        assert!(q.only(&["origin"]).is_err());
+        assert!(q.only(&["origin", "normal", "size"]).is_ok());
+    }
+}

@@ -1,0 +1,465 @@
+//! The server's state: solids (a warm cut session each, and a preview volume), background jobs
+//! that make them (analysis, then the preview volume), and the lock that serializes all
+//! synthesis work.
+
+use super::ServeConfig;
+use crate::analysis::{self, Analysis, AnalysisInput, AnalysisParams};
+use crate::backend::Compute;
+use crate::error::{Error, Result};
+use crate::exemplar::{self, procedural, Border, Image};
+use crate::lazy::cut::CutSession;
+use crate::lazy::{Box3, SynthParams, Synthesizer};
+use crate::volume::Volume;
+use std::collections::VecDeque;
+use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex, MutexGuard};
+use std::time::Instant;
+
+/// Lock a mutex even if a thread panicked while holding it: every value behind our mutexes is
+/// left consistent between statements (a panicking request must not take the server down).
+pub fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// A built-in exemplar the page can pick.
+pub struct Builtin {
+    pub name: &'static str,
+    pub description: &'static str,
+    make: fn() -> Image,
+}
+
+impl Builtin {
+    pub fn image(&self) -> Image {
+        (self.make)()
+    }
+}
+
+/// The built-in exemplars: all tileable, made by this crate (no third-party images).
+pub const BUILTINS: &[Builtin] = &[
+    Builtin {
+        name: "cells",
+        description: "slice of a procedural 3D cell solid (the default exemplar)",
+        make: exemplar::default_exemplar,
+    },
+    Builtin {
+        name: "cobblestone",
+        description: "procedural cobblestones: rounded stones, dark mortar",
+        make: || procedural::cobblestone(128, 40, 7),
+    },
+    Builtin {
+        name: "marble",
+        description: "procedural veined marble",
+        make: || procedural::marble(128, 11),
+    },
+];
+
+pub fn builtin(name: &str) -> Option<&'static Builtin> {
+    BUILTINS.iter().find(|b| b.name == name)
+}
+
+/// What a new solid is made from.
+pub enum Source {
+    /// An exemplar image (decoded), analysed by the job; `periodic` chooses the border rule.
+    Image {
+        name: String,
+        image: Image,
+        periodic: bool,
+    },
+    /// An analysis already at hand (an .ssa given on the command line).
+    Analysis {
+        name: String,
+        analysis: Arc<Analysis>,
+    },
+}
+
+/// A solid ready to cut.
+pub struct Solid {
+    pub id: u64,
+    pub name: String,
+    pub seed: u64,
+    pub channels: u32,
+    /// The box [0, preview_size)^3, synthesized with the solid.
+    pub preview: Arc<Volume>,
+    session: Mutex<CutSession>,
+    /// The last other-sized volume asked for (downloads), so a repeated download is free.
+    extra: Mutex<Option<Arc<Volume>>>,
+}
+
+impl Solid {
+    pub fn info(&self) -> serde_json::Value {
+        serde_json::json!({"id": self.id, "name": self.name, "seed": self.seed,
+            "channels": self.channels, "preview_size": self.preview.nx})
+    }
+}
+
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct JobStatus {
+    pub id: u64,
+    pub name: String,
+    /// "queued", "running", "done" or "failed".
+    pub state: &'static str,
+    pub stage: String,
+    /// 0..=1.
+    pub progress: f32,
+    pub solid: Option<u64>,
+    pub error: Option<String>,
+    pub seconds: f64,
+}
+
+pub struct Job {
+    status: Mutex<JobStatus>,
+    started: Instant,
+}
+
+impl Job {
+    pub fn status(&self) -> JobStatus {
+        let mut s = lock(&self.status).clone();
+        if s.state == "running" || s.state == "queued" {
+            s.seconds = self.started.elapsed().as_secs_f64();
+        }
+        s
+    }
+
+    fn update(&self, f: impl FnOnce(&mut JobStatus)) {
+        f(&mut lock(&self.status));
+    }
+
+    fn progress(&self, stage: String, progress: f32) {
+        self.update(|s| {
+            s.state = "running";
+            s.stage = stage;
+            // Stages report their own fractions; never let the bar move backwards.
+            s.progress = s.progress.max(progress.clamp(0.0, 1.0));
+        });
+    }
+}
+
+/// Why a request could not be queued.
+#[derive(Debug)]
+pub struct Busy(pub String);
+
+/// A place in the synthesis queue; leaving it (drop) frees the place.
+pub struct Ticket<'a> {
+    state: &'a State,
+}
+
+impl Ticket<'_> {
+    /// Wait for the work lock.
+    pub fn lock(&self) -> MutexGuard<'_, ()> {
+        lock(&self.state.work)
+    }
+}
+
+impl Drop for Ticket<'_> {
+    fn drop(&mut self) {
+        self.state.queued.fetch_sub(1, Ordering::SeqCst);
+    }
+}
+
+pub struct State {
+    pub config: ServeConfig,
+    pub compute: Compute,
+    /// Held by whatever synthesizes or analyses: one job on the device at a time.
+    work: Mutex<()>,
+    /// Requests waiting for or holding `work` (bounded by `config.max_queued`).
+    queued: AtomicUsize,
+    solids: Mutex<VecDeque<Arc<Solid>>>,
+    jobs: Mutex<VecDeque<Arc<Job>>>,
+    /// Analyses by input hash, so a new seed of the same exemplar skips the analysis.
+    analyses: Mutex<VecDeque<(u64, Arc<Analysis>)>>,
+    next_id: AtomicU64,
+}
+
+/// Jobs remembered for polling (finished ones are dropped oldest first).
+const JOBS_KEPT: usize = 32;
+
+impl State {
+    pub fn new(config: ServeConfig, compute: Compute) -> State {
+        State {
+            config,
+            compute,
+            work: Mutex::new(()),
+            queued: AtomicUsize::new(0),
+            solids: Mutex::new(VecDeque::new()),
+            jobs: Mutex::new(VecDeque::new()),
+            analyses: Mutex::new(VecDeque::new()),
+            next_id: AtomicU64::new(1),
+        }
+    }
+
+    /// Take a place in the synthesis queue, or say why not.
+    pub fn enqueue(&self) -> std::result::Result<Ticket<'_>, Busy> {
+        let before = self.queued.fetch_add(1, Ordering::SeqCst);
+        let ticket = Ticket { state: self };
+        if before >= self.config.max_queued {
+            return Err(Busy(format!(
+                "{before} synthesis requests are already queued (limit {}); retry shortly",
+                self.config.max_queued
+            )));
+        }
+        Ok(ticket)
+    }
+
+    pub fn solid(&self, id: u64) -> Option<Arc<Solid>> {
+        lock(&self.solids).iter().find(|s| s.id == id).cloned()
+    }
+
+    pub fn solids(&self) -> Vec<Arc<Solid>> {
+        lock(&self.solids).iter().cloned().collect()
+    }
+
+    pub fn job(&self, id: u64) -> Option<Arc<Job>> {
+        lock(&self.jobs)
+            .iter()
+            .find(|j| lock(&j.status).id == id)
+            .cloned()
+    }
+
+    pub fn jobs(&self) -> Vec<JobStatus> {
+        lock(&self.jobs).iter().map(|j| j.status()).collect()
+    }
+
+    /// Start a background job making a solid from `source` with `seed`; returns its status.
+    pub fn start_job(
+        self: &Arc<Self>,
+        source: Source,
+        seed: u64,
+    ) -> std::result::Result<JobStatus, Busy> {
+        let name = match &source {
+            Source::Image { name, .. } | Source::Analysis { name, .. } => name.clone(),
+        };
+        let job = {
+            let mut jobs = lock(&self.jobs);
+            let active = jobs
+                .iter()
+                .filter(|j| matches!(lock(&j.status).state, "queued" | "running"))
+                .count();
+            if active >= self.config.max_jobs {
+                return Err(Busy(format!(
+                    "{active} jobs are already running or queued (limit {}); wait for one to finish",
+                    self.config.max_jobs
+                )));
+            }
+            let id = self.next_id.fetch_add(1, Ordering::SeqCst);
+            let job = Arc::new(Job {
+                status: Mutex::new(JobStatus {
+                    id,
+                    name,
+                    state: "queued",
+                    stage: "waiting for the device".into(),
+                    progress: 0.0,
+                    solid: None,
+                    error: None,
+                    seconds: 0.0,
+                }),
+                started: Instant::now(),
+            });
+            jobs.push_back(job.clone());
+            while jobs.len() > JOBS_KEPT {
+                let finished = jobs
+                    .iter()
+                    .position(|j| matches!(lock(&j.status).state, "done" | "failed"));
+                match finished {
+                    Some(i) => jobs.remove(i),
+                    None => break,
+                };
+            }
+            job
+        };
+        let status = job.status();
+        let state = self.clone();
+        let spawned = std::thread::Builder::new()
+            .name("serve-job".into())
+            .spawn(move || {
+                let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                    state.make_solid(&job, source, seed)
+                }));
+                let outcome = match outcome {
+                    Ok(r) => r,
+                    Err(_) => Err(Error::Gpu("the job panicked (a bug)".into())),
+                };
+                let seconds = job.started.elapsed().as_secs_f64();
+                match outcome {
+                    Ok(solid) => {
+                        tracing::info!(
+                            "job: solid {} ({}) ready in {seconds:.1} s",
+                            solid.id,
+                            solid.name
+                        );
+                        job.update(|s| {
+                            s.state = "done";
+                            s.stage = "ready".into();
+                            s.progress = 1.0;
+                            s.solid = Some(solid.id);
+                            s.seconds = seconds;
+                        })
+                    }
+                    Err(e) => {
+                        tracing::warn!("job failed: {e}");
+                        job.update(|s| {
+                            s.state = "failed";
+                            s.error = Some(e.to_string());
+                            s.seconds = seconds;
+                        })
+                    }
+                }
+            });
+        if let Err(e) = spawned {
+            return Err(Busy(format!("cannot start a job thread: {e}")));
+        }
+        Ok(status)
+    }
+
+    /// The job's work: analysis (unless cached), then a warm synthesizer and the preview volume.
+    fn make_solid(&self, job: &Job, source: Source, seed: u64) -> Result<Arc<Solid>> {
+        let (name, analysis) = match source {
+            Source::Analysis { name, analysis } => (name, analysis),
+            Source::Image {
+                name,
+                image,
+                periodic,
+            } => {
+                let border = if periodic {
+                    Border::Wrap
+                } else {
+                    Border::Mirror
+                };
+                let key = input_key(&image, border);
+                let cached = lock(&self.analyses)
+                    .iter()
+                    .find(|(k, _)| *k == key)
+                    .map(|(_, a)| a.clone());
+                let analysis = match cached {
+                    Some(a) => a,
+                    None => {
+                        let input = AnalysisInput {
+                            exemplars: vec![image],
+                            masks: vec![],
+                            border,
+                            names: vec![name.clone()],
+                        };
+                        let _work = lock(&self.work);
+                        let a = Arc::new(analysis::analyze(
+                            &input,
+                            &AnalysisParams::default(),
+                            &self.compute,
+                            &|stage, f| job.progress(format!("analysis: {stage}"), 0.7 * f),
+                        )?);
+                        let mut cache = lock(&self.analyses);
+                        cache.push_back((key, a.clone()));
+                        if cache.len() > self.config.max_solids {
+                            cache.pop_front();
+                        }
+                        a
+                    }
+                };
+                (name, analysis)
+            }
+        };
+        let _work = lock(&self.work);
+        let base = job.status().progress.max(0.0);
+        let params = SynthParams {
+            seed,
+            ..self.config.params.clone()
+        };
+        let mut synth = Synthesizer::new(&analysis, params, &self.compute)?;
+        let n = self.config.preview_size as i32;
+        let preview = synth.synthesize(Box3::new([0; 3], [n; 3]), &|_, f| {
+            job.progress(
+                format!("synthesizing the {n}^3 preview volume"),
+                base + (1.0 - base) * 0.99 * f,
+            )
+        })?;
+        let solid = Arc::new(Solid {
+            id: self.next_id.fetch_add(1, Ordering::SeqCst),
+            name,
+            seed,
+            channels: synth.color_channels(),
+            preview: Arc::new(preview),
+            session: Mutex::new(CutSession::new(synth)),
+            extra: Mutex::new(None),
+        });
+        let mut solids = lock(&self.solids);
+        solids.push_back(solid.clone());
+        while solids.len() > self.config.max_solids {
+            solids.pop_front();
+        }
+        Ok(solid)
+    }
+
+    /// A planar cut of `solid` (the caller validated the spec and holds a ticket). Returns the
+    /// image and the milliseconds spent waiting for the lock and synthesizing.
+    pub fn cut(
+        &self,
+        ticket: &Ticket,
+        solid: &Solid,
+        spec: &crate::lazy::cut::CutSpec,
+    ) -> Result<(Image, f64, f64)> {
+        let t0 = Instant::now();
+        let _work = ticket.lock();
+        let mut session = lock(&solid.session);
+        let t1 = Instant::now();
+        let img = session.cut(spec)?;
+        Ok((
+            img,
+            (t1 - t0).as_secs_f64() * 1e3,
+            t1.elapsed().as_secs_f64() * 1e3,
+        ))
+    }
+
+    /// The box [0, size)^3 of `solid`: the preview, the last download, or synthesized now.
+    pub fn volume(&self, ticket: &Ticket, solid: &Solid, size: u32) -> Result<Arc<Volume>> {
+        if size == solid.preview.nx {
+            return Ok(solid.preview.clone());
+        }
+        if let Some(v) = lock(&solid.extra).as_ref().filter(|v| v.nx == size) {
+            return Ok(v.clone());
+        }
+        let _work = ticket.lock();
+        let mut session = lock(&solid.session);
+        let n = size as i32;
+        let v = Arc::new(
+            session
+                .synthesizer_mut()
+                .synthesize(Box3::new([0; 3], [n; 3]), &|_, _| {})?,
+        );
+        *lock(&solid.extra) = Some(v.clone());
+        Ok(v)
+    }
+}
+
+/// Hash of an exemplar and its border rule (the in-memory analysis cache key).
+fn input_key(img: &Image, border: Border) -> u64 {
+    let mut h = crc32fast::Hasher::new();
+    let mut h2 = crc32fast::Hasher::new_with_initial(0x5EED);
+    for bytes in [
+        &[img.width, img.height, img.channels, border.code()]
+            .map(u32::to_le_bytes)
+            .concat()[..],
+        &img.pixels[..],
+    ] {
+        h.update(bytes);
+        h2.update(bytes);
+    }
+    ((h.finalize() as u64) << 32) | h2.finalize() as u64
+}
+
+/// Decode an uploaded exemplar, refusing absurd dimensions before allocating for them.
+pub fn decode_upload(bytes: &[u8], max_side: u32) -> Result<Image> {
+    let what = "upload";
+    let reader = image::ImageReader::new(std::io::Cursor::new(bytes))
+        .with_guessed_format()
+        .map_err(|e| Error::invalid(what, format!("cannot read the image: {e}")))?;
+    let (w, h) = reader
+        .into_dimensions()
+        .map_err(|e| Error::invalid(what, format!("cannot decode image: {e}")))?;
+    if w > max_side || h > max_side {
+        return Err(Error::invalid(
+            what,
+            format!("image is {w}x{h}; the viewer accepts at most {max_side} pixels a side (analysis time grows with the size)"),
+        ));
+    }
+    let img = exemplar::decode_image(bytes, what)?;
+    exemplar::check_exemplar_size(&img, what)?;
+    Ok(img)
+}

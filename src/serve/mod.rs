@@ -1,0 +1,181 @@
+//! `solidsynth serve`: a local web viewer for the solid, and the HTTP API behind it.
+//!
+//! A small synchronous HTTP/1.1 server ([`http`]) with a fixed pool of worker threads. Everything that
+//! synthesizes (cuts, volumes, analyses) takes one lock, [`jobs::State::work`], so GPU (or CPU)
+//! work is serialized and concurrent requests queue behind it instead of competing for the device;
+//! the number of requests allowed to queue is bounded ([`ServeConfig::max_queued`]) and the
+//! surplus gets HTTP 503 at once, so neither threads nor memory pile up. Analyses of new
+//! exemplars run in background jobs the page polls, never on a worker thread.
+//!
+//! Modules: [`api`] routes requests and validates parameters, [`assets`] holds the page (embedded
+//! in the binary: only names in its table are served, so no path can reach the file system),
+//! [`jobs`] holds the solids and the background jobs, [`client`] is a minimal HTTP/1.1 client
+//! for the tests and the load benchmark.
+
+pub mod api;
+pub mod assets;
+pub mod client;
+pub mod http;
+pub mod jobs;
+
+use crate::backend::Compute;
+use crate::error::{Error, Result};
+use crate::lazy::SynthParams;
+use std::net::{IpAddr, Ipv4Addr, SocketAddr};
+use std::sync::{Arc, Mutex};
+use std::thread::JoinHandle;
+
+/// Server settings; the defaults are what `solidsynth serve` uses.
+#[derive(Clone, Debug)]
+pub struct ServeConfig {
+    pub bind: IpAddr,
+    /// 0 picks a free port.
+    pub port: u16,
+    /// Worker threads answering requests. More than `max_queued`, so cheap requests (the page,
+    /// job polls) are still answered while synthesis requests wait for the lock.
+    pub workers: usize,
+    /// Synthesis requests allowed to wait for (or hold) the work lock; more get HTTP 503.
+    pub max_queued: usize,
+    /// Largest upload body (bytes).
+    pub max_upload_bytes: usize,
+    /// Largest uploaded exemplar side (pixels): the analysis cost grows with it.
+    pub max_upload_side: u32,
+    /// Largest cut: pixels per side, and also voxels spanned per side (size x spacing), which
+    /// bounds the bricks a cut can make the synthesizer hold.
+    pub max_cut_size: u32,
+    /// Largest volume edge served for download or display.
+    pub max_volume_size: u32,
+    /// Edge of the volume synthesized with every solid (the page's 3D texture and slices).
+    pub preview_size: u32,
+    /// Solids kept (oldest dropped first).
+    pub max_solids: usize,
+    /// Background jobs running or queued at once; more get HTTP 503.
+    pub max_jobs: usize,
+    /// Solid parameters (seed is per request; the rest apply to every solid).
+    pub params: SynthParams,
+}
+
+impl Default for ServeConfig {
+    fn default() -> Self {
+        ServeConfig {
+            bind: IpAddr::V4(Ipv4Addr::LOCALHOST),
+            port: 8080,
+            workers: 16,
+            max_queued: 12,
+            max_upload_bytes: 16 << 20,
+            max_upload_side: 512,
+            max_cut_size: 512,
+            max_volume_size: 128,
+            preview_size: 64,
+            max_solids: 4,
+            max_jobs: 2,
+            params: SynthParams::default(),
+        }
+    }
+}
+
+impl ServeConfig {
+    pub fn validate(&self) -> Result<()> {
+        self.params.validate()?;
+        if !(8..=256).contains(&self.preview_size) || !self.preview_size.is_multiple_of(4) {
+            return Err(Error::invalid(
+                format!("--preview-size {}", self.preview_size),
+                "must be a multiple of 4 in 8..=256",
+            ));
+        }
+        if self.workers <= self.max_queued || self.max_queued == 0 {
+            return Err(Error::invalid(
+                "workers",
+                "need more worker threads than queued synthesis requests, and a queue of at least 1",
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// A running server.
+pub struct Server {
+    state: Arc<jobs::State>,
+    workers: Vec<JoinHandle<()>>,
+    acceptor: Option<JoinHandle<()>>,
+    stop: Arc<Mutex<bool>>,
+    addr: SocketAddr,
+}
+
+impl Server {
+    /// Bind and start the acceptor and the worker threads. Nothing is synthesized until asked.
+    pub fn start(config: ServeConfig, compute: Compute) -> Result<Server> {
+        config.validate()?;
+        let want = SocketAddr::new(config.bind, config.port);
+        let (listener, addr) = http::bind(want).map_err(|e| {
+            Error::invalid(
+                format!("--bind/--port {want}"),
+                format!("cannot listen: {e}"),
+            )
+        })?;
+        let state = Arc::new(jobs::State::new(config, compute));
+        let (tx, rx) = http::queue();
+        let stop = Arc::new(Mutex::new(false));
+        let spawn_err =
+            |e: std::io::Error| Error::Gpu(format!("cannot start a server thread: {e}"));
+        let workers = (0..state.config.workers)
+            .map(|i| {
+                let (rx, state) = (rx.clone(), state.clone());
+                std::thread::Builder::new()
+                    .name(format!("serve-worker-{i}"))
+                    .spawn(move || loop {
+                        // The lock is held only while waiting for the next connection.
+                        let next = jobs::lock(&rx).recv();
+                        let Ok(stream) = next else { return };
+                        let max = state.config.max_upload_bytes;
+                        http::serve_connection(stream, max, |request| api::handle(&state, request));
+                    })
+                    .map_err(spawn_err)
+            })
+            .collect::<Result<Vec<_>>>()?;
+        let acceptor = {
+            let stop = stop.clone();
+            std::thread::Builder::new()
+                .name("serve-accept".into())
+                .spawn(move || http::accept_loop(listener, tx, stop))
+                .map_err(spawn_err)?
+        };
+        Ok(Server {
+            state,
+            workers,
+            acceptor: Some(acceptor),
+            stop,
+            addr,
+        })
+    }
+
+    /// The address actually bound (the port is known even when 0 was asked for).
+    pub fn addr(&self) -> SocketAddr {
+        self.addr
+    }
+
+    pub fn state(&self) -> &Arc<jobs::State> {
+        &self.state
+    }
+
+    /// Serve until the process ends.
+    pub fn join(mut self) {
+        if let Some(a) = self.acceptor.take() {
+            let _ = a.join();
+        }
+    }
+
+    /// Stop accepting connections and wait for the workers to finish the ones they hold.
+    pub fn shutdown(mut self) {
+        *jobs::lock(&self.stop) = true;
+        // Wake the acceptor (blocked in accept) so it sees the flag and drops the queue, which
+        // ends the workers once the queue is empty.
+        let _ = std::net::TcpStream::connect(self.addr);
+        if let Some(a) = self.acceptor.take() {
+            let _ = a.join();
+        }
+        for w in self.workers.drain(..) {
+            let _ = w.join();
+        }
+    }
+}
