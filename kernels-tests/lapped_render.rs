@@ -2,8 +2,9 @@
 //! ray cast of the same camera ([`reference_pixel`]): same coverage away from the silhouette,
 //! colours within a named tolerance; the comparison is shown to fail for a moved camera.
 
+use solidsynth::cpu::lapped_render::reference_pixel;
 use solidsynth::gpu::lapped_render::render;
-use solidsynth::lapped::camera::{reference_pixel, Camera};
+use solidsynth::lapped::camera::Camera;
 use solidsynth::lapped::exemplar::SolidExemplar;
 use solidsynth::lapped::field::Constraints;
 use solidsynth::lapped::model::LstModel;

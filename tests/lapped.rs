@@ -502,30 +502,21 @@ fn cli_refuses_bad_input() {
     assert!(fill(&f.mesh, &f.exemplar, None).status.success());
     std::fs::rename(&out, &model).unwrap();
     let png = d.join("c.png");
-    let o = run(&[
-        "lapped",
-        "cut",
-        p(&model),
-        "--origin",
-        "0,0,0",
-        "--normal",
-        "0,0,0",
-        "-o",
-        p(&png),
-    ]);
-    assert_refused(&o, "--normal", &png);
-    let o = run(&[
-        "lapped",
-        "cut",
-        p(&model),
-        "--origin",
-        "0,nan,0",
-        "--normal",
-        "0,0,1",
-        "-o",
-        p(&png),
-    ]);
-    assert_refused(&o, "--origin", &png);
+    let cut = |origin: &str, normal: &str| {
+        run(&[
+            "lapped",
+            "cut",
+            p(&model),
+            "--origin",
+            origin,
+            "--normal",
+            normal,
+            "-o",
+            p(&png),
+        ])
+    };
+    assert_refused(&cut("0,0,0", "0,0,0"), "--normal", &png);
+    assert_refused(&cut("0,nan,0", "0,0,1"), "--origin", &png);
     let o = run(&[
         "lapped",
         "render",

@@ -1,7 +1,7 @@
 // Render pipeline (not a compute kernel): the surface of a lapped solid textured model, each
 // boundary triangle drawn once per layer of its tet, in paste order, alpha blended (Lapped
 // Solid Textures 5.1). Entry points vs_main / fs_main. CPU reference: a ray cast in
-// src/lapped/camera.rs (reference_pixel) with the same sampling and shading.
+// src/cpu/lapped_render.rs (reference_pixel) with the same sampling and shading.
 //
 // Colours blend premultiplied-style into an RGBA8 target cleared to 0: rgb accumulates
 // alpha * colour "over" the layers below and a the coverage; the host divides rgb by a.

@@ -6,6 +6,7 @@ pub mod bucket_accumulate;
 pub mod colorize;
 pub mod correct;
 pub mod init;
+pub mod lapped_render;
 pub mod project;
 pub mod ptm_relight;
 pub mod synth_common;

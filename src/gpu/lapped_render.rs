@@ -3,7 +3,7 @@
 //! sorted by patch so each pixel composites its layers in paste order, alpha blended into an
 //! RGBA8 target; the host divides by the accumulated coverage. The exemplar is a 3D texture
 //! (trilinear, repeating), the masks one 3D texture with the layers stacked along z.
-//! CPU reference: [`crate::lapped::camera::reference_pixel`].
+//! CPU reference: [`crate::cpu::lapped_render::reference_pixel`].
 
 use super::context::GpuContext;
 use crate::error::{Error, Result};

@@ -1,0 +1,60 @@
+//! CPU reference of the render pipeline `wgsl/lapped_render.wgsl`: the colour the GPU render of an
+//! LST model should give a pixel, by a ray cast against the boundary faces (front faces only, as
+//! the renderer culls back faces), the layers of the hit tet composited ([`LstModel::shade`]) and
+//! the shader's headlight shading. Used by kernels-tests, pixel by pixel.
+
+use crate::lapped::camera::Camera;
+use crate::lapped::model::LstModel;
+use glam::DVec3;
+
+/// Headlight shading factor: ambient plus diffuse towards the eye (same formula in the shader).
+pub fn shading(normal: DVec3, to_eye: DVec3) -> f64 {
+    0.3 + 0.7 * normal.normalize().dot(to_eye.normalize()).abs()
+}
+
+/// The colour the renderer should give pixel (x, y): ray cast against the boundary faces, the
+/// layers of the hit tet composited, then shaded. `None` where the ray misses the model.
+pub fn reference_pixel(
+    model: &LstModel,
+    faces: &[([u32; 3], u32)],
+    camera: &Camera,
+    size: u32,
+    x: u32,
+    y: u32,
+) -> Option<[f64; 3]> {
+    let (o, d) = camera.ray(x, y, size);
+    let mut best: Option<(f64, usize)> = None;
+    for (i, (f, _)) in faces.iter().enumerate() {
+        let [a, b, c] = f.map(|v| model.mesh.vertices[v as usize]);
+        // Moller-Trumbore, front faces only (the renderer culls back faces): det = -d . n.
+        let (e1, e2) = (b - a, c - a);
+        let p = d.cross(e2);
+        let det = e1.dot(p);
+        if det < 1e-12 {
+            continue;
+        }
+        let s = o - a;
+        let u = s.dot(p) / det;
+        let q = s.cross(e1);
+        let v = d.dot(q) / det;
+        let t = e2.dot(q) / det;
+        if u < 0.0 || v < 0.0 || u + v > 1.0 || t <= 0.0 {
+            continue;
+        }
+        if best.is_none_or(|(bt, _)| t < bt) {
+            best = Some((t, i));
+        }
+    }
+    let (t, i) = best?;
+    let (f, tet) = faces[i];
+    let hit = o + d * t;
+    let b = model
+        .mesh
+        .barycentric(tet as usize, hit)
+        .map(|x| x.max(0.0));
+    let sum: f64 = b.iter().sum();
+    let rgba = model.shade(tet as usize, b.map(|x| (x / sum) as f32));
+    let [a, bb, c] = f.map(|v| model.mesh.vertices[v as usize]);
+    let k = shading((bb - a).cross(c - a), camera.eye - hit);
+    Some([rgba[0] as f64 * k, rgba[1] as f64 * k, rgba[2] as f64 * k])
+}
