@@ -271,9 +271,6 @@ fn cut(args: CutArgs, quiet: bool) -> anyhow::Result<()> {
             Error::invalid(format!("--extent {extent}"), "must be a positive number").into(),
         );
     }
-    if !(1..=8192).contains(&args.size) {
-        return Err(Error::invalid(format!("--size {}", args.size), "must be 1..=8192").into());
-    }
     let spec = CutSpec {
         origin: if args.origin == "center" {
             ((lo + hi) / 2.0).to_array()

@@ -13,7 +13,7 @@ use crate::util::hash::SeededRng;
 use glam::{DMat3, DQuat, DVec3};
 use nalgebra::DMatrix;
 use nalgebra_sparse::{factorization::CscCholesky, CooMatrix, CscMatrix};
-use std::collections::{HashMap, VecDeque};
+use std::collections::{HashMap, HashSet, VecDeque};
 
 /// One pasted patch: its clump and the texture coordinates of the clump's vertices.
 #[derive(Clone, Debug, PartialEq)]
@@ -185,14 +185,13 @@ impl Filler<'_> {
         };
 
         // Grow the clump breadth-first over face neighbours.
-        let mut in_clump = HashMap::new();
+        let mut in_clump = HashSet::from([seed]);
         let mut clump = vec![seed];
-        in_clump.insert(seed, ());
         let mut queue = VecDeque::from([seed]);
         while let Some(t) = queue.pop_front() {
             for &n in &self.neighbors[t] {
                 let n = n as usize;
-                if n == u32::MAX as usize || in_clump.contains_key(&n) {
+                if n == u32::MAX as usize || in_clump.contains(&n) {
                     continue;
                 }
                 if !self.similar(seed, n, &orientation) {
@@ -203,7 +202,7 @@ impl Filler<'_> {
                     seed_map(p, d)
                 };
                 if self.touches(mask, &map) {
-                    in_clump.insert(n, ());
+                    in_clump.insert(n);
                     clump.push(n);
                     queue.push_back(n);
                 }
@@ -227,7 +226,7 @@ impl Filler<'_> {
                 for &n in &self.neighbors[t] {
                     let n = n as usize;
                     if n == u32::MAX as usize
-                        || in_clump.contains_key(&n)
+                        || in_clump.contains(&n)
                         || !self.similar(seed, n, &orientation)
                     {
                         continue;
@@ -247,7 +246,7 @@ impl Filler<'_> {
                         x
                     };
                     if self.touches(mask, &map) {
-                        in_clump.insert(n, ());
+                        in_clump.insert(n);
                         added.push(n);
                     }
                 }
