@@ -257,6 +257,36 @@ fn unknown_paths_methods_and_traversal_are_refused() {
 }
 
 #[test]
+fn the_bunny_mesh_is_served_and_its_size_matches_its_header() {
+    let (addr, _) = server();
+    let r = get(addr, "/bunny.bin");
+    assert_eq!(r.status, 200);
+    assert_eq!(r.header("content-type"), Some("application/octet-stream"));
+    let b = &r.body;
+    let u32_at = |i: usize| u32::from_le_bytes(b[i..i + 4].try_into().unwrap()) as usize;
+    let (vertices, triangles) = (u32_at(0), u32_at(4));
+    // The Stanford bunny as converted by assets/viewer/bunny_bin.py.
+    assert_eq!((vertices, triangles), (1839, 3674));
+    assert_eq!(b.len(), 8 + 12 * vertices + 6 * triangles);
+    assert!(b.len() < 100 << 10);
+    // Positions fit [-0.5, 0.5]^3 and the longest side spans it; indices name vertices.
+    let positions: Vec<f32> = b[8..8 + 12 * vertices]
+        .chunks_exact(4)
+        .map(|c| f32::from_le_bytes(c.try_into().unwrap()))
+        .collect();
+    assert!(positions.iter().all(|p| p.abs() <= 0.5 + 1e-6));
+    let span = |k: usize| {
+        let axis = positions.iter().skip(k).step_by(3);
+        let (lo, hi) = axis.fold((f32::MAX, f32::MIN), |(l, h), &p| (l.min(p), h.max(p)));
+        hi - lo
+    };
+    assert!((span(0).max(span(1)).max(span(2)) - 1.0).abs() < 1e-5);
+    assert!(b[8 + 12 * vertices..]
+        .chunks_exact(2)
+        .all(|c| (u16::from_le_bytes([c[0], c[1]]) as usize) < vertices));
+}
+
+#[test]
 fn uploads_are_bounded_checked_and_analysed_in_a_job() {
     let (addr, _) = server();
     let post = |query: &str, body: &[u8]| {

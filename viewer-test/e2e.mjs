@@ -5,7 +5,9 @@
 // `cargo build` (dev profile); starts the server on a free loopback port, then:
 // loads the page, runs a synthesis (picks an exemplar and seed, clicks Synthesize, sees progress),
 // moves the cut slider with the keyboard, checks that a new cut image arrived from the server and
-// that its latency is shown, checks the WebGL view rendered, and saves a screenshot.
+// that its latency is shown, checks the WebGL view rendered, and saves a screenshot; then switches
+// the 3D view to the bunny (a triangle mesh), checks it drew, that the cut removes part of it and
+// that moving the plane changes it, and saves screenshots of it.
 // Prints "e2e: N passed, N failed" and exits non-zero on failure.
 
 import { chromium } from "playwright-core";
@@ -145,6 +147,75 @@ async function main() {
 
     await page.screenshot({ path: join(outDir, "viewer.png"), fullPage: true });
     check(true, "screenshot saved to viewer-test/out/viewer.png");
+
+    // 7. The bunny: a triangle mesh (/bunny.bin) drawn with WebGL2, textured by the solid and cut
+    // by the free plane.
+    const mesh = await page.request.get(new URL("/bunny.bin", url).toString());
+    const meshBytes = await mesh.body();
+    const [nv, nt] = [meshBytes.readUInt32LE(0), meshBytes.readUInt32LE(4)];
+    check(mesh.status() === 200 && meshBytes.length === 8 + 12 * nv + 6 * nt && nt > 1000,
+      `the bunny mesh is served (${nv} vertices, ${nt} triangles)`);
+    // Reads the 3D view back: the share of the centre region (the middle half on each axis) that
+    // is not background, and the share of all pixels that changed since the previous call.
+    const viewStats = () => page.$eval("#view3d", (c) => {
+      const gl = c.getContext("webgl2");
+      const w = c.width, h = c.height, px = new Uint8Array(4 * w * h);
+      gl.readPixels(0, 0, w, h, gl.RGBA, gl.UNSIGNED_BYTE, px);
+      const bg = [18, 18, 20];
+      let centre = 0, inCentre = 0, changed = 0;
+      const prev = window.lastView;
+      for (let y = 0; y < h; y++) for (let x = 0; x < w; x++) {
+        const i = 4 * (y * w + x);
+        if (x >= w / 4 && x < 3 * w / 4 && y >= h / 4 && y < 3 * h / 4) {
+          inCentre++;
+          if ([0, 1, 2].some((k) => Math.abs(px[i + k] - bg[k]) > 6)) centre++;
+        }
+        if (prev && [0, 1, 2].some((k) => Math.abs(px[i + k] - prev[i + k]) > 12)) changed++;
+      }
+      window.lastView = px;
+      return { centre: centre / inCentre, changed: prev ? changed / (w * h) : null };
+    });
+    const settle = () => page.evaluate(() => new Promise((r) => requestAnimationFrame(() => requestAnimationFrame(r))));
+    await page.selectOption("#shape", "1");
+    await page.waitForFunction(() => document.getElementById("view3d").dataset.shape === "bunny");
+    await settle();
+    const bunny = await viewStats();
+    check(bunny.centre > 0.3, `the bunny covers ${(100 * bunny.centre).toFixed(0)}% of the view's centre`);
+    await page.locator("#view3d").screenshot({ path: join(outDir, "bunny.png") });
+    check(true, "screenshot saved to viewer-test/out/bunny.png");
+    // Without the cut the picture differs (the plane removes part of the bunny)...
+    await page.uncheck("#clip");
+    await settle();
+    const whole = await viewStats();
+    check(whole.changed > 0.02, `unchecking the cut changes ${(100 * whole.changed).toFixed(0)}% of the view`);
+    await page.locator("#view3d").screenshot({ path: join(outDir, "bunny-whole.png") });
+    await page.check("#clip");
+    await settle();
+    await viewStats();
+    // ...and moving the plane moves the cut.
+    const beforeMove = Number(await page.getAttribute("#cut-image", "data-count"));
+    await page.focus("#cut-offset");
+    for (let i = 0; i < 12; i++) await page.keyboard.press("ArrowLeft");
+    check((await page.inputValue("#cut-offset")) === "-6", "the offset slider moved to -6");
+    await page.waitForFunction((n) => !view.cutBusy && !view.cutAgain
+      && Number(document.getElementById("cut-image").dataset.count) > n, beforeMove);
+    await settle();
+    const moved = await viewStats();
+    check(moved.changed > 0.02, `moving the cut changes ${(100 * moved.changed).toFixed(0)}% of the bunny view`);
+    check(moved.centre > 0.3, `the cut bunny still covers ${(100 * moved.centre).toFixed(0)}% of the view's centre`);
+    await page.locator("#view3d").screenshot({ path: join(outDir, "bunny-cut.png") });
+    // Dragging turns it.
+    const box = await page.locator("#view3d").boundingBox();
+    await page.mouse.move(box.x + box.width / 2, box.y + box.height / 2);
+    await page.mouse.down();
+    await page.mouse.move(box.x + box.width / 2 + 70, box.y + box.height / 2, { steps: 5 });
+    await page.mouse.up();
+    await settle();
+    const turned = await viewStats();
+    check(turned.changed > 0.02, `dragging turns the bunny (${(100 * turned.changed).toFixed(0)}% of the view changed)`);
+    await page.locator("#view3d").screenshot({ path: join(outDir, "bunny-turned.png") });
+    await page.screenshot({ path: join(outDir, "viewer-bunny.png"), fullPage: true });
+    check(true, "screenshots saved to viewer-test/out/bunny-{whole,cut,turned}.png, viewer-bunny.png");
     check(pageErrors.length === 0, "no errors in the page" + (pageErrors.length ? ": " + pageErrors.join("; ") : ""));
   } finally {
     await browser.close();

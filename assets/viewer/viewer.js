@@ -231,40 +231,48 @@ function dragger(el, onMove) {
   el.addEventListener("pointerup", () => { last = null; });
 }
 
-// ---- the 3D view: WebGL2, ray-marched implicit shapes textured by the solid ----
+// ---- the 3D view: WebGL2, textured by the solid ----
+// Two shapes: a sphere (ray-marched, an exact implicit surface) and the Stanford bunny (a triangle
+// mesh, /bunny.bin). Both live in the same object space, [-1, 1]^3 = the preview box [0, n)^3 of
+// the solid (voxel = (p + 1) n / 2), are seen by the same camera (eye at rot * (0, 0, 3.2), focal
+// length 2.2), and are textured, clipped and capped the same way: the surface samples the 3D
+// texture (the preview volume); the free plane removes the side p . pn > pd; where it cuts the
+// shape, the cap shows the server's on-demand cut image at that point (the 3D texture until the
+// cut for the current plane has arrived).
 
 const VS = `#version 300 es
 in vec2 p; out vec2 q;
 void main() { q = p; gl_Position = vec4(p, 0.0, 1.0); }`;
 
-// Object space is [-1, 1]^3, the preview box [0, n)^3 of the solid (voxel = (p + 1) n / 2).
-// The surface samples the 3D texture (the preview volume); where the free plane cuts the shape
-// the cap shows the server's on-demand cut image at that point.
-const FS = `#version 300 es
+// Shared by both fragment shaders: the solid's colour at an object-space point, the cap's colour
+// at a point of the plane, and the shading.
+const FS_COMMON = `#version 300 es
 precision highp float; precision highp sampler3D;
-in vec2 q; out vec4 color;
 uniform sampler3D vol; uniform sampler2D cutTex;
-uniform mat3 rot; uniform int shape; uniform bool clip; uniform bool haveCut;
+uniform mat3 rot; uniform bool clip; uniform bool haveCut;
 uniform vec3 pn; uniform float pd;
 uniform vec3 cutO, cutU, cutV; uniform float cutSize, volN;
-float ell(vec3 p, vec3 r) { float k0 = length(p / r), k1 = length(p / (r * r)); return k0 * (k0 - 1.0) / k1; }
-float smin(float a, float b, float k) { float h = clamp(0.5 + 0.5 * (b - a) / k, 0.0, 1.0); return mix(b, a, h) - k * h * (1.0 - h); }
-float body(vec3 p) {
-  if (shape == 0) return length(p) - 0.85;
-  // A bunny of smoothly joined ellipsoids: body, head, ears, tail, feet.
-  float d = ell(p - vec3(0.0, -0.3, -0.15), vec3(0.5, 0.45, 0.6));
-  d = smin(d, ell(p - vec3(0.0, 0.15, 0.42), vec3(0.3, 0.28, 0.3)), 0.15);
-  vec3 e = p - vec3(0.12, 0.6, 0.38); e.xy = mat2(0.96, -0.28, 0.28, 0.96) * e.xy;
-  d = smin(d, ell(e, vec3(0.08, 0.35, 0.06)), 0.06);
-  e = p - vec3(-0.12, 0.6, 0.38); e.xy = mat2(0.96, 0.28, -0.28, 0.96) * e.xy;
-  d = smin(d, ell(e, vec3(0.08, 0.35, 0.06)), 0.06);
-  d = smin(d, length(p - vec3(0.0, -0.2, -0.78)) - 0.13, 0.05);
-  d = smin(d, ell(p - vec3(0.25, -0.72, 0.1), vec3(0.14, 0.08, 0.3)), 0.08);
-  d = smin(d, ell(p - vec3(-0.25, -0.72, 0.1), vec3(0.14, 0.08, 0.3)), 0.08);
-  return d;
-}
+out vec4 color;
 float plane(vec3 p) { return clip ? dot(p, pn) - pd : -1e9; }
-float sdf(vec3 p) { return max(body(p), plane(p)); }
+vec3 voxelAt(vec3 p) { return (clamp(p, -1.0, 0.9999) + 1.0) * 0.5 * volN; }
+vec3 solidAt(vec3 p) { return texture(vol, voxelAt(p) / volN).rgb; }
+vec3 capAt(vec3 p) {
+  if (!haveCut) return solidAt(p);
+  vec3 r = voxelAt(p) - cutO;
+  vec2 ij = vec2(dot(r, cutU), dot(r, cutV)) + 0.5 * cutSize;
+  return texture(cutTex, ij / cutSize).rgb;
+}
+vec4 shade(vec3 albedo, vec3 nrm, vec3 rd) {
+  vec3 l = normalize(rot * vec3(0.4, 0.7, 0.6));
+  float diffuse = max(dot(nrm, l), 0.0), fill = max(dot(nrm, -rd), 0.0);
+  return vec4(albedo * (0.35 + 0.45 * diffuse + 0.3 * fill), 1.0);
+}
+`;
+
+// The sphere, ray-marched on a full-screen triangle.
+const FS = FS_COMMON + `
+in vec2 q;
+float sdf(vec3 p) { return max(length(p) - 0.85, plane(p)); }
 vec3 normalAt(vec3 p) {
   vec2 h = vec2(1e-3, 0.0);
   return normalize(vec3(sdf(p + h.xyy) - sdf(p - h.xyy), sdf(p + h.yxy) - sdf(p - h.yxy), sdf(p + h.yyx) - sdf(p - h.yyx)));
@@ -280,30 +288,44 @@ void main() {
     if (t > 6.0) break;
   }
   if (!hit) { color = vec4(0.07, 0.07, 0.08, 1.0); return; }
-  vec3 voxel = (clamp(p, -1.0, 0.9999) + 1.0) * 0.5 * volN;
-  vec3 albedo = texture(vol, voxel / volN).rgb;
-  vec3 nrm = normalAt(p);
   bool cap = clip && abs(plane(p)) < 2e-3;
-  if (cap) {
-    nrm = pn;
-    if (haveCut) {
-      vec3 r = voxel - cutO;
-      vec2 ij = vec2(dot(r, cutU), dot(r, cutV)) + 0.5 * cutSize;
-      albedo = texture(cutTex, ij / cutSize).rgb;
-    }
-  }
-  vec3 l = normalize(rot * vec3(0.4, 0.7, 0.6));
-  float diffuse = max(dot(nrm, l), 0.0), fill = max(dot(nrm, -rd), 0.0);
-  color = vec4(albedo * (0.35 + 0.45 * diffuse + 0.3 * fill), 1.0);
+  color = cap ? shade(capAt(p), pn, rd) : shade(solidAt(p), normalAt(p), rd);
 }`;
 
-const gl3 = { gl: null, prog: null, volTex: null, cutTex: null, haveCut: false, loc: {} };
+// The mesh: object-space positions and vertex normals in, projected by mvp.
+const MESH_VS = `#version 300 es
+in vec3 pos; in vec3 nrm; uniform mat4 mvp; uniform float scale;
+out vec3 P; out vec3 N;
+void main() { P = pos * scale; N = nrm; gl_Position = mvp * vec4(P, 1.0); }`;
 
-function initGL() {
-  const canvas = $("view3d");
-  // preserveDrawingBuffer: the frame stays readable (tests read it back) between redraws.
-  const gl = canvas.getContext("webgl2", { preserveDrawingBuffer: true });
-  if (!gl) { $("view-status").textContent = "WebGL2 is not available in this browser"; return; }
+// Fragments on the removed side are discarded. A view ray that crosses the plane inside the
+// (closed) mesh has its entry (a front face) on the removed side, discarded, so the nearest
+// fragment left is the back face where it leaves the mesh: that fragment is drawn as the cap, with
+// the colour of the point where the ray meets the plane. It keeps its own depth: nothing lies
+// between that point and the exit along the ray, and a ray that crosses the plane outside the mesh
+// reaches a kept front face first, which hides the back faces behind it.
+const MESH_FS = FS_COMMON + `
+in vec3 P; in vec3 N;
+uniform vec3 eye;
+void main() {
+  if (plane(P) > 0.0) discard;
+  vec3 rd = normalize(P - eye);
+  if (gl_FrontFacing) { color = shade(solidAt(P), normalize(N), rd); return; }
+  float den = dot(rd, pn), t = (pd - dot(eye, pn)) / den;
+  if (clip && abs(den) > 1e-6 && t > 0.0 && t < length(P - eye)) {
+    color = shade(capAt(eye + t * rd), pn, rd);
+  } else {
+    // The inside, seen through a hole in the mesh (this bunny is closed: kept for other meshes).
+    color = shade(solidAt(P), -normalize(N), rd) * vec4(vec3(0.6), 1.0);
+  }
+}`;
+
+// The bunny is scaled so its longest side (left to right) spans 1.7, the sphere's diameter.
+const MESH_SCALE = 1.7;
+const UNIFORMS = ["vol", "cutTex", "rot", "clip", "haveCut", "pn", "pd", "cutO", "cutU", "cutV", "cutSize", "volN"];
+const gl3 = { gl: null, sphere: null, mesh: null, bunny: null, volTex: null, cutTex: null, haveCut: false, frames: 0 };
+
+function program(gl, vs, fs, extra) {
   const compile = (type, src) => {
     const s = gl.createShader(type);
     gl.shaderSource(s, src);
@@ -312,26 +334,73 @@ function initGL() {
     return s;
   };
   const prog = gl.createProgram();
-  gl.attachShader(prog, compile(gl.VERTEX_SHADER, VS));
-  gl.attachShader(prog, compile(gl.FRAGMENT_SHADER, FS));
+  gl.attachShader(prog, compile(gl.VERTEX_SHADER, vs));
+  gl.attachShader(prog, compile(gl.FRAGMENT_SHADER, fs));
   gl.linkProgram(prog);
   if (!gl.getProgramParameter(prog, gl.LINK_STATUS)) throw new Error(gl.getProgramInfoLog(prog));
+  const loc = {};
+  for (const u of UNIFORMS.concat(extra)) loc[u] = gl.getUniformLocation(prog, u);
   gl.useProgram(prog);
-  const buf = gl.createBuffer();
-  gl.bindBuffer(gl.ARRAY_BUFFER, buf);
+  gl.uniform1i(loc.vol, 0);
+  gl.uniform1i(loc.cutTex, 1);
+  return { prog, loc, vao: gl.createVertexArray() };
+}
+
+function initGL() {
+  const canvas = $("view3d");
+  // preserveDrawingBuffer: the frame stays readable (tests read it back) between redraws.
+  const gl = canvas.getContext("webgl2", { preserveDrawingBuffer: true, depth: true });
+  if (!gl) { $("view-status").textContent = "WebGL2 is not available in this browser"; return; }
+  const sphere = program(gl, VS, FS, []);
+  gl.bindVertexArray(sphere.vao);
+  gl.bindBuffer(gl.ARRAY_BUFFER, gl.createBuffer());
   gl.bufferData(gl.ARRAY_BUFFER, new Float32Array([-1, -1, 3, -1, -1, 3]), gl.STATIC_DRAW);
-  const at = gl.getAttribLocation(prog, "p");
+  const at = gl.getAttribLocation(sphere.prog, "p");
   gl.enableVertexAttribArray(at);
   gl.vertexAttribPointer(at, 2, gl.FLOAT, false, 0, 0);
-  for (const u of ["vol", "cutTex", "rot", "shape", "clip", "haveCut", "pn", "pd", "cutO", "cutU", "cutV", "cutSize", "volN"]) {
-    gl3.loc[u] = gl.getUniformLocation(prog, u);
-  }
-  gl.uniform1i(gl3.loc.vol, 0);
-  gl.uniform1i(gl3.loc.cutTex, 1);
+  gl.bindVertexArray(null);
+  gl3.sphere = sphere;
+  gl3.mesh = program(gl, MESH_VS, MESH_FS, ["mvp", "scale", "eye"]);
   gl3.gl = gl;
-  gl3.prog = prog;
   gl3.volTex = gl.createTexture();
   gl3.cutTex = gl.createTexture();
+}
+
+// /bunny.bin: u32 vertex count V, u32 triangle count T, V x 3 f32 positions, T x 3 u16 indices.
+async function loadBunny() {
+  const buf = await (await api("/bunny.bin")).arrayBuffer();
+  const [nv, nt] = new Uint32Array(buf, 0, 2);
+  const pos = new Float32Array(buf, 8, 3 * nv);
+  const idx = new Uint16Array(buf, 8 + 12 * nv, 3 * nt);
+  // Vertex normals: the area-weighted sum of the adjacent faces' normals.
+  const nrm = new Float32Array(3 * nv);
+  for (let t = 0; t < nt; t++) {
+    const [a, b, c] = [idx[3 * t], idx[3 * t + 1], idx[3 * t + 2]];
+    const e1 = [0, 1, 2].map((k) => pos[3 * b + k] - pos[3 * a + k]);
+    const e2 = [0, 1, 2].map((k) => pos[3 * c + k] - pos[3 * a + k]);
+    const f = [e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]];
+    for (const v of [a, b, c]) for (let k = 0; k < 3; k++) nrm[3 * v + k] += f[k];
+  }
+  for (let v = 0; v < nv; v++) {
+    const l = Math.hypot(nrm[3 * v], nrm[3 * v + 1], nrm[3 * v + 2]) || 1;
+    for (let k = 0; k < 3; k++) nrm[3 * v + k] /= l;
+  }
+  const gl = gl3.gl;
+  if (!gl) return;
+  const m = gl3.mesh;
+  gl.bindVertexArray(m.vao);
+  for (const [name, data] of [["pos", pos], ["nrm", nrm]]) {
+    gl.bindBuffer(gl.ARRAY_BUFFER, gl.createBuffer());
+    gl.bufferData(gl.ARRAY_BUFFER, data, gl.STATIC_DRAW);
+    const at = gl.getAttribLocation(m.prog, name);
+    gl.enableVertexAttribArray(at);
+    gl.vertexAttribPointer(at, 3, gl.FLOAT, false, 0, 0);
+  }
+  gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, gl.createBuffer());
+  gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, idx, gl.STATIC_DRAW);
+  gl.bindVertexArray(null);
+  gl3.bunny = { vertices: nv, triangles: nt };
+  drawView();
 }
 
 function uploadVolumeTexture() {
@@ -375,16 +444,36 @@ function rotation() {
   return m;
 }
 
+// Object space to clip space (column-major) for the mesh, the camera the sphere's rays use: the
+// eye at rot * (0, 0, 3.2) looking along rot * (0, 0, -1), image plane at focal length 2.2.
+function meshMatrix(R) {
+  const near = 0.5, far = 6.0, A = -(far + near) / (far - near), B = -2 * far * near / (far - near);
+  // Camera coordinates: c = R^T p - (0, 0, 3.2); row i of R^T is column i of R.
+  const viewRows = [0, 1, 2].map((i) => [R[3 * i], R[3 * i + 1], R[3 * i + 2], i === 2 ? -3.2 : 0]);
+  viewRows.push([0, 0, 0, 1]);
+  const proj = [[2.2, 0, 0, 0], [0, 2.2, 0, 0], [0, 0, A, B], [0, 0, -1, 0]];
+  const m = new Float32Array(16);
+  for (let r = 0; r < 4; r++) for (let c = 0; c < 4; c++) {
+    let s = 0;
+    for (let k = 0; k < 4; k++) s += proj[r][k] * viewRows[k][c];
+    m[c * 4 + r] = s;
+  }
+  return m;
+}
+
 let drawQueued = false;
 function drawView() {
   if (!gl3.gl || drawQueued) return;
   drawQueued = true;
   requestAnimationFrame(() => {
     drawQueued = false;
-    const gl = gl3.gl, L = gl3.loc;
+    const gl = gl3.gl;
+    const bunny = $("shape").value === "1";
+    const p = bunny ? gl3.mesh : gl3.sphere, L = p.loc;
+    gl.useProgram(p.prog);
     gl.viewport(0, 0, gl.canvas.width, gl.canvas.height);
-    gl.uniformMatrix3fv(L.rot, false, rotation());
-    gl.uniform1i(L.shape, +$("shape").value);
+    const R = rotation();
+    gl.uniformMatrix3fv(L.rot, false, R);
     gl.uniform1i(L.clip, $("clip").checked ? 1 : 0);
     const n = planeNormal(), o = planeOrigin(), N = view.n || 64;
     gl.uniform3fv(L.pn, n);
@@ -401,7 +490,29 @@ function drawView() {
       gl.uniform3fv(L.cutV, c.frame.v.map((x) => x / c.spacing));
       gl.uniform1f(L.cutSize, c.size);
     }
-    gl.drawArrays(gl.TRIANGLES, 0, 3);
+    if (bunny) {
+      gl.clearColor(0.07, 0.07, 0.08, 1.0);
+      gl.clearDepth(1.0);
+      gl.clear(gl.COLOR_BUFFER_BIT | gl.DEPTH_BUFFER_BIT);
+      if (gl3.bunny) {
+        gl.enable(gl.DEPTH_TEST);
+        gl.depthFunc(gl.LESS);
+        gl.disable(gl.CULL_FACE); // back faces are the cap
+        gl.uniformMatrix4fv(L.mvp, false, meshMatrix(R));
+        gl.uniform1f(L.scale, MESH_SCALE);
+        gl.uniform3fv(L.eye, [3.2 * R[6], 3.2 * R[7], 3.2 * R[8]]);
+        gl.bindVertexArray(p.vao);
+        gl.drawElements(gl.TRIANGLES, 3 * gl3.bunny.triangles, gl.UNSIGNED_SHORT, 0);
+      }
+    } else {
+      gl.disable(gl.DEPTH_TEST);
+      gl.bindVertexArray(p.vao);
+      gl.drawArrays(gl.TRIANGLES, 0, 3);
+    }
+    gl.bindVertexArray(null);
+    gl3.frames += 1;
+    gl.canvas.dataset.shape = bunny && gl3.bunny ? "bunny" : bunny ? "loading" : "sphere";
+    gl.canvas.dataset.frames = String(gl3.frames);
   });
 }
 
@@ -440,6 +551,7 @@ function wire() {
 
 wire();
 try { initGL(); } catch (e) { $("view-status").textContent = "WebGL error: " + e.message; }
+loadBunny().catch((e) => { $("view-status").textContent = "bunny mesh: " + e.message; });
 updateDownloads();
 for (const k of ["azimuth", "elevation", "offset"]) $(`cut-${k}-v`).textContent = $(`cut-${k}`).value;
 init().catch((e) => setStatus(e.message, true));

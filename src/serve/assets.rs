@@ -28,6 +28,17 @@ const ASSETS: &[(&str, Asset)] = &[
             body: include_bytes!("../../assets/viewer/viewer.css"),
         },
     ),
+    // The Stanford bunny as a triangle mesh for the 3D view (public domain, Stanford 3D Scanning
+    // Repository; see assets/viewer/SOURCES.md): u32 vertex count V, u32 triangle count T (little
+    // endian), V x 3 f32 positions in [-0.5, 0.5]^3, T x 3 u16 indices. Made by
+    // assets/viewer/bunny_bin.py.
+    (
+        "/bunny.bin",
+        Asset {
+            content_type: "application/octet-stream",
+            body: include_bytes!("../../assets/viewer/bunny.bin"),
+        },
+    ),
 ];
 
 /// The asset at `path` (`/index.html` is `/`).
@@ -42,6 +53,7 @@ mod tests {
     fn only_table_entries_are_served() {
         assert!(super::get("/").is_some());
         assert!(super::get("/viewer.js").is_some());
+        assert!(super::get("/bunny.bin").is_some());
         for p in [
             "/../Cargo.toml",
             "/%2e%2e/Cargo.toml",
