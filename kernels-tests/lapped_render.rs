@@ -61,11 +61,12 @@ fn model() -> LstModel {
 fn compare(model: &LstModel, gpu: &image::RgbaImage, camera: &Camera) -> Result<String, String> {
     let size = gpu.width();
     let faces = model.mesh.boundary_faces(&model.mesh.face_neighbors());
+    let normals = model.mesh.surface_normals(&faces);
     let (mut compared, mut outliers, mut total) = (0usize, 0usize, 0.0f64);
     let mut coverage_mismatch = 0usize;
     for y in 0..size {
         for x in 0..size {
-            let reference = reference_pixel(model, &faces, camera, size, x, y);
+            let reference = reference_pixel(model, &faces, &normals, camera, size, x, y);
             let g = gpu.get_pixel(x, y);
             match reference {
                 None if g[3] == 0 => {}

@@ -1,7 +1,7 @@
 //! CPU reference of the render pipeline `wgsl/lapped_render.wgsl`: the colour the GPU render of an
 //! LST model should give a pixel, by a ray cast against the boundary faces (front faces only, as
 //! the renderer culls back faces), the layers of the hit tet composited ([`LstModel::shade`]) and
-//! the shader's headlight shading. Used by kernels-tests, pixel by pixel.
+//! the shader's headlight shading of the interpolated smooth normal ([`crate::lapped::tetmesh::TetMesh::surface_normals`]). Used by kernels-tests, pixel by pixel.
 
 use crate::lapped::camera::Camera;
 use crate::lapped::model::LstModel;
@@ -17,13 +17,14 @@ pub fn shading(normal: DVec3, to_eye: DVec3) -> f64 {
 pub fn reference_pixel(
     model: &LstModel,
     faces: &[([u32; 3], u32)],
+    normals: &[DVec3],
     camera: &Camera,
     size: u32,
     x: u32,
     y: u32,
 ) -> Option<[f64; 3]> {
     let (o, d) = camera.ray(x, y, size);
-    let mut best: Option<(f64, usize)> = None;
+    let mut best: Option<(f64, usize, f64, f64)> = None;
     for (i, (f, _)) in faces.iter().enumerate() {
         let [a, b, c] = f.map(|v| model.mesh.vertices[v as usize]);
         // Moller-Trumbore, front faces only (the renderer culls back faces): det = -d . n.
@@ -41,11 +42,11 @@ pub fn reference_pixel(
         if u < 0.0 || v < 0.0 || u + v > 1.0 || t <= 0.0 {
             continue;
         }
-        if best.is_none_or(|(bt, _)| t < bt) {
-            best = Some((t, i));
+        if best.is_none_or(|(bt, ..)| t < bt) {
+            best = Some((t, i, u, v));
         }
     }
-    let (t, i) = best?;
+    let (t, i, u, v) = best?;
     let (f, tet) = faces[i];
     let hit = o + d * t;
     let b = model
@@ -54,7 +55,9 @@ pub fn reference_pixel(
         .map(|x| x.max(0.0));
     let sum: f64 = b.iter().sum();
     let rgba = model.shade(tet as usize, b.map(|x| (x / sum) as f32));
-    let [a, bb, c] = f.map(|v| model.mesh.vertices[v as usize]);
-    let k = shading((bb - a).cross(c - a), camera.eye - hit);
+    // The smooth normal, interpolated like the rasterizer does (barycentric in the face).
+    let [na, nb, nc] = f.map(|v| normals[v as usize]);
+    let normal = (1.0 - u - v) * na + u * nb + v * nc;
+    let k = shading(normal, camera.eye - hit);
     Some([rgba[0] as f64 * k, rgba[1] as f64 * k, rgba[2] as f64 * k])
 }

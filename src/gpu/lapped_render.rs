@@ -10,7 +10,6 @@ use crate::error::{Error, Result};
 use crate::kernel_types::RenderParams;
 use crate::lapped::camera::Camera;
 use crate::lapped::model::LstModel;
-use crate::lapped::tetmesh::FACES;
 
 /// Floats per vertex: position, normal, texture coordinate, mask index.
 const VERTEX_FLOATS: usize = 10;
@@ -18,41 +17,36 @@ const VERTEX_FLOATS: usize = 10;
 pub const MAX_RENDER_SIZE: u32 = 4096;
 
 /// The vertex stream: the depth pre-pass (one copy of each face) and the layers (one copy per
-/// face and layer, sorted by patch).
+/// face and layer, sorted by patch). Normals are the smooth per-vertex surface normals.
 pub fn vertex_streams(model: &LstModel) -> (Vec<f32>, Vec<f32>) {
-    let neighbors = model.mesh.face_neighbors();
+    let faces = model.mesh.boundary_faces(&model.mesh.face_neighbors());
+    let normals = model.mesh.surface_normals(&faces);
     let mut prepass = Vec::new();
     let mut layered: Vec<(u32, [f32; 3 * VERTEX_FLOATS])> = Vec::new();
-    for (t, tet) in model.mesh.tets.iter().enumerate() {
-        for (k, face) in FACES.iter().enumerate() {
-            if neighbors[t][k] != u32::MAX {
-                continue;
-            }
-            let p = face.map(|i| model.mesh.vertices[tet[i] as usize]);
-            let n = (p[1] - p[0])
-                .cross(p[2] - p[0])
-                .normalize_or_zero()
-                .as_vec3();
-            let corner = |c: usize, coord: [f32; 3], mask: f32| {
-                let q = p[c].as_vec3();
-                [
-                    q.x, q.y, q.z, n.x, n.y, n.z, coord[0], coord[1], coord[2], mask,
-                ]
-            };
+    for (face, t) in &faces {
+        let tet = model.mesh.tets[*t as usize];
+        // The face's corners as indices into the tet (for the layers' texture coordinates).
+        let local = face.map(|v| tet.iter().position(|&u| u == v).expect("face of its tet"));
+        let corner = |c: usize, coord: [f32; 3], mask: f32| {
+            let q = model.mesh.vertices[face[c] as usize].as_vec3();
+            let n = normals[face[c] as usize].as_vec3();
+            [
+                q.x, q.y, q.z, n.x, n.y, n.z, coord[0], coord[1], coord[2], mask,
+            ]
+        };
+        for c in 0..3 {
+            prepass.extend_from_slice(&corner(c, [0.0; 3], 0.0));
+        }
+        for layer in &model.layers[*t as usize] {
+            let mut tri = [0.0f32; 3 * VERTEX_FLOATS];
             for c in 0..3 {
-                prepass.extend_from_slice(&corner(c, [0.0; 3], 0.0));
+                tri[c * VERTEX_FLOATS..(c + 1) * VERTEX_FLOATS].copy_from_slice(&corner(
+                    c,
+                    layer.coords[local[c]],
+                    layer.mask as f32,
+                ));
             }
-            for layer in &model.layers[t] {
-                let mut tri = [0.0f32; 3 * VERTEX_FLOATS];
-                for c in 0..3 {
-                    tri[c * VERTEX_FLOATS..(c + 1) * VERTEX_FLOATS].copy_from_slice(&corner(
-                        c,
-                        layer.coords[face[c]],
-                        layer.mask as f32,
-                    ));
-                }
-                layered.push((layer.patch, tri));
-            }
+            layered.push((layer.patch, tri));
         }
     }
     // Stable: within a patch, triangles keep tet order.

@@ -118,6 +118,20 @@ impl TetMesh {
         out
     }
 
+    /// Per vertex, the area-weighted mean normal of the boundary `faces` around it (zero for
+    /// interior vertices): smooth shading of the surface.
+    pub fn surface_normals(&self, faces: &[([u32; 3], u32)]) -> Vec<DVec3> {
+        let mut normals = vec![DVec3::ZERO; self.vertices.len()];
+        for (f, _) in faces {
+            let p = f.map(|v| self.vertices[v as usize]);
+            let n = (p[1] - p[0]).cross(p[2] - p[0]);
+            for &v in f {
+                normals[v as usize] += n;
+            }
+        }
+        normals.iter().map(|n| n.normalize_or_zero()).collect()
+    }
+
     /// Each vertex's one-ring (vertices sharing an edge), sorted.
     pub fn vertex_neighbors(&self) -> Vec<Vec<u32>> {
         let mut ring = vec![Vec::new(); self.vertices.len()];
