@@ -1,7 +1,7 @@
 //! The generalized winding number of a triangle mesh (Jacobson et al. 2013): the sum of the
 //! signed solid angles its triangles subtend at a point, over 4 pi. It is 1 inside a closed,
 //! outward-oriented mesh and 0 outside, and degrades gracefully (values near 0.5 only near the
-//! gap) when the mesh has small holes, like the scanned bunny's base: the inside test of the
+//! gap) when the mesh has small holes, like the decimated dragon's: the inside test of the
 //! tet mesher is `w >= 0.5`.
 
 use crate::mesh::Mesh;
