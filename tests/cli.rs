@@ -965,3 +965,121 @@ fn gradient_synth_writes_a_tileable_solid_and_refuses_bad_input() {
         assert_user_error(&run(&all), needle, b, &[]);
     }
 }
+
+#[test]
+fn gradient_vectorize_with_a_mask_separates_regions() {
+    use solidsynth::volume::Volume;
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let n = 21u32;
+    let (mut v, mut m) = (Volume::new(n, n, n, 3), Volume::new(n, n, n, 1));
+    for z in 0..n {
+        for y in 0..n {
+            for x in 0..n {
+                let inside = x + y / 2 < 14;
+                m.at_mut(x, y, z)[0] = if inside { 255 } else { 0 };
+                v.at_mut(x, y, z).copy_from_slice(if inside {
+                    &[230, 40, 20]
+                } else {
+                    &[20, 60, 210]
+                });
+            }
+        }
+    }
+    let (vol, mask) = (d.join("v.nrrd"), d.join("m.nrrd"));
+    solidsynth::io::nrrd::save(&v, &vol).unwrap();
+    solidsynth::io::nrrd::save(&m, &mask).unwrap();
+    let gs = d.join("r.gsolid");
+    let o = run(&[
+        "gradient",
+        "vectorize",
+        vol.to_str().unwrap(),
+        "--mask",
+        mask.to_str().unwrap(),
+        "--json",
+        "-o",
+        gs.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let s: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let (with, without) = (
+        s["rms"].as_f64().unwrap(),
+        s["rms_without_regions"].as_f64().unwrap(),
+    );
+    // (A stair-stepped oblique boundary: about half the error remains at its steps.)
+    assert!(
+        with < 0.6 * without,
+        "with regions {with}, without {without}"
+    );
+    assert!(s["split_points"].as_u64().unwrap() > 0);
+    // Rendering a region file, both blends; the exact one reproduces the reported error.
+    let out = d.join("r.nrrd");
+    let o = run(&[
+        "gradient",
+        "render",
+        gs.to_str().unwrap(),
+        "--no-antialias",
+        "--backend",
+        "cpu",
+        "--size",
+        "21",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let r = solidsynth::io::nrrd::load(&out).unwrap();
+    let measured = solidsynth::gradient::vectorize::rms(&r, &v);
+    assert!((measured - with).abs() < 1e-9, "{measured} vs {with}");
+    // Refused, nothing written: a mask of another size, --optimize with --mask, editing.
+    let small = d.join("small.nrrd");
+    solidsynth::io::nrrd::save(&Volume::new(8, 8, 8, 1), &small).unwrap();
+    let no = d.join("no.gsolid");
+    for args in [
+        vec![
+            "gradient",
+            "vectorize",
+            vol.to_str().unwrap(),
+            "--mask",
+            small.to_str().unwrap(),
+        ],
+        vec![
+            "gradient",
+            "vectorize",
+            vol.to_str().unwrap(),
+            "--mask",
+            mask.to_str().unwrap(),
+            "--optimize",
+        ],
+    ] {
+        let mut args = args;
+        args.extend(["-o", no.to_str().unwrap()]);
+        let o = run(&args);
+        assert_eq!(
+            o.status.code(),
+            Some(2),
+            "{}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        assert!(!no.exists());
+    }
+    let strokes = d.join("s.json");
+    std::fs::write(
+        &strokes,
+        r#"{"strokes": [{"position": [8, 8, 8], "strength": 1.0}]}"#,
+    )
+    .unwrap();
+    let o = run(&[
+        "gradient",
+        "edit",
+        gs.to_str().unwrap(),
+        "--strokes",
+        strokes.to_str().unwrap(),
+        "--color",
+        "255,0,255",
+        "-o",
+        no.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("region-separated"));
+    assert!(!no.exists());
+}

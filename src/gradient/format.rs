@@ -31,18 +31,24 @@ fn checksum(header: &[u8], payload: &[u8]) -> u32 {
     h.finalize()
 }
 
-pub fn to_bytes(s: &GradientSolid, encoding: Encoding) -> Vec<u8> {
+/// Values (`comps` interleaved components) in `encoding`: f32 as is, or 8-bit with a per-component
+/// (minimum, step) pair first.
+pub(crate) fn encode_values(values: &[f32], comps: usize, encoding: Encoding) -> Vec<u8> {
     let mut payload = Vec::new();
     match encoding {
-        Encoding::F32 => payload.extend(s.data.iter().flat_map(|v| v.to_le_bytes())),
+        Encoding::F32 => payload.extend(values.iter().flat_map(|v| v.to_le_bytes())),
         Encoding::U8 => {
-            let comps = s.channels as usize * 4;
             let mut lo = vec![f32::INFINITY; comps];
             let mut hi = vec![f32::NEG_INFINITY; comps];
-            for (i, &v) in s.data.iter().enumerate() {
+            for (i, &v) in values.iter().enumerate() {
                 lo[i % comps] = lo[i % comps].min(v);
                 hi[i % comps] = hi[i % comps].max(v);
             }
+            // No values: an empty range (still a valid pair).
+            let lo: Vec<f32> = lo
+                .iter()
+                .map(|&l| if l.is_finite() { l } else { 0.0 })
+                .collect();
             let step: Vec<f32> = (0..comps)
                 .map(|c| ((hi[c] - lo[c]) / 255.0).max(f32::MIN_POSITIVE))
                 .collect();
@@ -50,12 +56,55 @@ pub fn to_bytes(s: &GradientSolid, encoding: Encoding) -> Vec<u8> {
                 payload.extend(lo[c].to_le_bytes());
                 payload.extend(step[c].to_le_bytes());
             }
-            payload.extend(s.data.iter().enumerate().map(|(i, &v)| {
+            payload.extend(values.iter().enumerate().map(|(i, &v)| {
                 let c = i % comps;
                 ((v - lo[c]) / step[c]).round().clamp(0.0, 255.0) as u8
             }));
         }
     }
+    payload
+}
+
+/// The inverse of [`encode_values`] for `count` values; None when the length does not match or a
+/// value is not finite.
+pub(crate) fn decode_values(
+    payload: &[u8],
+    comps: usize,
+    count: usize,
+    encoding: Encoding,
+) -> Option<Vec<f32>> {
+    let f = |b: &[u8]| f32::from_le_bytes(b.try_into().unwrap());
+    let data: Vec<f32> = match encoding {
+        Encoding::F32 => {
+            if payload.len() != count.checked_mul(4)? {
+                return None;
+            }
+            payload.chunks_exact(4).map(f).collect()
+        }
+        Encoding::U8 => {
+            if payload.len() != comps.checked_mul(8)?.checked_add(count)? {
+                return None;
+            }
+            let ranges: Vec<(f32, f32)> = (0..comps)
+                .map(|c| {
+                    (
+                        f(&payload[c * 8..c * 8 + 4]),
+                        f(&payload[c * 8 + 4..c * 8 + 8]),
+                    )
+                })
+                .collect();
+            payload[comps * 8..]
+                .iter()
+                .enumerate()
+                .map(|(i, &q)| ranges[i % comps].0 + q as f32 * ranges[i % comps].1)
+                .collect()
+        }
+    };
+    data.iter().all(|v| v.is_finite()).then_some(data)
+}
+
+pub fn to_bytes(s: &GradientSolid, encoding: Encoding) -> Vec<u8> {
+    let payload = encode_values(&s.data, s.channels as usize * 4, encoding);
     let mut out = Vec::with_capacity(HEADER + payload.len());
     out.extend_from_slice(MAGIC);
     for v in [
@@ -121,38 +170,17 @@ pub fn from_bytes(bytes: &[u8], name: &str) -> Result<GradientSolid> {
     }
     let values = dims.iter().map(|&d| d as usize).product::<usize>() * channels as usize * 4;
     let comps = channels as usize * 4;
-    let expected = if encoding == 0 {
-        values * 4
+    let encoding = if encoding == 0 {
+        Encoding::F32
     } else {
-        comps * 8 + values
+        Encoding::U8
     };
-    if payload.len() != expected {
-        return Err(bad(format!(
-            "payload of {} bytes, expected {expected}",
+    let data = decode_values(payload, comps, values, encoding).ok_or_else(|| {
+        bad(format!(
+            "payload of {} bytes does not hold {values} finite values",
             payload.len()
-        )));
-    }
-    let f = |b: &[u8]| f32::from_le_bytes(b.try_into().unwrap());
-    let data: Vec<f32> = if encoding == 0 {
-        payload.chunks_exact(4).map(f).collect()
-    } else {
-        let ranges: Vec<(f32, f32)> = (0..comps)
-            .map(|c| {
-                (
-                    f(&payload[c * 8..c * 8 + 4]),
-                    f(&payload[c * 8 + 4..c * 8 + 8]),
-                )
-            })
-            .collect();
-        payload[comps * 8..]
-            .iter()
-            .enumerate()
-            .map(|(i, &q)| ranges[i % comps].0 + q as f32 * ranges[i % comps].1)
-            .collect()
-    };
-    if data.iter().any(|v| !v.is_finite()) {
-        return Err(bad("non-finite control values".into()));
-    }
+        ))
+    })?;
     let mut s = GradientSolid::new(dims, channels)?;
     s.data = data;
     Ok(s)

@@ -16,6 +16,7 @@
 
 pub mod edit;
 pub mod format;
+pub mod regions;
 pub mod synth;
 pub mod vectorize;
 

@@ -25,50 +25,72 @@ pub fn vectorize(v: &Volume) -> Result<GradientSolid> {
     let channels = v.channels;
     let mut solid = GradientSolid::new(dims, channels)?;
     let per_point = channels as usize * 4;
-    let d = SPACING as i64;
     solid
         .data
         .par_chunks_mut(per_point)
         .enumerate()
         .for_each(|(i, out)| {
-            let p = [
-                (i % dims[0] as usize) as i64 * d,
-                ((i / dims[0] as usize) % dims[1] as usize) as i64 * d,
-                (i / (dims[0] as usize * dims[1] as usize)) as i64 * d,
-            ];
-            let range = |a: usize, n: u32| (p[a] - d).max(0)..=(p[a] + d).min(n as i64 - 1);
-            let mut ata = Matrix4::<f64>::zeros();
-            let mut atb = vec![Vector4::<f64>::zeros(); channels as usize];
-            for z in range(2, v.nz) {
-                for y in range(1, v.ny) {
-                    for x in range(0, v.nx) {
-                        let row = Vector4::new(
-                            1.0,
-                            (x - p[0]) as f64,
-                            (y - p[1]) as f64,
-                            (z - p[2]) as f64,
-                        );
-                        ata += row * row.transpose();
-                        let px = v.at(x as u32, y as u32, z as u32);
-                        for c in 0..channels as usize {
-                            atb[c] += row * px[c] as f64;
-                        }
-                    }
+            fit_point(point_position(dims, i), v.dims(), out, &|x, y, z, px| {
+                for (o, &b) in px.iter_mut().zip(v.at(x, y, z)) {
+                    *o = b as f64;
                 }
-            }
-            // A neighbourhood flat along an axis (a one-voxel-thick volume) leaves that gradient
-            // undetermined: the pseudo-inverse sets it to zero.
-            let inv = ata
-                .pseudo_inverse(1e-9)
-                .unwrap_or_else(|_| Matrix4::zeros());
-            for c in 0..channels as usize {
-                let sol = inv * atb[c];
-                for k in 0..4 {
-                    out[c * 4 + k] = sol[k] as f32;
-                }
-            }
+                true
+            });
         });
     Ok(solid)
+}
+
+/// Voxel position of control point `i` (x fastest).
+pub(crate) fn point_position(dims: [u32; 3], i: usize) -> [i64; 3] {
+    let d = SPACING as i64;
+    [
+        (i % dims[0] as usize) as i64 * d,
+        ((i / dims[0] as usize) % dims[1] as usize) as i64 * d,
+        (i / (dims[0] as usize * dims[1] as usize)) as i64 * d,
+    ]
+}
+
+/// Eq. 2 at one control point at voxel position `p`: f + grad . (x - p) ~ value(x) in the least
+/// squares over the voxels of its (2d + 1)^3 neighbourhood (clipped to the `n`-voxel volume) for
+/// which `value` fills the channels and returns true. Writes (f, fx, fy, fz) per channel.
+pub(crate) fn fit_point(
+    p: [i64; 3],
+    n: [u32; 3],
+    out: &mut [f32],
+    value: &dyn Fn(u32, u32, u32, &mut [f64]) -> bool,
+) {
+    let channels = out.len() / 4;
+    let d = SPACING as i64;
+    let range = |a: usize| (p[a] - d).max(0)..=(p[a] + d).min(n[a] as i64 - 1);
+    let mut ata = Matrix4::<f64>::zeros();
+    let mut atb = vec![Vector4::<f64>::zeros(); channels];
+    let mut px = vec![0f64; channels];
+    for z in range(2) {
+        for y in range(1) {
+            for x in range(0) {
+                if !value(x as u32, y as u32, z as u32, &mut px) {
+                    continue;
+                }
+                let row =
+                    Vector4::new(1.0, (x - p[0]) as f64, (y - p[1]) as f64, (z - p[2]) as f64);
+                ata += row * row.transpose();
+                for c in 0..channels {
+                    atb[c] += row * px[c];
+                }
+            }
+        }
+    }
+    // A neighbourhood flat along an axis (a one-voxel-thick volume, or a region's samples on one
+    // plane) leaves that gradient undetermined: the pseudo-inverse sets it to zero.
+    let inv = ata
+        .pseudo_inverse(1e-9)
+        .unwrap_or_else(|_| Matrix4::zeros());
+    for c in 0..channels {
+        let sol = inv * atb[c];
+        for k in 0..4 {
+            out[c * 4 + k] = sol[k] as f32;
+        }
+    }
 }
 
 /// The voxels' interpolation stencils: per voxel (x fastest), its cube's first control point
