@@ -400,16 +400,12 @@ fn vectorize_with_mask(
     mask_path: &Path,
     quiet: bool,
 ) -> anyhow::Result<()> {
-    if a.optimize {
-        return Err(Error::invalid(
-            "--optimize",
-            "is not implemented with --mask (the eq. 3 refinement of region solids is not done)",
-        )
-        .into());
-    }
     let mask = nrrd::load(mask_path)?;
     let start = Instant::now();
-    let rs = regions::vectorize_regions(volume, &mask, &mask_path.display().to_string())?;
+    let mut rs = regions::vectorize_regions(volume, &mask, &mask_path.display().to_string())?;
+    if a.optimize {
+        rs.optimize(volume, a.iterations as usize);
+    }
     let fit_s = start.elapsed().as_secs_f64();
     let bytes = rs.to_bytes(a.encoding);
     let stored = RegionSolid::from_bytes(&bytes, "encoded solid")?;
@@ -419,10 +415,12 @@ fn vectorize_with_mask(
         &stored.render(n, &Compute::Cpu, Blend::Antialiased)?,
         volume,
     );
-    let plain_solid = format::from_bytes(
-        &format::to_bytes(&vectorize::vectorize(volume)?, a.encoding),
-        "plain solid",
-    )?;
+    // The comparison: the plain fit with the same refinement.
+    let mut plain_fit = vectorize::vectorize(volume)?;
+    if a.optimize {
+        vectorize::optimize(&mut plain_fit, volume, a.iterations as usize);
+    }
+    let plain_solid = format::from_bytes(&format::to_bytes(&plain_fit, a.encoding), "plain solid")?;
     let plain = vectorize::rms(&vectorize::render(&plain_solid, n), volume);
     let fraction = bytes.len() as f64 / volume.data.len() as f64;
     atomic::write_file(&a.output, &bytes)?;

@@ -278,6 +278,46 @@ impl RegionSolid {
         self.positive.extent()
     }
 
+    /// Eq. 3 for a region solid: both feature sets refined together so the exact evaluation
+    /// (each voxel with its own sign's set) fits every voxel of `v`; the distance stays as is.
+    /// Returns the RMS error after each conjugate-gradient step.
+    pub fn optimize(&mut self, v: &Volume, iterations: usize) -> Vec<f64> {
+        let n = v.dims();
+        let negative_voxel: Vec<bool> = tricubic_eval(&self.distance, &Query::volume(n))
+            .iter()
+            .map(|&d| d < 0.0)
+            .collect();
+        let points = self.split.len();
+        let split = &self.split;
+        // Unknowns: every point's positive set, then every point's negative set (used only
+        // where the point is split: elsewhere its one set stands for both).
+        let point = |vox: usize, p: usize| {
+            if negative_voxel[vox] && split[p] {
+                points + p
+            } else {
+                p
+            }
+        };
+        let mut x: Vec<f64> = self
+            .positive
+            .data
+            .iter()
+            .chain(&self.negative.data)
+            .map(|&d| d as f64)
+            .collect();
+        let history = super::vectorize::cgnr(&self.positive, v, &point, &mut x, iterations);
+        let per = self.channels() as usize * 4;
+        let (pos, neg) = x.split_at(points * per);
+        self.positive.data = pos.iter().map(|&d| d as f32).collect();
+        for i in 0..points {
+            let src = if self.split[i] { neg } else { pos };
+            for k in 0..per {
+                self.negative.data[i * per + k] = src[i * per + k] as f32;
+            }
+        }
+        history
+    }
+
     /// Split control points (for reports).
     pub fn split_points(&self) -> usize {
         self.split.iter().filter(|&&s| s).count()
@@ -527,6 +567,16 @@ mod tests {
             e_regions < 0.6 * e_plain,
             "regions {e_regions} vs plain {e_plain}"
         );
+        let mut refined = rs.clone();
+        let history = refined.optimize(&v, 20);
+        assert!(history.windows(2).all(|w| w[1] <= w[0] + 1e-9));
+        let e_opt = rms(
+            &refined
+                .render([33; 3], &Compute::Cpu, Blend::Exact)
+                .unwrap(),
+            &v,
+        );
+        assert!(e_opt < e_regions, "optimized {e_opt} vs {e_regions}");
         let aa = rs
             .render([33; 3], &Compute::Cpu, Blend::Antialiased)
             .unwrap();

@@ -114,30 +114,49 @@ fn corner_offsets(s: &GradientSolid) -> [usize; 8] {
     std::array::from_fn(|c| (c & 1) + ((c >> 1) & 1) * dx + (c >> 2) * dy)
 }
 
-/// y = A x: the interpolated values (per voxel, per channel) of control values `x`.
-fn apply(st: &[(usize, [f32; 32])], corners: &[usize; 8], ch: usize, x: &[f64], y: &mut [f64]) {
-    y.par_chunks_mut(ch).zip(st).for_each(|(out, (base, w))| {
-        for (c, o) in out.iter_mut().enumerate() {
-            let mut acc = 0.0;
-            for (k, off) in corners.iter().enumerate() {
-                let v = ((base + off) * ch + c) * 4;
-                for j in 0..4 {
-                    acc += w[k * 4 + j] as f64 * x[v + j];
+/// y = A x: the interpolated values (per voxel, per channel) of control values `x`;
+/// `point(voxel, p)` says which control point of `x` stands for grid point `p` at that voxel (the
+/// identity, or a region solid's choice of feature set).
+fn apply<F: Fn(usize, usize) -> usize + Sync>(
+    st: &[(usize, [f32; 32])],
+    corners: &[usize; 8],
+    ch: usize,
+    point: &F,
+    x: &[f64],
+    y: &mut [f64],
+) {
+    y.par_chunks_mut(ch)
+        .zip(st)
+        .enumerate()
+        .for_each(|(vox, (out, (base, w)))| {
+            for (c, o) in out.iter_mut().enumerate() {
+                let mut acc = 0.0;
+                for (k, off) in corners.iter().enumerate() {
+                    let v = (point(vox, base + off) * ch + c) * 4;
+                    for j in 0..4 {
+                        acc += w[k * 4 + j] as f64 * x[v + j];
+                    }
                 }
+                *o = acc;
             }
-            *o = acc;
-        }
-    });
+        });
 }
 
 /// x = A^T y (sequential: a deterministic order of accumulation).
-fn apply_t(st: &[(usize, [f32; 32])], corners: &[usize; 8], ch: usize, y: &[f64], x: &mut [f64]) {
+fn apply_t<F: Fn(usize, usize) -> usize>(
+    st: &[(usize, [f32; 32])],
+    corners: &[usize; 8],
+    ch: usize,
+    point: &F,
+    y: &[f64],
+    x: &mut [f64],
+) {
     x.iter_mut().for_each(|v| *v = 0.0);
     for (vox, (base, w)) in st.iter().enumerate() {
         for c in 0..ch {
             let r = y[vox * ch + c];
             for (k, off) in corners.iter().enumerate() {
-                let v = ((base + off) * ch + c) * 4;
+                let v = (point(vox, base + off) * ch + c) * 4;
                 for j in 0..4 {
                     x[v + j] += w[k * 4 + j] as f64 * r;
                 }
@@ -153,17 +172,31 @@ fn dot(a: &[f64], b: &[f64]) -> f64 {
 /// Eq. 3: refine all control values so the interpolated solid fits every voxel of `v` in the
 /// least-squares sense (CGNR, `iterations` steps). Returns the RMS error after each step.
 pub fn optimize(s: &mut GradientSolid, v: &Volume, iterations: usize) -> Vec<f64> {
-    let n = [v.nx, v.ny, v.nz];
-    let ch = s.channels as usize;
-    let st = stencils(s, n);
-    let corners = corner_offsets(s);
-    let b: Vec<f64> = v.data.iter().map(|&x| x as f64).collect();
     let mut x: Vec<f64> = s.data.iter().map(|&d| d as f64).collect();
+    let history = cgnr(s, v, &|_, p| p, &mut x, iterations);
+    s.data = x.into_iter().map(|v| v as f32).collect();
+    history
+}
+
+/// CGNR on the interpolation operator of `grid` (its stencils over `v`'s voxels) with control
+/// points mapped by `point`, from and into `x`. Returns the RMS error after each step.
+pub(crate) fn cgnr<F: Fn(usize, usize) -> usize + Sync>(
+    grid: &GradientSolid,
+    v: &Volume,
+    point: &F,
+    x: &mut [f64],
+    iterations: usize,
+) -> Vec<f64> {
+    let n = [v.nx, v.ny, v.nz];
+    let ch = grid.channels as usize;
+    let st = stencils(grid, n);
+    let corners = corner_offsets(grid);
+    let b: Vec<f64> = v.data.iter().map(|&x| x as f64).collect();
     let mut ax = vec![0f64; b.len()];
-    apply(&st, &corners, ch, &x, &mut ax);
+    apply(&st, &corners, ch, point, x, &mut ax);
     let mut resid: Vec<f64> = b.iter().zip(&ax).map(|(b, a)| b - a).collect();
     let mut r = vec![0f64; x.len()];
-    apply_t(&st, &corners, ch, &resid, &mut r);
+    apply_t(&st, &corners, ch, point, &resid, &mut r);
     let mut p = r.clone();
     let mut rs = dot(&r, &r);
     let mut q = vec![0f64; b.len()];
@@ -172,18 +205,17 @@ pub fn optimize(s: &mut GradientSolid, v: &Volume, iterations: usize) -> Vec<f64
         if rs <= 1e-18 {
             break;
         }
-        apply(&st, &corners, ch, &p, &mut q);
+        apply(&st, &corners, ch, point, &p, &mut q);
         let alpha = rs / dot(&q, &q).max(f64::MIN_POSITIVE);
         x.iter_mut().zip(&p).for_each(|(x, p)| *x += alpha * p);
         resid.iter_mut().zip(&q).for_each(|(r, q)| *r -= alpha * q);
         history.push((dot(&resid, &resid) / resid.len() as f64).sqrt());
-        apply_t(&st, &corners, ch, &resid, &mut r);
+        apply_t(&st, &corners, ch, point, &resid, &mut r);
         let rs_new = dot(&r, &r);
         let beta = rs_new / rs;
         p.iter_mut().zip(&r).for_each(|(p, r)| *p = r + beta * *p);
         rs = rs_new;
     }
-    s.data = x.into_iter().map(|v| v as f32).collect();
     history
 }
 
