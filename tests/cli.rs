@@ -1046,6 +1046,84 @@ fn gradient_vectorize_with_a_mask_separates_regions() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let so: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert!(so["rms"].as_f64().unwrap() < with, "{so}");
+    // Detail residual: sigma channels stored, grain added at render time (or not).
+    let dg = d.join("detail.gsolid");
+    let o = run(&[
+        "gradient",
+        "vectorize",
+        vol.to_str().unwrap(),
+        "--detail",
+        "-o",
+        dg.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let solid =
+        solidsynth::gradient::format::from_bytes(&std::fs::read(&dg).unwrap(), "d").unwrap();
+    assert_eq!((solid.channels, solid.detail), (6, 3));
+    let render = |extra: &[&str], name: &str| {
+        let out = d.join(name);
+        let mut args = vec![
+            "gradient",
+            "render",
+            dg.to_str().unwrap(),
+            "--backend",
+            "cpu",
+            "--size",
+            "21",
+        ];
+        args.extend(extra);
+        args.extend(["-o", out.to_str().unwrap()]);
+        let o = run(&args);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        solidsynth::io::nrrd::load(&out).unwrap()
+    };
+    let (grain, smooth) = (render(&[], "g.nrrd"), render(&["--no-detail"], "s.nrrd"));
+    assert_eq!((grain.channels, smooth.channels), (3, 3));
+    assert_eq!(
+        smooth,
+        solidsynth::gradient::vectorize::render(&solid, [21; 3])
+    );
+    assert_ne!(grain, smooth);
+    assert_eq!(grain, render(&[], "g2.nrrd"), "grain is deterministic");
+    // Detail residual: sigma channels stored, grain added at render time (or not).
+    let dg = d.join("detail.gsolid");
+    let o = run(&[
+        "gradient",
+        "vectorize",
+        vol.to_str().unwrap(),
+        "--detail",
+        "-o",
+        dg.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let solid =
+        solidsynth::gradient::format::from_bytes(&std::fs::read(&dg).unwrap(), "d").unwrap();
+    assert_eq!((solid.channels, solid.detail), (6, 3));
+    let render = |extra: &[&str], name: &str| {
+        let out = d.join(name);
+        let mut args = vec![
+            "gradient",
+            "render",
+            dg.to_str().unwrap(),
+            "--backend",
+            "cpu",
+            "--size",
+            "21",
+        ];
+        args.extend(extra);
+        args.extend(["-o", out.to_str().unwrap()]);
+        let o = run(&args);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        solidsynth::io::nrrd::load(&out).unwrap()
+    };
+    let (grain, smooth) = (render(&[], "g.nrrd"), render(&["--no-detail"], "s.nrrd"));
+    assert_eq!((grain.channels, smooth.channels), (3, 3));
+    assert_eq!(
+        smooth,
+        solidsynth::gradient::vectorize::render(&solid, [21; 3])
+    );
+    assert_ne!(grain, smooth);
+    assert_eq!(grain, render(&[], "g2.nrrd"), "grain is deterministic");
     // Refused, nothing written: a mask of another size, editing.
     let small = d.join("small.nrrd");
     solidsynth::io::nrrd::save(&Volume::new(8, 8, 8, 1), &small).unwrap();
@@ -1087,5 +1165,30 @@ fn gradient_vectorize_with_a_mask_separates_regions() {
     ]);
     assert_eq!(o.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&o.stderr).contains("region-separated"));
+    let o = run(&[
+        "gradient",
+        "edit",
+        dg.to_str().unwrap(),
+        "--strokes",
+        strokes.to_str().unwrap(),
+        "--color",
+        "255,0,255",
+        "-o",
+        no.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("detail channels"));
+    let o = run(&[
+        "gradient",
+        "vectorize",
+        vol.to_str().unwrap(),
+        "--mask",
+        mask.to_str().unwrap(),
+        "--detail",
+        "-o",
+        no.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(!no.exists());
     assert!(!no.exists());
 }

@@ -5,7 +5,7 @@ use clap::{Args, Subcommand};
 use solidsynth::backend::Compute;
 use solidsynth::cpu::tricubic_eval::{tricubic_eval, Query};
 use solidsynth::gradient::regions::{self, Blend, RegionSolid};
-use solidsynth::gradient::{edit, format, vectorize, GradientSolid};
+use solidsynth::gradient::{detail, edit, format, vectorize, GradientSolid};
 use solidsynth::io::{atomic, nrrd};
 use solidsynth::Error;
 use std::path::{Path, PathBuf};
@@ -124,6 +124,11 @@ pub struct VectorizeArgs {
     /// points next to the boundary, so the boundary stays sharp.
     #[arg(long)]
     pub mask: Option<PathBuf>,
+    /// Detail residual (paper 5.4): also store, per colour channel, the standard deviation of
+    /// the fitting error as extra channels; renders add position-hashed Gaussian grain of that
+    /// size (`gradient render --no-detail` leaves it out). Not with --mask.
+    #[arg(long)]
+    pub detail: bool,
     /// Output .gsolid.
     #[arg(short, long)]
     pub output: PathBuf,
@@ -156,6 +161,9 @@ pub struct RenderArgs {
     /// blend within half a voxel of the boundary).
     #[arg(long)]
     pub no_antialias: bool,
+    /// Solids with a detail residual: render the smooth part only (no grain).
+    #[arg(long)]
+    pub no_detail: bool,
     #[command(flatten)]
     pub backend: super::BackendArgs,
     /// Output NRRD volume.
@@ -195,7 +203,7 @@ fn render_slice(a: &RenderArgs, solid: &AnySolid, normal: &str, quiet: bool) -> 
     };
     let compute = a.backend.open()?;
     let start = Instant::now();
-    let values = solid.eval(&query, &compute, blend_of(a))?;
+    let values = solid.eval(&query, &compute, blend_of(a), !a.no_detail)?;
     let c = solid.channels() as usize;
     let img = image::RgbaImage::from_fn(spec.size, spec.size, |x, y| {
         let i = (y as usize * spec.size as usize + x as usize) * c;
@@ -238,9 +246,10 @@ enum AnySolid {
 }
 
 impl AnySolid {
+    /// Output (colour) channels.
     fn channels(&self) -> u32 {
         match self {
-            AnySolid::Plain(s) => s.channels,
+            AnySolid::Plain(s) => s.channels - s.detail,
             AnySolid::Regions(r) => r.channels(),
         }
     }
@@ -252,13 +261,28 @@ impl AnySolid {
     }
     /// Kernel `tricubic_eval` on the chosen backend (float results; rounding may differ by one
     /// 8-bit level between backends where a value lies within the tolerance of a .5).
-    fn eval(&self, query: &Query, compute: &Compute, blend: Blend) -> solidsynth::Result<Vec<f32>> {
-        match (self, compute) {
-            (AnySolid::Plain(s), Compute::Cpu) => Ok(tricubic_eval(s, query)),
-            (AnySolid::Plain(s), Compute::Gpu(ctx)) => {
-                solidsynth::gpu::tricubic_eval::tricubic_eval(ctx, s, query)
+    fn eval(
+        &self,
+        query: &Query,
+        compute: &Compute,
+        blend: Blend,
+        grain: bool,
+    ) -> solidsynth::Result<Vec<f32>> {
+        match self {
+            AnySolid::Plain(s) => {
+                let values = match compute {
+                    Compute::Cpu => tricubic_eval(s, query),
+                    Compute::Gpu(ctx) => {
+                        solidsynth::gpu::tricubic_eval::tricubic_eval(ctx, s, query)?
+                    }
+                };
+                Ok(if s.detail > 0 {
+                    detail::colours(s, query, &values, grain)
+                } else {
+                    values
+                })
             }
-            (AnySolid::Regions(r), _) => r.eval_query(query, compute, blend),
+            AnySolid::Regions(r) => r.eval_query(query, compute, blend),
         }
     }
 }
@@ -457,12 +481,22 @@ pub fn run(cmd: GradientCommand, quiet: bool) -> anyhow::Result<()> {
             atomic::check_output_path(&a.output, "-o")?;
             let volume = nrrd::load(&a.input)?;
             if let Some(mask) = &a.mask {
+                if a.detail {
+                    return Err(Error::invalid(
+                        "--detail",
+                        "is not available with --mask (region solids have no detail channels)",
+                    )
+                    .into());
+                }
                 return vectorize_with_mask(&a, &volume, mask, quiet);
             }
             let start = Instant::now();
             let mut solid = vectorize::vectorize(&volume)?;
             if a.optimize {
                 vectorize::optimize(&mut solid, &volume, a.iterations as usize);
+            }
+            if a.detail {
+                solid = detail::with_detail(&solid, &volume)?;
             }
             let fit_s = start.elapsed().as_secs_f64();
             let bytes = format::to_bytes(&solid, a.encoding);
@@ -495,6 +529,14 @@ pub fn run(cmd: GradientCommand, quiet: bool) -> anyhow::Result<()> {
         GradientCommand::Edit(a) => {
             atomic::check_output_path(&a.output, "-o")?;
             let mut solid = load(&a.input)?;
+            if solid.detail > 0 {
+                return Err(Error::invalid(
+                    a.input.display().to_string(),
+                    "has detail channels; editing takes solids without them (vectorize without \
+                     --detail)",
+                )
+                .into());
+            }
             let text = std::fs::read_to_string(&a.strokes).map_err(|e| Error::io(&a.strokes, e))?;
             let strokes = edit::parse_strokes(&text, &a.strokes.display().to_string())?;
             let reference: Vec<f64> = a
@@ -545,7 +587,7 @@ pub fn run(cmd: GradientCommand, quiet: bool) -> anyhow::Result<()> {
             let compute = a.backend.open()?;
             let start = Instant::now();
             let query = Query::volume(n);
-            let values = solid.eval(&query, &compute, blend_of(&a))?;
+            let values = solid.eval(&query, &compute, blend_of(&a), !a.no_detail)?;
             let mut v = solidsynth::volume::Volume::new(n[0], n[1], n[2], solid.channels());
             for (d, x) in v.data.iter_mut().zip(&values) {
                 *d = x.round().clamp(0.0, 255.0) as u8;

@@ -2,8 +2,9 @@
 //!
 //! Little-endian. Header (52 bytes): magic `GSOLID\0\0`, u32 version (1), u32 nx, ny, nz (control
 //! points per axis), u32 spacing (voxels, 4), u32 channels, u32 encoding (0: f32, 1: 8-bit),
-//! u64 payload length, u32 CRC-32 (of the header's first 44 bytes, then the payload), u32 reserved
-//! (0). Payload: per point (x
+//! u64 payload length, u32 CRC-32 (of the header's first 44 bytes, then the payload), u32 detail
+//! channels (0, or half the channels: the trailing ones hold the detail residual's sigma, paper
+//! 5.4; files of earlier builds have 0 here). Payload: per point (x
 //! fastest), per channel, the four values f, df/dx, df/dy, df/dz.
 //! - f32: the values as f32.
 //! - 8-bit: first, per (channel, component), an f32 minimum and an f32 step; then each value as
@@ -120,7 +121,7 @@ pub fn to_bytes(s: &GradientSolid, encoding: Encoding) -> Vec<u8> {
     }
     out.extend((payload.len() as u64).to_le_bytes());
     out.extend(checksum(&out, &payload).to_le_bytes());
-    out.extend(0u32.to_le_bytes());
+    out.extend(s.detail.to_le_bytes());
     out.extend(payload);
     out
 }
@@ -155,8 +156,11 @@ pub fn from_bytes(bytes: &[u8], name: &str) -> Result<GradientSolid> {
     }
     let len = u64::from_le_bytes(bytes[36..44].try_into().unwrap());
     let crc = u32::from_le_bytes(bytes[44..48].try_into().unwrap());
-    if bytes[48..52] != [0; 4] {
-        return Err(bad("reserved header word is not zero".into()));
+    let detail = u32::from_le_bytes(bytes[48..52].try_into().unwrap());
+    if detail != 0 && detail.checked_mul(2) != Some(channels) {
+        return Err(bad(format!(
+            "{detail} detail channels in a solid of {channels}: expected 0 or half"
+        )));
     }
     if len != (bytes.len() - HEADER) as u64 {
         return Err(bad(format!(
@@ -183,6 +187,7 @@ pub fn from_bytes(bytes: &[u8], name: &str) -> Result<GradientSolid> {
     })?;
     let mut s = GradientSolid::new(dims, channels)?;
     s.data = data;
+    s.detail = detail;
     Ok(s)
 }
 

@@ -14,6 +14,7 @@
 //! Control point (i, j, k) sits at voxel position d (i, j, k); a solid of n points per axis covers
 //! positions [0, d (n - 1)]. Positions outside are clamped to the domain.
 
+pub mod detail;
 pub mod edit;
 pub mod format;
 pub mod regions;
@@ -35,6 +36,9 @@ pub struct GradientSolid {
     pub channels: u32,
     /// Per point (x fastest), per channel: f, df/dx, df/dy, df/dz (per voxel).
     pub data: Vec<f32>,
+    /// Trailing channels that hold the detail residual's standard deviation sigma (paper 5.4),
+    /// one per colour channel, or 0. See [`detail`].
+    pub detail: u32,
 }
 
 impl GradientSolid {
@@ -50,6 +54,7 @@ impl GradientSolid {
             dims,
             channels,
             data: vec![0.0; n * channels as usize * 4],
+            detail: 0,
         })
     }
 

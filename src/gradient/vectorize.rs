@@ -219,14 +219,15 @@ pub(crate) fn cgnr<F: Fn(usize, usize) -> usize + Sync>(
     history
 }
 
-/// Render every voxel of an `n`-sized box from the origin (exact evaluation), rounded to 8 bits.
+/// Render every voxel of an `n`-sized box from the origin (exact evaluation), rounded to 8 bits:
+/// the colour channels (a detail solid's smooth part, without grain).
 pub fn render(s: &GradientSolid, n: [u32; 3]) -> Volume {
-    let mut v = Volume::new(n[0], n[1], n[2], s.channels);
-    let c = s.channels as usize;
+    let c = (s.channels - s.detail) as usize;
+    let mut v = Volume::new(n[0], n[1], n[2], c as u32);
     let row = n[0] as usize * c;
     v.data.par_chunks_mut(row).enumerate().for_each(|(r, dst)| {
         let (y, z) = ((r % n[1] as usize) as f32, (r / n[1] as usize) as f32);
-        let mut out = vec![0f32; c];
+        let mut out = vec![0f32; s.channels as usize];
         for x in 0..n[0] as usize {
             s.eval([x as f32, y, z], &mut out);
             for k in 0..c {
