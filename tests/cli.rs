@@ -1085,45 +1085,6 @@ fn gradient_vectorize_with_a_mask_separates_regions() {
     );
     assert_ne!(grain, smooth);
     assert_eq!(grain, render(&[], "g2.nrrd"), "grain is deterministic");
-    // Detail residual: sigma channels stored, grain added at render time (or not).
-    let dg = d.join("detail.gsolid");
-    let o = run(&[
-        "gradient",
-        "vectorize",
-        vol.to_str().unwrap(),
-        "--detail",
-        "-o",
-        dg.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let solid =
-        solidsynth::gradient::format::from_bytes(&std::fs::read(&dg).unwrap(), "d").unwrap();
-    assert_eq!((solid.channels, solid.detail), (6, 3));
-    let render = |extra: &[&str], name: &str| {
-        let out = d.join(name);
-        let mut args = vec![
-            "gradient",
-            "render",
-            dg.to_str().unwrap(),
-            "--backend",
-            "cpu",
-            "--size",
-            "21",
-        ];
-        args.extend(extra);
-        args.extend(["-o", out.to_str().unwrap()]);
-        let o = run(&args);
-        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-        solidsynth::io::nrrd::load(&out).unwrap()
-    };
-    let (grain, smooth) = (render(&[], "g.nrrd"), render(&["--no-detail"], "s.nrrd"));
-    assert_eq!((grain.channels, smooth.channels), (3, 3));
-    assert_eq!(
-        smooth,
-        solidsynth::gradient::vectorize::render(&solid, [21; 3])
-    );
-    assert_ne!(grain, smooth);
-    assert_eq!(grain, render(&[], "g2.nrrd"), "grain is deterministic");
     // Refused, nothing written: a mask of another size, editing.
     let small = d.join("small.nrrd");
     solidsynth::io::nrrd::save(&Volume::new(8, 8, 8, 1), &small).unwrap();
