@@ -842,6 +842,277 @@ fn gradient_vectorize_and_render_round_trip_and_refuse_corrupt_files() {
     )
     .unwrap();
     let edited = d.join("e.gsolid");
+    let o = run(&[
+        "gradient",
+        "edit",
+        gs.to_str().unwrap(),
+        "--strokes",
+        strokes.to_str().unwrap(),
+        "--color",
+        "255,0,255",
+        "-o",
+        edited.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let e =
+        solidsynth::gradient::format::from_bytes(&std::fs::read(&edited).unwrap(), "e").unwrap();
+    let mut at_stroke = [0f32; 3];
+    e.eval([8.0, 8.0, 8.0], &mut at_stroke);
+    assert!(
+        at_stroke[0] > 200.0 && at_stroke[2] > 200.0 && at_stroke[1] < 60.0,
+        "{at_stroke:?}"
+    );
+    std::fs::write(&strokes, r#"{"strokes": []}"#).unwrap();
+    let o = run(&[
+        "gradient",
+        "edit",
+        gs.to_str().unwrap(),
+        "--strokes",
+        strokes.to_str().unwrap(),
+        "--color",
+        "255,0,255",
+        "-o",
+        d.join("x.gsolid").to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("no strokes"));
+    assert!(!d.join("x.gsolid").exists());
+    // A corrupt file: exit 2 naming it, nothing written.
+    let mut bytes = std::fs::read(&gs).unwrap();
+    let last = bytes.len() - 1;
+    bytes[last] ^= 0x10;
+    let bad = tempfile::tempdir().unwrap();
+    let b = bad.path();
+    std::fs::write(b.join("bad.gsolid"), &bytes).unwrap();
+    let o = run(&[
+        "gradient",
+        "render",
+        b.join("bad.gsolid").to_str().unwrap(),
+        "--backend",
+        "cpu",
+        "-o",
+        b.join("o.nrrd").to_str().unwrap(),
+    ]);
+    assert_user_error(&o, "bad.gsolid", b, &["bad.gsolid"]);
+}
+
+#[test]
+fn synth_writes_a_vti_equal_to_its_nrrd() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (nrrd, vti) = (d.join("v.nrrd"), d.join("v.vti"));
+    let o = run(&[
+        "synth",
+        "--size",
+        "12",
+        "--backend",
+        "cpu",
+        "--vti",
+        vti.to_str().unwrap(),
+        "-o",
+        nrrd.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let a = solidsynth::io::nrrd::load(&nrrd).unwrap();
+    let b = solidsynth::io::vti::from_bytes(&std::fs::read(&vti).unwrap(), "v.vti").unwrap();
+    assert_eq!(a, b);
+}
+
+#[test]
+fn gradient_synth_writes_a_tileable_solid_and_refuses_bad_input() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let out = d.join("s.gsolid");
+    let o = run(&[
+        "gradient",
+        "synth",
+        fixture_path("cc0_gravel64.png").to_str().unwrap(),
+        "--size",
+        "18",
+        "--iterations",
+        "1",
+        "--seed",
+        "4",
+        "--backend",
+        "cpu",
+        "--json",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let summary: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(summary["period"], 20, "{summary}");
+    assert_eq!(summary["levels"].as_array().unwrap().len(), 3);
+    let solid =
+        solidsynth::gradient::format::from_bytes(&std::fs::read(&out).unwrap(), "s").unwrap();
+    assert_eq!(solid.dims, [6, 6, 6]);
+
+    let bad = tempfile::tempdir().unwrap();
+    let b = bad.path();
+    let target = b.join("o.gsolid");
+    let t = target.to_str().unwrap();
+    let cells = fixture_path("cells32.png");
+    let cases: [(&[&str], &str); 4] = [
+        (&["--size", "32", "--field", "spiral:1,0,0"], "--field"),
+        (&["--size", "32", "--field", "constant:0,0,0"], "--field"),
+        (&["--size", "4"], "--size 4"),
+        // 32x32 is smaller than the coarse level's 33-pixel patches.
+        (&[cells.to_str().unwrap(), "--size", "32"], "cells32.png"),
+    ];
+    for (args, needle) in cases {
+        let mut all = vec!["gradient", "synth", "--backend", "cpu", "-o", t];
+        all.extend_from_slice(args);
+        assert_user_error(&run(&all), needle, b, &[]);
+    }
+}
+
+#[test]
+fn gradient_vectorize_with_a_mask_separates_regions() {
+    use solidsynth::volume::Volume;
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let n = 21u32;
+    let (mut v, mut m) = (Volume::new(n, n, n, 3), Volume::new(n, n, n, 1));
+    for z in 0..n {
+        for y in 0..n {
+            for x in 0..n {
+                let inside = x + y / 2 < 14;
+                m.at_mut(x, y, z)[0] = if inside { 255 } else { 0 };
+                v.at_mut(x, y, z).copy_from_slice(if inside {
+                    &[230, 40, 20]
+                } else {
+                    &[20, 60, 210]
+                });
+            }
+        }
+    }
+    let (vol, mask) = (d.join("v.nrrd"), d.join("m.nrrd"));
+    solidsynth::io::nrrd::save(&v, &vol).unwrap();
+    solidsynth::io::nrrd::save(&m, &mask).unwrap();
+    let gs = d.join("r.gsolid");
+    let o = run(&[
+        "gradient",
+        "vectorize",
+        vol.to_str().unwrap(),
+        "--mask",
+        mask.to_str().unwrap(),
+        "--json",
+        "-o",
+        gs.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let s: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let (with, without) = (
+        s["rms"].as_f64().unwrap(),
+        s["rms_without_regions"].as_f64().unwrap(),
+    );
+    // (A stair-stepped oblique boundary: about half the error remains at its steps.)
+    assert!(
+        with < 0.6 * without,
+        "with regions {with}, without {without}"
+    );
+    assert!(s["split_points"].as_u64().unwrap() > 0);
+    // Rendering a region file, both blends; the exact one reproduces the reported error.
+    let out = d.join("r.nrrd");
+    let o = run(&[
+        "gradient",
+        "render",
+        gs.to_str().unwrap(),
+        "--no-antialias",
+        "--backend",
+        "cpu",
+        "--size",
+        "21",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let r = solidsynth::io::nrrd::load(&out).unwrap();
+    let measured = solidsynth::gradient::vectorize::rms(&r, &v);
+    assert!((measured - with).abs() < 1e-9, "{measured} vs {with}");
+    // --optimize (eq. 3 over both feature sets) lowers the error further.
+    let opt = d.join("opt.gsolid");
+    let o = run(&[
+        "gradient",
+        "vectorize",
+        vol.to_str().unwrap(),
+        "--mask",
+        mask.to_str().unwrap(),
+        "--optimize",
+        "--json",
+        "-o",
+        opt.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let so: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert!(so["rms"].as_f64().unwrap() < with, "{so}");
+    // Detail residual: sigma channels stored, grain added at render time (or not).
+    let dg = d.join("detail.gsolid");
+    let o = run(&[
+        "gradient",
+        "vectorize",
+        vol.to_str().unwrap(),
+        "--detail",
+        "-o",
+        dg.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let solid =
+        solidsynth::gradient::format::from_bytes(&std::fs::read(&dg).unwrap(), "d").unwrap();
+    assert_eq!((solid.channels, solid.detail), (6, 3));
+    let render = |extra: &[&str], name: &str| {
+        let out = d.join(name);
+        let mut args = vec![
+            "gradient",
+            "render",
+            dg.to_str().unwrap(),
+            "--backend",
+            "cpu",
+            "--size",
+            "21",
+        ];
+        args.extend(extra);
+        args.extend(["-o", out.to_str().unwrap()]);
+        let o = run(&args);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        solidsynth::io::nrrd::load(&out).unwrap()
+    };
+    let (grain, smooth) = (render(&[], "g.nrrd"), render(&["--no-detail"], "s.nrrd"));
+    assert_eq!((grain.channels, smooth.channels), (3, 3));
+    assert_eq!(
+        smooth,
+        solidsynth::gradient::vectorize::render(&solid, [21; 3])
+    );
+    assert_ne!(grain, smooth);
+    assert_eq!(grain, render(&[], "g2.nrrd"), "grain is deterministic");
+    // Refused, nothing written: a mask of another size, editing.
+    let small = d.join("small.nrrd");
+    solidsynth::io::nrrd::save(&Volume::new(8, 8, 8, 1), &small).unwrap();
+    let no = d.join("no.gsolid");
+    for args in [vec![
+        "gradient",
+        "vectorize",
+        vol.to_str().unwrap(),
+        "--mask",
+        small.to_str().unwrap(),
+    ]] {
+        let mut args = args;
+        args.extend(["-o", no.to_str().unwrap()]);
+        let o = run(&args);
+        assert_eq!(
+            o.status.code(),
+            Some(2),
+            "{}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        assert!(!no.exists());
+    }
+    let strokes = d.join("s.json");
+    std::fs::write(
+        &strokes,
+        r#"{"strokes": [{"position": [8, 8, 8], "strength": 1.0}]}"#,
+    )
+    .unwrap();
     // Editing takes plain solids only.
     for (input, needle) in [(&gs, "region-separated"), (&dg, "detail channels")] {
         let o = run(&[

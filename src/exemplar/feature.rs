@@ -8,8 +8,9 @@ use crate::error::{Error, Result};
 /// Distance in pixels (at the finest level) that maps to the full 8-bit range on each side.
 pub const FEATURE_RANGE_PX: f32 = 12.0;
 
-/// Squared distance transform of a 1D sampled function (Felzenszwalb-Huttenlocher 2012).
-fn edt_1d(f: &[f32], out: &mut [f32], v: &mut [usize], z: &mut [f32]) {
+/// Squared distance transform of a 1D sampled function (Felzenszwalb-Huttenlocher 2012): `out`
+/// gets min over p of (q - p)^2 + f(p); `v` and `z` are scratch of `f.len()` and `f.len() + 1`.
+pub(crate) fn edt_1d(f: &[f32], out: &mut [f32], v: &mut [usize], z: &mut [f32]) {
     let n = f.len();
     let mut k = 0usize;
     v[0] = 0;

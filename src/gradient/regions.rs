@@ -21,6 +21,7 @@ use super::{GradientSolid, SPACING};
 use crate::backend::Compute;
 use crate::cpu::tricubic_eval::{tricubic_eval, Query};
 use crate::error::{Error, Result};
+use crate::exemplar::feature::edt_1d;
 use crate::volume::Volume;
 use rayon::prelude::*;
 
@@ -50,54 +51,19 @@ pub fn is_region_file(bytes: &[u8]) -> bool {
     bytes.starts_with(MAGIC)
 }
 
-/// Exact squared Euclidean distance transform of one line (Felzenszwalb-Huttenlocher): `f` holds
-/// 0 at feature samples and a large value elsewhere (or the previous pass's result).
-fn edt_line(f: &[f64], out: &mut [f64], v: &mut [usize], z: &mut [f64]) {
-    let n = f.len();
-    let mut k = 0usize;
-    v[0] = 0;
-    z[0] = f64::NEG_INFINITY;
-    z[1] = f64::INFINITY;
-    for q in 1..n {
-        loop {
-            let p = v[k];
-            let s = ((f[q] + (q * q) as f64) - (f[p] + (p * p) as f64)) / (2.0 * (q - p) as f64);
-            if s <= z[k] && k > 0 {
-                k -= 1;
-            } else if s <= z[k] {
-                // k == 0 and z[0] = -inf: cannot happen (s > -inf); kept for clarity.
-                break;
-            } else {
-                k += 1;
-                v[k] = q;
-                z[k] = s;
-                z[k + 1] = f64::INFINITY;
-                break;
-            }
-        }
-    }
-    k = 0;
-    for (q, o) in out.iter_mut().enumerate() {
-        while z[k + 1] < q as f64 {
-            k += 1;
-        }
-        let d = q as f64 - v[k] as f64;
-        *o = d * d + f[v[k]];
-    }
-}
-
 /// Squared distance from every voxel to the nearest voxel where `feature` is true.
-fn squared_distance(n: [usize; 3], feature: &[bool]) -> Vec<f64> {
-    const FAR: f64 = 1e20;
-    let mut d: Vec<f64> = feature.iter().map(|&f| if f { 0.0 } else { FAR }).collect();
+fn squared_distance(n: [usize; 3], feature: &[bool]) -> Vec<f32> {
+    const FAR: f32 = 1e12;
+    let mut d: Vec<f32> = feature.iter().map(|&f| if f { 0.0 } else { FAR }).collect();
     let index = |x: usize, y: usize, z: usize| (z * n[1] + y) * n[0] + x;
+    // One 1D transform per line along each axis in turn (separable: exact in 3D).
     for axis in 0..3 {
         let len = n[axis];
         let (a, b) = ((axis + 1) % 3, (axis + 2) % 3);
-        let mut line = vec![0f64; len];
-        let mut out = vec![0f64; len];
+        let mut line = vec![0f32; len];
+        let mut out = vec![0f32; len];
         let mut v = vec![0usize; len];
-        let mut z = vec![0f64; len + 1];
+        let mut z = vec![0f32; len + 1];
         for j in 0..n[b] {
             for i in 0..n[a] {
                 let at = |t: usize| {
@@ -110,7 +76,7 @@ fn squared_distance(n: [usize; 3], feature: &[bool]) -> Vec<f64> {
                 for t in 0..len {
                     line[t] = d[at(t)];
                 }
-                edt_line(&line, &mut out, &mut v, &mut z);
+                edt_1d(&line, &mut out, &mut v, &mut z);
                 for t in 0..len {
                     d[at(t)] = out[t];
                 }
@@ -132,13 +98,15 @@ pub fn signed_distance(mask: &Volume) -> Vec<f32> {
     inside
         .iter()
         .zip(to_outside.iter().zip(&to_inside))
-        .map(|(&i, (&o, &n))| {
-            if i {
-                (o.sqrt() - 0.5) as f32
-            } else {
-                (0.5 - n.sqrt()) as f32
-            }
-        })
+        .map(
+            |(&i, (&o, &n))| {
+                if i {
+                    o.sqrt() - 0.5
+                } else {
+                    0.5 - n.sqrt()
+                }
+            },
+        )
         .collect()
 }
 
