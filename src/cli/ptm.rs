@@ -294,10 +294,12 @@ fn synth_cmd(a: SynthArgs, quiet: bool) -> anyhow::Result<()> {
         );
         if st.queries > 0 {
             eprintln!(
-                "projection search: fraction of candidates left after each stage (8, 16, 32 kernels) {:?}; {:.1} exact distances per query (of {})",
+                "projection search: fraction of candidates left after each stage (8, 16, 32 kernels) {:?}; {:.1} exact distances per query (of {}), {:.1} of them within the tolerance",
                 survivors.iter().map(|f| format!("{f:.4}")).collect::<Vec<_>>(),
                 st.exact as f64 / st.queries as f64,
-                st.candidates / st.queries
+                st.candidates / st.queries,
+                // (The first block has no neighbourhood: all candidates are "within".)
+                report.within[1..].iter().map(|&w| w as f64).sum::<f64>() / st.queries as f64
             );
         }
     }

@@ -2,7 +2,7 @@
 //! quilting (Efros-Freeman) where pixels are PTM texels and neighbourhoods are compared in the
 //! orthonormal Legendre coefficients, so distances are distances between reflectance functions.
 //!
-//! Blocks of `block` x `block` pixels are placed in raster order with `overlap` pixels shared with
+//! Blocks of `block` x `block` pixels are placed (as if) in raster order with `overlap` pixels shared with
 //! the left and top neighbours. Each block is drawn at random (seeded per block) among the source
 //! blocks whose overlap distance is within the tolerance of the best ([`search`]); the seam is a
 //! minimum-error cut through the overlap (errors in the orthonormal basis) or an alpha blend.
@@ -14,6 +14,7 @@ use super::search::{self, FeatureImage, Matches, SearchStats, Searcher, Shape, T
 use super::Ptm;
 use crate::error::{Error, Result};
 use crate::util::hash::{mix64, SeededRng};
+use rayon::prelude::*;
 
 /// How a block joins its neighbours in the overlap.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -145,68 +146,41 @@ pub fn synthesize_with(
         ..Default::default()
     };
     let total = (nbx * nby) as usize;
-    for by in 0..nby {
-        for bx in 0..nbx {
-            let (ox, oy) = (bx * step, by * step);
-            let index = (by * nbx + bx) as u64;
-            let mut rng = SeededRng::new(mix64(p.seed ^ mix64(index.wrapping_add(0x5054_4d51))));
-            let shape = match (bx, by) {
-                (0, 0) => None,
-                (_, 0) => Some(Shape::Left),
-                (0, _) => Some(Shape::Top),
-                _ => Some(Shape::Both),
-            };
-            let choice = match shape {
-                None => {
-                    report.within.push(searcher.candidates() as u32);
-                    rng.below(searcher.candidates() as u64) as u32
-                }
-                Some(shape) => {
-                    let m: Matches = match p.search {
-                        SearchMethod::Brute => searcher.brute(&feats, ox, oy, shape, p.tolerance),
-                        SearchMethod::ExactProjection => {
-                            // The sources continuing the left and top neighbours: usually
-                            // good matches, so a low starting threshold.
-                            let mut hints = Vec::new();
-                            let continuation = |b: usize, dx: u32, dy: u32| {
-                                let (sx, sy) = searcher.origin(report.choices[b]);
-                                (sx + dx < searcher.cand_w && sy + dy < searcher.cand_h)
-                                    .then(|| (sy + dy) * searcher.cand_w + sx + dx)
-                            };
-                            if bx > 0 {
-                                hints.extend(continuation(index as usize - 1, step, 0));
-                            }
-                            if by > 0 {
-                                hints.extend(continuation((index - nbx as u64) as usize, 0, step));
-                            }
-                            searcher.projection(
-                                &feats,
-                                ox,
-                                oy,
-                                shape,
-                                p.tolerance,
-                                &hints,
-                                &mut report.stats,
-                            )
-                        }
-                    };
-                    report.within.push(m.within.len() as u32);
-                    m.within[rng.below(m.within.len() as u64) as usize].0
-                }
-            };
-            report.choices.push(choice);
-            let (sx, sy) = searcher.origin(choice);
+    report.choices = vec![0; total];
+    report.within = vec![0; total];
+    // Wavefront order: block (bx, by) reads the overlaps of its left, top and top-right
+    // neighbours, all on earlier waves of t = bx + 2 by, and two blocks of one wave neither
+    // overlap nor read each other's pixels (they are 2 steps apart in x, and 2 * overlap <=
+    // block). So a wave's searches run in parallel on the same canvas, then its blocks are
+    // placed. Choices are seeded per block and the search is exact, so the result is the same
+    // as in raster order, at any thread count.
+    let mut done = 0;
+    for wave in 0..nbx + 2 * nby {
+        let blocks: Vec<(u32, u32)> = (0..nby)
+            .filter_map(|by| wave.checked_sub(2 * by).map(|bx| (bx, by)))
+            .filter(|&(bx, _)| bx < nbx)
+            .collect();
+        let chosen: Vec<(u32, u32, SearchStats)> = blocks
+            .par_iter()
+            .map(|&(bx, by)| choose(searcher, &feats, &report.choices, (bx, by), nbx, p))
+            .collect();
+        for (&(bx, by), (choice, within, stats)) in blocks.iter().zip(chosen) {
+            let index = (by * nbx + bx) as usize;
+            report.choices[index] = choice;
+            report.within[index] = within;
+            report.stats.add(&stats);
             place(
                 src,
                 searcher,
                 &mut texels,
                 &mut feats,
-                (ox, oy),
-                (sx, sy),
-                shape,
+                (bx * step, by * step),
+                searcher.origin(choice),
+                shape_of(bx, by),
                 p,
             );
-            progress((index + 1) as usize, total);
+            done += 1;
+            progress(done, total);
         }
     }
     // Crop the canvas to the requested size.
@@ -226,6 +200,62 @@ pub fn synthesize_with(
         },
         report,
     ))
+}
+
+/// Which neighbours block (bx, by) overlaps; `None` for the first block.
+fn shape_of(bx: u32, by: u32) -> Option<Shape> {
+    match (bx, by) {
+        (0, 0) => None,
+        (_, 0) => Some(Shape::Left),
+        (0, _) => Some(Shape::Top),
+        _ => Some(Shape::Both),
+    }
+}
+
+/// The source block for output block (bx, by), drawn (seeded per block) among the candidates
+/// within the tolerance of the best: (choice, how many were within, search counters).
+/// `choices` must hold the choices of the blocks on earlier waves.
+fn choose(
+    searcher: &Searcher,
+    feats: &FeatureImage,
+    choices: &[u32],
+    (bx, by): (u32, u32),
+    nbx: u32,
+    p: &QuiltParams,
+) -> (u32, u32, SearchStats) {
+    let step = p.block - p.overlap;
+    let (ox, oy) = (bx * step, by * step);
+    let index = (by * nbx + bx) as usize;
+    let mut rng = SeededRng::new(mix64(
+        p.seed ^ mix64((index as u64).wrapping_add(0x5054_4d51)),
+    ));
+    let mut stats = SearchStats::default();
+    let Some(shape) = shape_of(bx, by) else {
+        let n = searcher.candidates() as u32;
+        return (rng.below(n as u64) as u32, n, stats);
+    };
+    let m: Matches = match p.search {
+        SearchMethod::Brute => searcher.brute(feats, ox, oy, shape, p.tolerance),
+        SearchMethod::ExactProjection => {
+            // The sources continuing the left and top neighbours: usually good matches, so a
+            // low starting threshold.
+            let continuation = |b: usize, dx: u32, dy: u32| {
+                let (sx, sy) = searcher.origin(choices[b]);
+                (sx + dx < searcher.cand_w && sy + dy < searcher.cand_h)
+                    .then(|| (sy + dy) * searcher.cand_w + sx + dx)
+            };
+            let mut hints = Vec::new();
+            if bx > 0 {
+                hints.extend(continuation(index - 1, step, 0));
+            }
+            if by > 0 {
+                hints.extend(continuation(index - nbx as usize, 0, step));
+            }
+            searcher.projection(feats, ox, oy, shape, p.tolerance, &hints, &mut stats)
+        }
+    };
+    let choice = m.within[rng.below(m.within.len() as u64) as usize].0;
+    (choice, m.within.len() as u32, stats)
 }
 
 /// Copy source block (sx, sy) to output (ox, oy), joining it to what is there in the overlaps.

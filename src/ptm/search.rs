@@ -197,13 +197,28 @@ pub struct SearchStats {
     pub exact: u64,
 }
 
+impl SearchStats {
+    /// Adds another search's counters to these.
+    pub fn add(&mut self, other: &SearchStats) {
+        self.queries += other.queries;
+        self.candidates += other.candidates;
+        if self.survivors.len() < other.survivors.len() {
+            self.survivors.resize(other.survivors.len(), 0);
+        }
+        for (a, b) in self.survivors.iter_mut().zip(&other.survivors) {
+            *a += b;
+        }
+        self.exact += other.exact;
+    }
+}
+
 /// Kernels per rectangle, and the stages at which bounds are evaluated (kernels used so far).
 pub const KERNELS: usize = 32;
 pub const STAGES: [usize; 3] = [8, 16, 32];
 /// Exact distances computed at each stage, for the survivors with the smallest bounds.
 const TIGHTEN: usize = 4;
 /// Blocks sampled for the principal components.
-const PCA_SAMPLE: usize = 160;
+const PCA_SAMPLE: usize = 144;
 /// The unit basis vectors are scaled by this before rounding to integers.
 const BASIS_SCALE: f64 = 256.0;
 /// Every projection (of any neighbourhood: features are clamped to +-32767) stays below this in
@@ -324,11 +339,24 @@ impl Searcher {
         let cands = self.candidates();
         // Principal components of a regular sample of the source's blocks (snapshot method:
         // eigenvectors of the m x m Gram matrix of the centred sample).
+        // A low-discrepancy (R2, Roberts 2018) sample of origins: spread over the source
+        // without the aliasing of a regular grid or of a regular step through the indices,
+        // either of which can lock onto a periodic texture.
         let m = PCA_SAMPLE.min(cands);
+        let origins: Vec<(u32, u32)> = (0..m)
+            .map(|s| {
+                let (a1, a2) = (0.754_877_666_246_692_7, 0.569_840_290_998_053_3);
+                let fx = (0.5 + a1 * s as f64).fract();
+                let fy = (0.5 + a2 * s as f64).fract();
+                (
+                    ((fx * self.cand_w as f64) as u32).min(self.cand_w - 1),
+                    ((fy * self.cand_h as f64) as u32).min(self.cand_h - 1),
+                )
+            })
+            .collect();
         let mut x = nalgebra::DMatrix::<f64>::zeros(m, n);
         let mut buf = Vec::with_capacity(n);
-        for s in 0..m {
-            let (cx, cy) = self.origin((s * cands / m) as u32);
+        for (s, &(cx, cy)) in origins.iter().enumerate() {
             self.gather_source(cx, cy, &rect, &mut buf);
             for (j, &v) in buf.iter().enumerate() {
                 x[(s, j)] = v as f64;
@@ -454,8 +482,9 @@ impl Searcher {
         stats: &mut SearchStats,
     ) -> Matches {
         let rects = template(shape, self.block, self.overlap);
+        // (The parts' first uses compute them, in parallel.)
         let projections: Vec<std::sync::Arc<Projection>> = parts(shape)
-            .iter()
+            .par_iter()
             .map(|&p| self.projection_of(p))
             .collect();
         // The query's projections, per part.
@@ -506,13 +535,7 @@ impl Searcher {
         let mut survivors: Vec<(u32, u64)> = Vec::new();
         let mut done = 0;
         for (stage, &k) in STAGES.iter().enumerate() {
-            if stage == 0 {
-                survivors = acc0
-                    .iter()
-                    .enumerate()
-                    .map(|(i, &a)| (i as u32, a))
-                    .collect();
-            } else {
+            if stage > 0 {
                 // (Work per candidate is tiny: split only in large pieces.)
                 survivors
                     .par_iter_mut()
@@ -536,18 +559,27 @@ impl Searcher {
             done = k;
             // Tighten the best distance so far with the most promising survivors (smallest
             // bounds, then smallest indices): their exact distances are achieved by candidates.
-            let mut promising: Vec<(u64, u32)> = survivors.iter().map(|&(i, a)| (a, i)).collect();
-            let take = TIGHTEN.min(promising.len());
-            if take > 0 && take < promising.len() {
-                promising.select_nth_unstable(take - 1);
-            }
-            for &(_, i) in &promising[..take] {
+            let promising = if stage == 0 {
+                smallest(acc0.iter().enumerate().map(|(i, &a)| (a, i as u32)))
+            } else {
+                smallest(survivors.iter().map(|&(i, a)| (a, i)))
+            };
+            for i in promising {
                 best = best.min(self.distance(i, out, qx, qy, &rects, best));
                 stats.exact += 1;
             }
             // Reject when floor(acc / S) > thr, i.e. acc >= (thr + 1) * S.
             let reject_at = (tol.threshold(best) as u128 + 1) * norms[stage];
-            survivors.retain(|&(_, acc)| (acc as u128) < reject_at);
+            if stage == 0 {
+                survivors = acc0
+                    .iter()
+                    .enumerate()
+                    .filter(|&(_, &a)| (a as u128) < reject_at)
+                    .map(|(i, &a)| (i as u32, a))
+                    .collect();
+            } else {
+                survivors.retain(|&(_, acc)| (acc as u128) < reject_at);
+            }
             stats.survivors[stage] += survivors.len() as u64;
             if survivors.len() <= 1 {
                 break;
@@ -568,10 +600,26 @@ impl Searcher {
     }
 }
 
-/// Integer dot product of a kernel (|values| <= 256) and a neighbourhood (|values| <= 32767):
-/// blocks of 64 products are summed exactly in i32 (< 2^30) before widening to i64, a reduction
-/// the compiler turns into 16-bit multiply-adds. On x86-64 with AVX2 (detected at run time) the
-/// same code is compiled for 256-bit registers; integer arithmetic, so the result is identical.
+/// The candidates of the TIGHTEN smallest (bound, index) pairs, in one pass.
+fn smallest(items: impl Iterator<Item = (u64, u32)>) -> Vec<u32> {
+    let mut top: Vec<(u64, u32)> = Vec::with_capacity(TIGHTEN + 1);
+    for item in items {
+        if top.len() == TIGHTEN && item >= top[TIGHTEN - 1] {
+            continue;
+        }
+        let at = top.partition_point(|&t| t < item);
+        top.insert(at, item);
+        top.truncate(TIGHTEN);
+    }
+    top.into_iter().map(|(_, i)| i).collect()
+}
+
+/// Integer dot product of a projection kernel and a neighbourhood (|values| <= 32767). Kernels
+/// are scaled so that their L1 norm times 32767 stays below PROJECTION_LIMIT (2^28): every
+/// partial sum of products, in whatever order or grouping, is then below 2^28 in magnitude, so
+/// one i32 accumulation is exact. The compiler turns it into 16-bit multiply-adds (one
+/// horizontal reduction at the end). On x86-64 with AVX2 (detected at run time) the same code is
+/// compiled for 256-bit registers; integer arithmetic, so the result is identical.
 #[inline]
 fn dot(a: &[i16], b: &[i16]) -> i64 {
     #[cfg(target_arch = "x86_64")]
@@ -590,15 +638,10 @@ fn dot_avx2(a: &[i16], b: &[i16]) -> i64 {
 
 #[inline(always)]
 fn dot_portable(a: &[i16], b: &[i16]) -> i64 {
-    a.chunks(64)
-        .zip(b.chunks(64))
-        .map(|(a, b)| {
-            a.iter()
-                .zip(b)
-                .map(|(&p, &x)| p as i32 * x as i32)
-                .sum::<i32>() as i64
-        })
-        .sum()
+    a.iter()
+        .zip(b)
+        .map(|(&p, &x)| p as i32 * x as i32)
+        .sum::<i32>() as i64
 }
 
 /// Sum of squared differences of two equal-length runs. |values| < 2^15, so each square fits a
