@@ -48,10 +48,18 @@ impl Ctx<'_> {
         3 + self.p.pixel_words as usize
     }
 
+    #[inline(always)]
     fn state_index(&self, pos: [i32; 3]) -> Option<usize> {
         let pos = match self.p.period {
             0 => pos,
-            n => pos.map(|v| v.rem_euclid(n as i32)),
+            // (No division for the positions already inside the period: nearly all.)
+            n => pos.map(|v| {
+                if (0..n as i32).contains(&v) {
+                    v
+                } else {
+                    v.rem_euclid(n as i32)
+                }
+            }),
         };
         voxel_index(
             self.bricks,
@@ -64,6 +72,7 @@ impl Ctx<'_> {
 
     /// Voxels outside the stored bricks read as zero (only voxels the plan does not need read
     /// them).
+    #[inline(always)]
     fn triple(&self, pos: [i32; 3]) -> [u32; 3] {
         let Some(s) = self.state_index(pos) else {
             return [0; 3];
@@ -73,18 +82,28 @@ impl Ctx<'_> {
     }
 
     /// Projection of the plane of exemplar `a` through voxel `pos`.
+    #[inline(always)]
     fn project_plane(&self, pos: [i32; 3], a: usize) -> [i32; MAX_PCA_OUT] {
         // Accumulate only the kept dimensions (8 at the finest level, 12 above): the unused
-        // weights are zero, so the result is the same; the loop is just shorter.
-        match self.p.pca_out {
-            0..=8 => self.project_plane_k::<8>(pos, a),
-            9..=12 => self.project_plane_k::<12>(pos, a),
-            _ => self.project_plane_k::<MAX_PCA_OUT>(pos, a),
+        // weights are zero, so the result is the same; the loop is just shorter. With the
+        // channel count a constant too, the compiler unrolls the channels and vectorizes the K
+        // multiply-adds (integer sums: same result in any order).
+        match (self.p.pca_out, self.p.channels) {
+            (0..=8, 3) => self.project_plane_k::<8, 3>(pos, a),
+            (0..=8, 4) => self.project_plane_k::<8, 4>(pos, a),
+            (9..=12, 3) => self.project_plane_k::<12, 3>(pos, a),
+            (9..=12, 4) => self.project_plane_k::<12, 4>(pos, a),
+            _ => self.project_plane_any(pos, a),
         }
     }
 
-    fn project_plane_k<const K: usize>(&self, pos: [i32; 3], a: usize) -> [i32; MAX_PCA_OUT] {
-        let p = self.p;
+    /// [`Ctx::project_plane`] for K kept dimensions and C <= 4 channels (one state word).
+    #[inline(always)]
+    fn project_plane_k<const K: usize, const C: usize>(
+        &self,
+        pos: [i32; 3],
+        a: usize,
+    ) -> [i32; MAX_PCA_OUT] {
         let (ua, va) = ((a + 1) % 3, (a + 2) % 3);
         let (wt, mean) = (&self.weights_t[a], &self.means[a]);
         let mut acc = [0i32; K];
@@ -95,12 +114,11 @@ impl Ctx<'_> {
                 n[ua] += du;
                 n[va] += dv;
                 // One brick lookup per neighbour; absent voxels read as zero.
-                let value = self.state_index(n).map(|s| s * self.stride() + 3);
-                for ch in 0..p.channels {
-                    let byte = value.map_or(0, |v| {
-                        (self.state[v + ch as usize / 4] >> ((ch % 4) * 8)) & 0xFF
-                    });
-                    let centred = byte as i32 - mean[i];
+                let word = self
+                    .state_index(n)
+                    .map_or(0, |s| self.state[s * self.stride() + 3]);
+                for ch in 0..C {
+                    let centred = ((word >> (ch * 8)) & 0xFF) as i32 - mean[i];
                     let row: &[i32; K] =
                         wt[i * MAX_PCA_OUT..i * MAX_PCA_OUT + K].try_into().unwrap();
                     for j in 0..K {
@@ -110,15 +128,52 @@ impl Ctx<'_> {
                 }
             }
         }
+        self.finish_projection(&acc)
+    }
+
+    /// [`Ctx::project_plane`] for any channel count.
+    fn project_plane_any(&self, pos: [i32; 3], a: usize) -> [i32; MAX_PCA_OUT] {
+        let p = self.p;
+        let (ua, va) = ((a + 1) % 3, (a + 2) % 3);
+        let (wt, mean) = (&self.weights_t[a], &self.means[a]);
+        let mut acc = [0i32; MAX_PCA_OUT];
+        let mut i = 0usize;
+        for dv in -2..=2 {
+            for du in -2..=2 {
+                let mut n = pos;
+                n[ua] += du;
+                n[va] += dv;
+                let value = self.state_index(n).map(|s| s * self.stride() + 3);
+                for ch in 0..p.channels {
+                    let byte = value.map_or(0, |v| {
+                        (self.state[v + ch as usize / 4] >> ((ch % 4) * 8)) & 0xFF
+                    });
+                    let centred = byte as i32 - mean[i];
+                    let row = &wt[i * MAX_PCA_OUT..(i + 1) * MAX_PCA_OUT];
+                    for j in 0..MAX_PCA_OUT {
+                        acc[j] = acc[j].wrapping_add(centred.wrapping_mul(row[j]));
+                    }
+                    i += 1;
+                }
+            }
+        }
+        self.finish_projection(&acc)
+    }
+
+    /// Rounds, shifts and clamps the accumulated projection to bytes (as the shader does).
+    #[inline(always)]
+    fn finish_projection(&self, acc: &[i32]) -> [i32; MAX_PCA_OUT] {
+        let p = self.p;
         let round = 1i32 << (p.shift - 1);
         let mut q = [0i32; MAX_PCA_OUT];
-        for j in 0..(p.pca_out as usize).min(K) {
-            q[j] = ((acc[j].wrapping_add(round) >> p.shift) + 128).clamp(0, 255);
+        for (j, &a) in acc.iter().enumerate().take(p.pca_out as usize) {
+            q[j] = ((a.wrapping_add(round) >> p.shift) + 128).clamp(0, 255);
         }
         q
     }
 
     /// Squared distance between a plane projection and E_a's stored projection at pixel `c`.
+    #[inline(always)]
     fn distance(&self, q: &[i32; MAX_PCA_OUT], a: usize, c: u32) -> u32 {
         let p = self.p;
         let (x, y) = coord(c);
@@ -126,15 +181,20 @@ impl Ctx<'_> {
             + (y as u32 * p.ex_width + x as u32) * p.proj_words) as usize
             * 4;
         let stored = &self.level_bytes[base..base + p.pca_out as usize];
-        let mut d = 0u32;
-        for (&qj, &b) in q.iter().zip(stored) {
-            let diff = qj - b as i32;
-            d += (diff * diff) as u32;
+        // Fixed lengths for the usual kept dimensions, so the loop vectorizes.
+        match stored.len() {
+            8 => squared_distance::<8>(q, stored),
+            12 => squared_distance::<12>(q, stored),
+            _ => q
+                .iter()
+                .zip(stored)
+                .map(|(&qj, &b)| (qj - b as i32).pow(2) as u32)
+                .sum(),
         }
-        d
     }
 
     /// Best k-coherent 2D candidate of exemplar `a` for the voxel at `pos`.
+    #[inline(always)]
     fn best_2d(&self, pos: [i32; 3], a: usize, q: &[i32; MAX_PCA_OUT]) -> u32 {
         let p = self.p;
         let (ua, va) = ((a + 1) % 3, (a + 2) % 3);
@@ -168,12 +228,14 @@ impl Ctx<'_> {
         best
     }
 
+    #[inline(always)]
     fn total_distance(&self, q: &[[i32; MAX_PCA_OUT]; 3], t: [u32; 3]) -> u32 {
         self.distance(&q[0], 0, t[0])
             + self.distance(&q[1], 1, t[1])
             + self.distance(&q[2], 2, t[2])
     }
 
+    #[inline(always)]
     fn correct_voxel(&self, pos: [i32; 3]) -> [u32; 3] {
         let p = self.p;
         let q = [
@@ -213,6 +275,38 @@ impl Ctx<'_> {
         }
         best
     }
+}
+
+impl Ctx<'_> {
+    /// [`Ctx::correct_voxel`], compiled for AVX2 when the CPU has it (detected at run time):
+    /// the projections' 8-wide integer multiply-adds then take one instruction. Integer
+    /// arithmetic: the same result either way.
+    fn correct_voxel_dispatch(&self, pos: [i32; 3]) -> [u32; 3] {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU supports AVX2 (checked just above).
+            return unsafe { self.correct_voxel_avx2(pos) };
+        }
+        self.correct_voxel(pos)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn correct_voxel_avx2(&self, pos: [i32; 3]) -> [u32; 3] {
+        self.correct_voxel(pos)
+    }
+}
+
+/// Sum of squared differences of the first K projection bytes (|difference| <= 255).
+#[inline(always)]
+fn squared_distance<const K: usize>(q: &[i32; MAX_PCA_OUT], stored: &[u8]) -> u32 {
+    let stored: &[u8; K] = stored.try_into().unwrap();
+    let mut d = 0u32;
+    for j in 0..K {
+        let diff = q[j] - stored[j] as i32;
+        d += (diff * diff) as u32;
+    }
+    d
 }
 
 /// Run one sub-pass: returns (state index, new triple) for every voxel of the class in the
@@ -274,7 +368,7 @@ pub fn correct(
                 b[2] * 4 + class[2] + 2 * (k >> 2),
             ];
             let index = ctx.state_index(pos).expect("active bricks are stored");
-            (index, ctx.correct_voxel(pos))
+            (index, ctx.correct_voxel_dispatch(pos))
         })
         .collect()
 }

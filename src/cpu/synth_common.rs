@@ -7,6 +7,10 @@ use crate::analysis::frame::{pack, unpack};
 #[inline]
 pub fn resolve(c: i32, len: u32, border: u32) -> u32 {
     let n = len as i32;
+    // Inside the exemplar (nearly always): no division.
+    if (0..n).contains(&c) {
+        return c as u32;
+    }
     if border == 0 {
         return c.rem_euclid(n) as u32;
     }
