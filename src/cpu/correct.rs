@@ -26,6 +26,10 @@ use rayon::prelude::*;
 /// Largest projection length (bytes) the kernels support.
 pub const MAX_PCA_OUT: usize = 16;
 
+/// A projected plane: bytes (0..=255) held as i16, so differences fit 16 bits and squared
+/// distances become 16-bit multiply-adds.
+type Projection = [i16; MAX_PCA_OUT];
+
 struct Ctx<'a> {
     p: &'a CorrectParams,
     level: &'a [u32],
@@ -83,7 +87,7 @@ impl Ctx<'_> {
 
     /// Projection of the plane of exemplar `a` through voxel `pos`.
     #[inline(always)]
-    fn project_plane(&self, pos: [i32; 3], a: usize) -> [i32; MAX_PCA_OUT] {
+    fn project_plane(&self, pos: [i32; 3], a: usize) -> Projection {
         // Accumulate only the kept dimensions (8 at the finest level, 12 above): the unused
         // weights are zero, so the result is the same; the loop is just shorter. With the
         // channel count a constant too, the compiler unrolls the channels and vectorizes the K
@@ -103,7 +107,7 @@ impl Ctx<'_> {
         &self,
         pos: [i32; 3],
         a: usize,
-    ) -> [i32; MAX_PCA_OUT] {
+    ) -> Projection {
         let (ua, va) = ((a + 1) % 3, (a + 2) % 3);
         let (wt, mean) = (&self.weights_t[a], &self.means[a]);
         let mut acc = [0i32; K];
@@ -132,7 +136,7 @@ impl Ctx<'_> {
     }
 
     /// [`Ctx::project_plane`] for any channel count.
-    fn project_plane_any(&self, pos: [i32; 3], a: usize) -> [i32; MAX_PCA_OUT] {
+    fn project_plane_any(&self, pos: [i32; 3], a: usize) -> Projection {
         let p = self.p;
         let (ua, va) = ((a + 1) % 3, (a + 2) % 3);
         let (wt, mean) = (&self.weights_t[a], &self.means[a]);
@@ -162,19 +166,19 @@ impl Ctx<'_> {
 
     /// Rounds, shifts and clamps the accumulated projection to bytes (as the shader does).
     #[inline(always)]
-    fn finish_projection(&self, acc: &[i32]) -> [i32; MAX_PCA_OUT] {
+    fn finish_projection(&self, acc: &[i32]) -> Projection {
         let p = self.p;
         let round = 1i32 << (p.shift - 1);
-        let mut q = [0i32; MAX_PCA_OUT];
+        let mut q = [0i16; MAX_PCA_OUT];
         for (j, &a) in acc.iter().enumerate().take(p.pca_out as usize) {
-            q[j] = ((a.wrapping_add(round) >> p.shift) + 128).clamp(0, 255);
+            q[j] = ((a.wrapping_add(round) >> p.shift) + 128).clamp(0, 255) as i16;
         }
         q
     }
 
     /// Squared distance between a plane projection and E_a's stored projection at pixel `c`.
     #[inline(always)]
-    fn distance(&self, q: &[i32; MAX_PCA_OUT], a: usize, c: u32) -> u32 {
+    fn distance(&self, q: &Projection, a: usize, c: u32) -> u32 {
         let p = self.p;
         let (x, y) = coord(c);
         let base = ([p.proj0, p.proj1, p.proj2][a]
@@ -188,18 +192,22 @@ impl Ctx<'_> {
             _ => q
                 .iter()
                 .zip(stored)
-                .map(|(&qj, &b)| (qj - b as i32).pow(2) as u32)
+                .map(|(&qj, &b)| (qj as i32 - b as i32).pow(2) as u32)
                 .sum(),
         }
     }
 
     /// Best k-coherent 2D candidate of exemplar `a` for the voxel at `pos`.
     #[inline(always)]
-    fn best_2d(&self, pos: [i32; 3], a: usize, q: &[i32; MAX_PCA_OUT]) -> u32 {
+    fn best_2d(&self, pos: [i32; 3], a: usize, q: &Projection) -> u32 {
         let p = self.p;
         let (ua, va) = ((a + 1) % 3, (a + 2) % 3);
         let cand2d = [p.cand2d0, p.cand2d1, p.cand2d2][a];
         let (mut best, mut best_d) = (0u32, u32::MAX);
+        // Neighbours of a coherent patch all propose the same source pixel: its candidates
+        // are scored once (a repeat could not win: ties keep the first found).
+        let mut seen = [u32::MAX; 9];
+        let mut seen_count = 0;
         for dv in -1..=1 {
             for du in -1..=1 {
                 let mut n = pos;
@@ -213,6 +221,11 @@ impl Ctx<'_> {
                     continue;
                 }
                 let src = pack_resolved(sx, sy, p.ex_width, p.ex_height, p.border);
+                if seen[..seen_count].contains(&src) {
+                    continue;
+                }
+                seen[seen_count] = src;
+                seen_count += 1;
                 let (px, py) = coord(src);
                 let list = cand2d + (py as u32 * p.ex_width + px as u32) * p.k2d;
                 for j in 0..p.k2d {
@@ -229,7 +242,7 @@ impl Ctx<'_> {
     }
 
     #[inline(always)]
-    fn total_distance(&self, q: &[[i32; MAX_PCA_OUT]; 3], t: [u32; 3]) -> u32 {
+    fn total_distance(&self, q: &[Projection; 3], t: [u32; 3]) -> u32 {
         self.distance(&q[0], 0, t[0])
             + self.distance(&q[1], 1, t[1])
             + self.distance(&q[2], 2, t[2])
@@ -299,14 +312,14 @@ impl Ctx<'_> {
 
 /// Sum of squared differences of the first K projection bytes (|difference| <= 255).
 #[inline(always)]
-fn squared_distance<const K: usize>(q: &[i32; MAX_PCA_OUT], stored: &[u8]) -> u32 {
+fn squared_distance<const K: usize>(q: &Projection, stored: &[u8]) -> u32 {
     let stored: &[u8; K] = stored.try_into().unwrap();
-    let mut d = 0u32;
+    let mut d = 0i32;
     for j in 0..K {
-        let diff = q[j] - stored[j] as i32;
-        d += (diff * diff) as u32;
+        let diff = q[j] - stored[j] as i16;
+        d += diff as i32 * diff as i32;
     }
-    d
+    d as u32
 }
 
 /// Run one sub-pass: returns (state index, new triple) for every voxel of the class in the
