@@ -133,8 +133,8 @@ pub fn discs(size: u32, count: u32, radius: f32, seed: u64) -> (Image, Image) {
                     200.0 + 16.0 * grain,
                 ]
             };
-            for k in 0..3 {
-                img.pixels[i * 3 + k] = rgb[k].round().clamp(0.0, 255.0) as u8;
+            for (o, v) in img.pixels[i * 3..i * 3 + 3].iter_mut().zip(rgb) {
+                *o = v.round().clamp(0.0, 255.0) as u8;
             }
         }
     }

@@ -25,7 +25,19 @@
 //! Optionally (`optimize_iterations`), the final control-point optimization of eq. 3 fits all
 //! points at once to the last iteration's bucket values ([`refine`]).
 //!
-//! Not implemented here: region separation with a mask (3.2, 4.3).
+//! With a binary mask ([`synthesize_regions`]; paper 3.2, 4.2.2, 4.3) the exemplar gets the
+//! mask's signed distance as a fourth channel ([`MaskedExemplar`]), synthesized like a colour
+//! (4.2.4: intermediate synthesis ignores the regions; histogram matching then also keeps the
+//! region fractions), the colour clusters are allocated per region
+//! ([`clusters::quantize_regions`]), the last iteration's buckets average one region's samples
+//! per voxel, and [`separate`] turns those dense samples into a tileable
+//! [`RegionSolid`] (distance field + f^P / f^N at the split points). Sizes up to
+//! [`MAX_OPTIMIZE_SIZE`] (the dense samples). Deviations from the paper: the distance solid is
+//! the transform of the synthesized distance's sign (thresholded samples), not the synthesized
+//! distance values themselves; the boundary samples are not dilated into the neighbouring
+//! cubes (the split points' fits use the voxels of their sign within their 9^3 neighbourhood,
+//! as the vectorizer does); the final fit is eq. 2 on voxels (and eq. 3 with `--optimize`)
+//! rather than on the raw samples.
 
 pub mod buckets;
 pub mod clusters;

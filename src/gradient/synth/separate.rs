@@ -18,12 +18,13 @@
 //! wrapped neighbourhood as on an infinite tiling; only the distance values deeper than the
 //! margin inside a region (where only the sign matters) may differ from a periodic transform.
 //! With eq. 3 (`RegionSolid::optimize`), the refinement runs on the padded volume, so the cut-out
-//! points are fitted with wrapped neighbours too; copying the first face onto the last changes
-//! the last face by what the margin's edge effects left there (the gradient solid stays
-//! continuous and tileable; measured in the tests only as "tiles exactly").
+//! points are fitted with wrapped neighbours too; copying the first face onto the last then
+//! replaces the last face's refined values by the first face's (equal up to the margin's edge
+//! effects on the global solve): the stored solid tiles exactly either way.
 //!
-//! The dense samples cost 16 bytes per voxel and the padded volume a few more: sizes up to
-//! [`super::MAX_OPTIMIZE_SIZE`].
+//! Memory: the dense samples (4 f32 per voxel) plus the padded colour and mask volumes and the
+//! vectorizer's distance transforms (a few f32 per padded voxel; eq. 3 adds its stencils): sizes
+//! up to [`super::MAX_OPTIMIZE_SIZE`].
 
 use super::refine::Targets;
 use super::PeriodicSolid;
