@@ -967,6 +967,108 @@ fn gradient_synth_writes_a_tileable_solid_and_refuses_bad_input() {
 }
 
 #[test]
+fn gradient_synth_with_a_mask_writes_a_region_solid_and_refuses_bad_masks() {
+    use solidsynth::gradient::regions::{Blend, RegionSolid};
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (img, mask) = solidsynth::exemplar::procedural::discs(40, 7, 6.0, 5);
+    let (ex, mk) = (d.join("discs.png"), d.join("mask.png"));
+    img.to_dynamic().save(&ex).unwrap();
+    mask.to_dynamic().save(&mk).unwrap();
+    let out = d.join("r.gsolid");
+    let o = run(&[
+        "gradient",
+        "synth",
+        ex.to_str().unwrap(),
+        "--mask",
+        mk.to_str().unwrap(),
+        "--size",
+        "16",
+        "--iterations",
+        "1",
+        "--backend",
+        "cpu",
+        "--json",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let summary: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(summary["period"], 16, "{summary}");
+    assert!(
+        summary["regions"]["split_points"].as_u64().unwrap() > 0,
+        "{summary}"
+    );
+    let rs = RegionSolid::from_bytes(&std::fs::read(&out).unwrap(), "r").unwrap();
+    assert_eq!(rs.positive.dims, [5, 5, 5]);
+    // `gradient render` reads it: the volume is the solid's own exact rendering.
+    let vol = d.join("r.nrrd");
+    let o = run(&[
+        "gradient",
+        "render",
+        out.to_str().unwrap(),
+        "--no-antialias",
+        "--backend",
+        "cpu",
+        "-o",
+        vol.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let rendered = solidsynth::io::nrrd::load(&vol).unwrap();
+    assert_eq!(
+        rendered,
+        rs.render([17; 3], &solidsynth::backend::Compute::Cpu, Blend::Exact)
+            .unwrap()
+    );
+
+    // Refused with exit code 2, nothing written.
+    let bad = tempfile::tempdir().unwrap();
+    let b = bad.path();
+    let small = d.join("small.png");
+    solidsynth::exemplar::Image::new(32, 40, 1)
+        .to_dynamic()
+        .save(&small)
+        .unwrap();
+    let empty = d.join("empty.png");
+    solidsynth::exemplar::Image::new(40, 40, 1)
+        .to_dynamic()
+        .save(&empty)
+        .unwrap();
+    let text = d.join("mask.txt");
+    std::fs::write(&text, "not an image").unwrap();
+    let missing = d.join("missing.png");
+    let target = b.join("o.gsolid");
+    let cases: [(&Path, &str, &str); 5] = [
+        (&small, "16", "32x40"),
+        (&empty, "16", "all inside or all outside"),
+        (&text, "16", "cannot decode"),
+        (&missing, "16", "cannot read"),
+        (&mk, "300", "--mask with --size 300"),
+    ];
+    for (mask, size, needle) in cases {
+        let o = run(&[
+            "gradient",
+            "synth",
+            ex.to_str().unwrap(),
+            "--mask",
+            mask.to_str().unwrap(),
+            "--size",
+            size,
+            "--backend",
+            "cpu",
+            "-o",
+            target.to_str().unwrap(),
+        ]);
+        assert_user_error(&o, needle, b, &[]);
+        assert!(
+            String::from_utf8_lossy(&o.stderr).contains("--mask"),
+            "{}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+    }
+}
+
+#[test]
 fn gradient_vectorize_with_a_mask_separates_regions() {
     use solidsynth::volume::Volume;
     let dir = tempfile::tempdir().unwrap();

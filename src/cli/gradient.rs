@@ -69,6 +69,13 @@ pub struct SynthArgs {
     /// Conjugate-gradient steps of --optimize.
     #[arg(long, default_value_t = 20, value_parser = clap::value_parser!(u32).range(1..=1000))]
     pub optimize_iterations: u32,
+    /// Region separation (paper 3.2, 4.3): a binary mask image of the exemplar's size (set
+    /// where its first channel >= 128, both regions present). Its signed distance is
+    /// synthesized as a fourth feature channel, the colour clusters are allocated per region,
+    /// and the output is a region solid (sharp boundaries; `gradient render` reads it). Sizes up
+    /// to 256; with --optimize, eq. 3 refines both feature sets.
+    #[arg(long)]
+    pub mask: Option<PathBuf>,
     /// Stored precision of the control values.
     #[arg(long, value_enum, default_value = "u8")]
     pub encoding: format::Encoding,
@@ -343,6 +350,17 @@ fn synth(a: SynthArgs, quiet: bool) -> anyhow::Result<()> {
         )
         .into());
     }
+    let masked = match &a.mask {
+        Some(path) => {
+            params.validate_with_mask()?;
+            let what = format!("--mask {}", path.display());
+            let bytes = std::fs::read(path)
+                .map_err(|e| Error::invalid(&what, format!("cannot read the file: {e}")))?;
+            let mask = solidsynth::exemplar::decode_image(&bytes, &what)?;
+            Some(synth::MaskedExemplar::new(&exemplar, &mask, &what)?)
+        }
+        None => None,
+    };
     let compute = a.backend.open()?;
     let bar = super::progress_bar(quiet || a.json);
     bar.set_length(1000);
@@ -350,12 +368,22 @@ fn synth(a: SynthArgs, quiet: bool) -> anyhow::Result<()> {
         bar.set_message(msg.to_string());
         bar.set_position((f * 1000.0) as u64);
     };
-    let (solid, report) = synth::synthesize(&exemplar, &params, &compute, &progress)?;
+    let (bytes, grid, report) = match &masked {
+        Some(m) => {
+            let (rs, report) = synth::synthesize_regions(m, &params, &compute, &progress)?;
+            (rs.to_bytes(a.encoding), rs.positive.dims, report)
+        }
+        None => {
+            let (solid, report) = synth::synthesize(&exemplar, &params, &compute, &progress)?;
+            let solid = solid.to_gradient_solid()?;
+            (format::to_bytes(&solid, a.encoding), solid.dims, report)
+        }
+    };
     bar.finish_and_clear();
-    let solid = solid.to_gradient_solid()?;
-    let bytes = format::to_bytes(&solid, a.encoding);
     atomic::write_file(&a.output, &bytes)?;
     let period = params.cells() * solidsynth::gradient::SPACING;
+    // The file against the RGB volume it stands for (a period, 3 bytes per voxel).
+    let fraction = bytes.len() as f64 / (3.0 * (period as f64).powi(3));
     if a.json {
         let levels: Vec<_> = report
             .levels
@@ -367,12 +395,20 @@ fn synth(a: SynthArgs, quiet: bool) -> anyhow::Result<()> {
                     "update_seconds": l.update_seconds, "refitted": l.refitted})
             })
             .collect();
+        let regions = report.regions.as_ref().map(|r| {
+            serde_json::json!({"split_points": r.split_points, "points": r.points,
+                "positive_fraction": r.positive_fraction,
+                "exemplar_positive_fraction": r.exemplar_positive_fraction,
+                "empty_buckets": r.empty_buckets, "seconds": r.seconds})
+        });
         println!(
             "{}",
-            serde_json::json!({"output": a.output, "grid": solid.dims, "period": period,
-                "seconds": report.seconds, "bytes": bytes.len(), "levels": levels,
+            serde_json::json!({"output": a.output, "grid": grid, "period": period,
+                "seconds": report.seconds, "bytes": bytes.len(),
+                "fraction_of_volume": fraction, "levels": levels,
                 "optimize_seconds": report.optimize_seconds,
                 "optimize_rms": [report.optimize_rms.0, report.optimize_rms.1],
+                "regions": regions,
                 "backend": compute.describe(),
                 "peak_rss_bytes": solidsynth::util::memory::peak_rss_bytes()})
         );
@@ -396,12 +432,26 @@ fn synth(a: SynthArgs, quiet: bool) -> anyhow::Result<()> {
                 report.optimize_rms.0, report.optimize_rms.1, report.optimize_seconds
             );
         }
+        if let Some(r) = &report.regions {
+            eprintln!(
+                "region separation in {:.2} s: {} of {} control points split, {:.1}% of the \
+                 volume positive (exemplar mask: {:.1}%), {:.2}% of the voxels without samples",
+                r.seconds,
+                r.split_points,
+                r.points,
+                r.positive_fraction * 100.0,
+                r.exemplar_positive_fraction * 100.0,
+                r.empty_buckets * 100.0
+            );
+        }
         eprintln!(
-            "synthesized a gradient solid of period {period} ({:?} control points) in {:.2} s \
-             ({}) -> {}",
-            solid.dims,
+            "synthesized a {}gradient solid of period {period} ({grid:?} control points) in \
+             {:.2} s ({}), {} bytes ({:.1}% of the RGB volume) -> {}",
+            if masked.is_some() { "region " } else { "" },
             report.seconds,
             compute.describe(),
+            bytes.len(),
+            fraction * 100.0,
             a.output.display()
         );
     }

@@ -95,6 +95,52 @@ pub fn marble(size: u32, seed: u64) -> Image {
     img
 }
 
+/// Red discs on a blue ground, with gentle shading and grain in each, tileable; and the mask
+/// of the discs (255 inside, 0 outside, one channel): a two-region exemplar whose regions have
+/// clearly different colours. `count` discs of radius `radius` pixels at seeded positions.
+pub fn discs(size: u32, count: u32, radius: f32, seed: u64) -> (Image, Image) {
+    let mut rng = SeededRng::new(seed);
+    let centres: Vec<(f32, f32)> = (0..count)
+        .map(|_| {
+            (
+                unit(rng.next_u64()) * size as f32,
+                unit(rng.next_u64()) * size as f32,
+            )
+        })
+        .collect();
+    let (mut img, mut mask) = (Image::new(size, size, 3), Image::new(size, size, 1));
+    let s = size as f32;
+    for y in 0..size {
+        for x in 0..size {
+            let mut nearest = f32::MAX;
+            for &(cx, cy) in &centres {
+                let dx = (x as f32 + 0.5 - cx).abs();
+                let dy = (y as f32 + 0.5 - cy).abs();
+                let (dx, dy) = (dx.min(s - dx), dy.min(s - dy));
+                nearest = nearest.min((dx * dx + dy * dy).sqrt() / radius);
+            }
+            let grain = unit(mix64(seed ^ ((y as u64) << 32 | x as u64))) - 0.5;
+            let i = (y * size + x) as usize;
+            let rgb = if nearest < 1.0 {
+                mask.pixels[i] = 255;
+                let shade = 1.0 - 0.25 * nearest * nearest;
+                [230.0 * shade + 16.0 * grain, 40.0 + 10.0 * grain, 30.0]
+            } else {
+                let wave = (y as f32 / s * std::f32::consts::TAU).sin();
+                [
+                    30.0,
+                    60.0 + 12.0 * wave + 10.0 * grain,
+                    200.0 + 16.0 * grain,
+                ]
+            };
+            for (o, v) in img.pixels[i * 3..i * 3 + 3].iter_mut().zip(rgb) {
+                *o = v.round().clamp(0.0, 255.0) as u8;
+            }
+        }
+    }
+    (img, mask)
+}
+
 /// Straight stripes of period `period` pixels along x, gray.
 pub fn stripes(size: u32, period: u32) -> Image {
     let mut img = Image::new(size, size, 1);

@@ -167,20 +167,44 @@ impl Layer<'_> {
     }
 
     /// The average of every bucket of the layer (per voxel, per channel; NaN when empty), z
-    /// from the layer's first voxel.
+    /// from the layer's first voxel. With a mask (region-pure clusters), only the samples of
+    /// one region are averaged: that of the dominant slot holding more samples (ties: the first
+    /// slot's), so a voxel's colour and distance come from one side of the boundary (the
+    /// samples of the final region separation, paper 4.3).
     fn bucket_values(&self, buckets: &Buckets) -> Vec<f32> {
         let c = self.solid.channels;
         let per = 1 + c;
+        let patches = self.ctx.patches;
+        let regions = patches.cluster_regions();
+        let clusters = patches.cluster_count() as usize;
         (0..self.voxels())
             .flat_map(|v| {
-                let (s0, s1) = (v * 2 * per, (v * 2 + 1) * per);
-                let count = buckets.sums[s0] + buckets.sums[s1];
+                let slots = [v * 2 * per, (v * 2 + 1) * per];
+                let mut use_slot = [true, true];
+                if let Some(regions) = regions {
+                    let ids = dominant(&buckets.counts[v * clusters..(v + 1) * clusters]);
+                    let region = |k: usize| regions.get(ids[k] as usize).copied();
+                    let n = |k: usize| buckets.sums[slots[k]];
+                    if let (Some(r0), Some(r1)) = (region(0), region(1)) {
+                        if r0 != r1 {
+                            let keep = if n(1) > n(0) { 1 } else { 0 };
+                            use_slot = [keep == 0, keep == 1];
+                        }
+                    }
+                }
+                let count: u32 = (0..2)
+                    .filter(|&k| use_slot[k])
+                    .map(|k| buckets.sums[slots[k]])
+                    .sum();
                 (0..c).map(move |ch| {
                     if count == 0 {
                         f32::NAN
                     } else {
-                        (buckets.sums[s0 + 1 + ch] + buckets.sums[s1 + 1 + ch]) as f32
-                            / (256.0 * count as f32)
+                        let sum: u32 = (0..2)
+                            .filter(|&k| use_slot[k])
+                            .map(|k| buckets.sums[slots[k] + 1 + ch])
+                            .sum();
+                        sum as f32 / (256.0 * count as f32)
                     }
                 })
             })

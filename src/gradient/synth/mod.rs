@@ -25,7 +25,19 @@
 //! Optionally (`optimize_iterations`), the final control-point optimization of eq. 3 fits all
 //! points at once to the last iteration's bucket values ([`refine`]).
 //!
-//! Not implemented here: region separation with a mask (3.2, 4.3).
+//! With a binary mask ([`synthesize_regions`]; paper 3.2, 4.2.2, 4.3) the exemplar gets the
+//! mask's signed distance as a fourth channel ([`MaskedExemplar`]), synthesized like a colour
+//! (4.2.4: intermediate synthesis ignores the regions; histogram matching then also keeps the
+//! region fractions), the colour clusters are allocated per region
+//! ([`clusters::quantize_regions`]), the last iteration's buckets average one region's samples
+//! per voxel, and [`separate`] turns those dense samples into a tileable
+//! [`RegionSolid`] (distance field + f^P / f^N at the split points). Sizes up to
+//! [`MAX_OPTIMIZE_SIZE`] (the dense samples). Deviations from the paper: the distance solid is
+//! the transform of the synthesized distance's sign (thresholded samples), not the synthesized
+//! distance values themselves; the boundary samples are not dilated into the neighbouring
+//! cubes (the split points' fits use the voxels of their sign within their 9^3 neighbourhood,
+//! as the vectorizer does); the final fit is eq. 2 on voxels (and eq. 3 with `--optimize`)
+//! rather than on the raw samples.
 
 pub mod buckets;
 pub mod clusters;
@@ -34,7 +46,9 @@ pub mod matching;
 pub mod patches;
 pub mod pca;
 pub mod refine;
+pub mod separate;
 
+use super::regions::RegionSolid;
 use super::{GradientSolid, SPACING};
 use crate::backend::Compute;
 use crate::error::{Error, Result};
@@ -341,6 +355,23 @@ pub struct SynthReport {
     /// Time of the final optimization and the RMS error to its samples before and after.
     pub optimize_seconds: f64,
     pub optimize_rms: (f64, f64),
+    /// With a mask: the final region separation.
+    pub regions: Option<RegionReport>,
+}
+
+/// The final region separation of a synthesis with a mask.
+#[derive(Clone, Debug, Default)]
+pub struct RegionReport {
+    /// Control points carrying two feature sets, of all points.
+    pub split_points: usize,
+    pub points: usize,
+    /// Fraction of one period's voxels on the positive side of the stored distance, and of the
+    /// exemplar's pixels set in the mask.
+    pub positive_fraction: f64,
+    pub exemplar_positive_fraction: f64,
+    /// Fraction of voxels whose last buckets were empty (filled from the solid).
+    pub empty_buckets: f64,
+    pub seconds: f64,
 }
 
 #[derive(Clone, Debug)]
@@ -363,6 +394,61 @@ fn colour_exemplar(img: &Image) -> Image {
     img.with_channels(3)
 }
 
+/// An exemplar with a binary mask (paper 3.2, 4): RGB plus the mask's signed distance as a
+/// fourth channel.
+///
+/// The distance is the crate's feature channel ([`crate::exemplar::feature::feature_channel`],
+/// as in [29] / Lefebvre-Hoppe): 128 + k d with k = 127 / 12 (10.6 levels per pixel, saturating
+/// 12 pixels from the boundary), positive where the mask is set; the boundary pixels encode to
+/// 133 (set) and 123 (clear), so the sign survives 8 bits. With that k the channel spans the
+/// same 0..255 range as a colour channel over the 24 pixels around a boundary, and in a patch
+/// distance it weighs like one strongly contrasted colour channel: enough to make patches
+/// respect the boundaries, not so much that it swamps the three colours (a larger k saturates
+/// sooner and only adds a plateau; a smaller one lets colour alone decide).
+#[derive(Clone, Debug)]
+pub struct MaskedExemplar {
+    pub image: Image,
+    /// Fraction of the exemplar's pixels set in the mask.
+    pub positive_fraction: f64,
+}
+
+impl MaskedExemplar {
+    /// `mask`: same size as `exemplar`, set where its first channel is >= 128, with both
+    /// regions present. `mask_name` labels errors (e.g. "--mask m.png").
+    pub fn new(exemplar: &Image, mask: &Image, mask_name: &str) -> Result<MaskedExemplar> {
+        let colour = colour_exemplar(exemplar);
+        let distance = crate::exemplar::feature::feature_channel(
+            mask,
+            &colour,
+            mask_name,
+            crate::exemplar::Border::Mirror,
+        )?;
+        let set = distance.pixels.iter().filter(|&&v| v >= 128).count();
+        Ok(MaskedExemplar {
+            image: colour.with_extra_channels(&distance),
+            positive_fraction: set as f64 / distance.pixels.len() as f64,
+        })
+    }
+}
+
+impl GradientSynthParams {
+    /// The extra limits of a synthesis with a mask: its region separation keeps every voxel's
+    /// last sample (as `--optimize` does), so sizes up to [`MAX_OPTIMIZE_SIZE`].
+    pub fn validate_with_mask(&self) -> Result<()> {
+        self.validate()?;
+        if self.size > MAX_OPTIMIZE_SIZE {
+            return Err(Error::invalid(
+                format!("--mask with --size {}", self.size),
+                format!(
+                    "region separation keeps every voxel's last sample: at most \
+                     {MAX_OPTIMIZE_SIZE}^3"
+                ),
+            ));
+        }
+        Ok(())
+    }
+}
+
 /// Synthesize a periodic gradient solid from `exemplar` (paper section 4).
 pub fn synthesize(
     exemplar: &Image,
@@ -371,9 +457,58 @@ pub fn synthesize(
     progress: Progress,
 ) -> Result<(PeriodicSolid, SynthReport)> {
     params.validate()?;
+    let (solid, report, _) = iterate(&colour_exemplar(exemplar), false, params, compute, progress)?;
+    Ok((solid, report))
+}
+
+/// Synthesize with region separation (paper 3.2, 4.2.2, 4.3): the iterations run on colour +
+/// signed distance with mask-aware colour clusters; then the last samples are separated into a
+/// [`RegionSolid`] of period P (its last faces equal its first; see [`separate`]). With
+/// `optimize_iterations`, eq. 3 refines both feature sets ([`RegionSolid::optimize`]).
+pub fn synthesize_regions(
+    exemplar: &MaskedExemplar,
+    params: &GradientSynthParams,
+    compute: &Compute,
+    progress: Progress,
+) -> Result<(RegionSolid, SynthReport)> {
+    params.validate_with_mask()?;
     let start = Instant::now();
-    let exemplar = colour_exemplar(exemplar);
-    let mut solid = PeriodicSolid::random(params.cells(), &exemplar, params.seed);
+    let (solid, mut report, targets) = iterate(&exemplar.image, true, params, compute, progress)?;
+    let targets = targets.expect("a synthesis with a mask keeps its last samples");
+    progress("region separation", 0.99);
+    let t = Instant::now();
+    let (rs, sep) = separate::separate(&solid, &targets, params.optimize_iterations as usize)?;
+    if let Some(rms) = sep.optimize_rms {
+        report.optimize_rms = rms;
+        report.optimize_seconds = t.elapsed().as_secs_f64();
+    }
+    report.regions = Some(RegionReport {
+        split_points: rs.split_points(),
+        points: rs.split.len(),
+        positive_fraction: separate::positive_fraction(&rs),
+        exemplar_positive_fraction: exemplar.positive_fraction,
+        empty_buckets: sep.empty,
+        seconds: t.elapsed().as_secs_f64(),
+    });
+    progress("done", 1.0);
+    report.seconds = start.elapsed().as_secs_f64();
+    Ok((rs, report))
+}
+
+/// The levels and iterations of section 4 on `exemplar` (colour channels, then with
+/// `masked` the signed distance as the last channel). Returns the solid, the report and, when
+/// asked for (`masked` or eq. 3), the last iteration's samples.
+fn iterate(
+    exemplar: &Image,
+    masked: bool,
+    params: &GradientSynthParams,
+    compute: &Compute,
+    progress: Progress,
+) -> Result<(PeriodicSolid, SynthReport, Option<refine::Targets>)> {
+    let start = Instant::now();
+    let distance_channel = masked.then(|| exemplar.channels as usize - 1);
+    let mut kept = None;
+    let mut solid = PeriodicSolid::random(params.cells(), exemplar, params.seed);
     let mut report = SynthReport::default();
     let steps = (params.levels.len() * params.iterations as usize) as f32;
     let finest = params.levels.len() - 1;
@@ -384,10 +519,11 @@ pub fn synthesize(
             (li * params.iterations as usize) as f32 / steps,
         );
         let patches = LevelPatches::build(
-            &exemplar,
+            exemplar,
             spec.spacing,
             spec.size,
             (params.quantize_all_levels || li == finest).then_some(params.clusters),
+            distance_channel,
             mix64(params.seed ^ li as u64),
         )?;
         let mut level = LevelReport {
@@ -414,7 +550,7 @@ pub fn synthesize(
             let matches = matching::match_all(&solid, &ctx);
             let t2 = Instant::now();
             let last = li == finest && it + 1 == params.iterations;
-            let mut targets = (last && params.optimize_iterations > 0)
+            let mut targets = (last && (masked || params.optimize_iterations > 0))
                 .then(|| refine::Targets::empty(solid.period() as usize, solid.channels));
             let (next, refitted) =
                 buckets::update(&solid, &matches, &ctx, compute, targets.as_mut())?;
@@ -434,7 +570,10 @@ pub fn synthesize(
             level.match_seconds += (t2 - t1).as_secs_f64();
             level.update_seconds += t2.elapsed().as_secs_f64();
             level.refitted = refitted;
-            if let Some(targets) = &targets {
+            if masked {
+                // The region separation fits (and optimizes) its own solid from the samples.
+                kept = targets;
+            } else if let Some(targets) = &targets {
                 progress("final optimization (eq. 3)", 0.99);
                 let t3 = Instant::now();
                 let history =
@@ -445,9 +584,11 @@ pub fn synthesize(
         }
         report.levels.push(level);
     }
-    progress("done", 1.0);
+    if !masked {
+        progress("done", 1.0);
+    }
     report.seconds = start.elapsed().as_secs_f64();
-    Ok((solid, report))
+    Ok((solid, report, kept))
 }
 
 #[cfg(test)]

@@ -45,6 +45,8 @@ pub struct LevelPatches {
     image: Vec<u8>,
     /// Colour cluster per pixel (quantized levels only).
     clusters: Option<Vec<u8>>,
+    /// With a mask: per cluster, whether its pixels lie in the positive region.
+    cluster_regions: Option<Vec<bool>>,
     /// Centre pixel of every candidate patch.
     centres: Vec<(u32, u32)>,
     /// Set by `build` (an option only so `vector` can be used while building).
@@ -91,12 +93,15 @@ fn prefilter(img: &Image, s: u32) -> Vec<u8> {
 impl LevelPatches {
     /// Candidate patches of `img` with `size` samples per side at spacing `spacing`; with
     /// `quantize`, the filtered exemplar's colours are clustered into that many clusters for the
-    /// buckets. `seed` seeds the PCA.
+    /// buckets. With `distance_channel` (a mask's signed distance, 128 at the boundary), the
+    /// clusters are allocated per region (the sign of the filtered distance) and hold the colour
+    /// channels before it only ([`super::clusters::quantize_regions`]). `seed` seeds the PCA.
     pub fn build(
         img: &Image,
         spacing: u32,
         size: u32,
         quantize: Option<u32>,
+        distance_channel: Option<usize>,
         seed: u64,
     ) -> Result<LevelPatches> {
         let span = (size - 1) * spacing + 1;
@@ -125,13 +130,26 @@ impl LevelPatches {
             })
             .collect();
         let image = prefilter(img, spacing);
-        let clusters = quantize.map(|k| {
-            let filtered = Image {
-                pixels: image.clone(),
-                ..img.clone()
-            };
-            super::clusters::quantize(&filtered, k)
-        });
+        let (clusters, cluster_regions) = match quantize {
+            None => (None, None),
+            Some(k) => {
+                let filtered = Image {
+                    pixels: image.clone(),
+                    ..img.clone()
+                };
+                match distance_channel {
+                    None => (Some(super::clusters::quantize(&filtered, k)), None),
+                    Some(d) => {
+                        let c = img.channels as usize;
+                        let positive: Vec<bool> =
+                            image.chunks_exact(c).map(|p| p[d] >= 128).collect();
+                        let (labels, regions) =
+                            super::clusters::quantize_regions(&filtered, d, &positive, k);
+                        (Some(labels), Some(regions))
+                    }
+                }
+            }
+        };
         let mut level = LevelPatches {
             spacing,
             size,
@@ -139,6 +157,7 @@ impl LevelPatches {
             width: img.width,
             image,
             clusters,
+            cluster_regions,
             centres,
             pca: None,
             blocks: Vec::new(),
@@ -218,6 +237,11 @@ impl LevelPatches {
     /// The colour cluster of pixel `p` (0 on levels that do not quantize).
     pub fn cluster(&self, p: usize) -> u32 {
         self.clusters.as_ref().map_or(0, |c| c[p] as u32)
+    }
+
+    /// With a mask: per cluster, whether it holds positive-region pixels.
+    pub fn cluster_regions(&self) -> Option<&[bool]> {
+        self.cluster_regions.as_deref()
     }
 
     /// Clusters the buckets of this level distinguish (1: plain averaging).
