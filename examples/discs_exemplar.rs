@@ -12,6 +12,7 @@ fn main() {
     let count: u32 = arg(2, "24").parse().expect("COUNT");
     let radius: f32 = arg(3, "9").parse().expect("RADIUS");
     let dir = std::path::PathBuf::from(arg(4, "."));
+    std::fs::create_dir_all(&dir).expect("create OUT_DIR");
     let (img, mask) = procedural::discs(size, count, radius, 5);
     for (image, name) in [(img, "discs.png"), (mask, "discs_mask.png")] {
         let path = dir.join(name);
