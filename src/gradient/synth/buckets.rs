@@ -15,7 +15,7 @@
 
 use super::matching::{Match, MatchContext, UNMATCHED};
 use super::refine::Targets;
-use super::PeriodicSolid;
+use super::{wrap, PeriodicSolid};
 use crate::backend::Compute;
 use crate::cpu::bucket_accumulate::{dominant, Buckets};
 use crate::error::Result;
@@ -69,7 +69,7 @@ impl Layer<'_> {
         let (zlo, zhi) = (self.z0() - reach, self.z0() + LAYER - 1 + reach);
         let first = zlo.div_euclid(d);
         let layers = (zhi.div_euclid(d) - first + 1).min(m);
-        let in_layer = |z: i64| (z - self.z0()).rem_euclid(p_len) < LAYER;
+        let in_layer = |z: i64| wrap(z - self.z0(), p_len) < LAYER;
         for cz in first..first + layers {
             let cz = cz.rem_euclid(m) as u32;
             for cy in 0..m as u32 {
@@ -92,7 +92,7 @@ impl Layer<'_> {
                                     ctx.sample_position(p, &frame, o, n - 1, b)[2],
                                 );
                                 let (lo, span) = (za.min(zb), (za - zb).abs());
-                                let dz = (lo - self.z0()).rem_euclid(p_len);
+                                let dz = wrap(lo - self.z0(), p_len);
                                 if dz >= LAYER && dz + span < p_len {
                                     continue;
                                 }
@@ -101,10 +101,10 @@ impl Layer<'_> {
                                     if !in_layer(q[2]) {
                                         continue;
                                     }
-                                    let bucket = (((q[2] - self.z0()).rem_euclid(p_len) * p_len
-                                        + q[1].rem_euclid(p_len))
+                                    let bucket = ((wrap(q[2] - self.z0(), p_len) * p_len
+                                        + wrap(q[1], p_len))
                                         * p_len
-                                        + q[0].rem_euclid(p_len))
+                                        + wrap(q[0], p_len))
                                         as usize;
                                     visit(bucket, ctx.patches.pixel_index(candidate, a, b));
                                 }
