@@ -292,6 +292,7 @@ impl LevelPatches {
     #[inline(always)]
     fn nearest_portable(&self, query: &[f32; KEPT], k: usize) -> Vec<(f32, u32)> {
         const EARLY: usize = 4;
+        const MIDDLE: usize = 8;
         let k = k.clamp(1, self.centres.len());
         let mut best: Vec<(f32, u32)> = Vec::with_capacity(k + 1);
         let mut worst = f32::INFINITY;
@@ -307,7 +308,17 @@ impl LevelPatches {
                     continue;
                 }
             }
-            accumulate(&mut acc, &block[EARLY..], &query[EARLY..]);
+            accumulate(&mut acc, &block[EARLY..MIDDLE], &query[EARLY..MIDDLE]);
+            if best.len() == k {
+                let mut low = acc[0];
+                for &a in &acc[1..] {
+                    low = low.min(a);
+                }
+                if low >= worst {
+                    continue;
+                }
+            }
+            accumulate(&mut acc, &block[MIDDLE..], &query[MIDDLE..]);
             for (l, &d) in acc.iter().enumerate() {
                 // Candidates come in index order, so a later one that ties the worst kept one
                 // loses the tie, as it should.
