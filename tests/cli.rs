@@ -1066,6 +1066,20 @@ fn gradient_synth_with_a_mask_writes_a_region_solid_and_refuses_bad_masks() {
             String::from_utf8_lossy(&o.stderr)
         );
     }
+    // The region refinement has a lower size limit than the separation.
+    let o = run(&[
+        "gradient",
+        "synth",
+        ex.to_str().unwrap(),
+        "--mask",
+        mk.to_str().unwrap(),
+        "--size",
+        "200",
+        "--optimize",
+        "-o",
+        target.to_str().unwrap(),
+    ]);
+    assert_user_error(&o, "--mask --optimize with --size 200", b, &[]);
 }
 
 #[test]
