@@ -57,13 +57,19 @@ impl Ctx<'_> {
         let pos = match self.p.period {
             0 => pos,
             // (No division for the positions already inside the period: nearly all.)
-            n => pos.map(|v| {
-                if (0..n as i32).contains(&v) {
-                    v
-                } else {
-                    v.rem_euclid(n as i32)
-                }
-            }),
+            n => {
+                let n = n as i32;
+                let wrap = |v: i32| {
+                    if (0..n).contains(&v) {
+                        v
+                    } else if (-n..0).contains(&v) {
+                        v + n
+                    } else {
+                        v.rem_euclid(n)
+                    }
+                };
+                [wrap(pos[0]), wrap(pos[1]), wrap(pos[2])]
+            }
         };
         voxel_index(
             self.bricks,

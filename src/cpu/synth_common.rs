@@ -51,8 +51,13 @@ pub fn voxel_index(
     dims: [u32; 3],
     table: u32,
 ) -> Option<usize> {
-    let d = [0, 1, 2].map(|i| (p[i] >> 2) - grid_lo[i]);
-    if (0..3).any(|i| d[i] < 0 || d[i] as u32 >= dims[i]) {
+    let d = [
+        (p[0] >> 2) - grid_lo[0],
+        (p[1] >> 2) - grid_lo[1],
+        (p[2] >> 2) - grid_lo[2],
+    ];
+    // (Negative values wrap to large u32s: one comparison per axis.)
+    if d[0] as u32 >= dims[0] || d[1] as u32 >= dims[1] || d[2] as u32 >= dims[2] {
         return None;
     }
     let cell = (d[2] as u32 * dims[1] + d[1] as u32) * dims[0] + d[0] as u32;
