@@ -25,6 +25,17 @@ fn accumulate(acc: &mut [f32; LANES], block: &[[f32; LANES]], query: &[f32]) {
     }
 }
 
+/// Whether any lane is at most `limit` (a lane-wise compare and a mask test: no serial
+/// horizontal minimum, which cost more than the partial distances themselves).
+#[inline(always)]
+fn any_at_most(acc: &[f32; LANES], limit: f32) -> bool {
+    let mut any = false;
+    for &a in acc {
+        any |= a <= limit;
+    }
+    any
+}
+
 /// Which line of a patch a crossbar compares (paper Fig. 3).
 #[derive(Clone, Copy, Debug)]
 pub enum Line {
@@ -53,11 +64,19 @@ pub struct LevelPatches {
     pca: Option<PatchPca>,
     /// The candidates' projections, 8 per block, dimension-major inside a block (padding lanes
     /// hold a huge value): the layout an exhaustive search vectorizes over.
-    blocks: Vec<[[f32; LANES]; KEPT]>,
+    /// The first EARLY dimensions of every block, apart from the rest: the pass that rejects
+    /// most blocks reads only these (186 KB for 11,664 patches: they stay in the L2 cache).
+    early_blocks: Vec<[[f32; LANES]; EARLY]>,
+    late_blocks: Vec<[[f32; LANES]; KEPT - EARLY]>,
 }
 
 /// Candidates per block of the exhaustive search.
 const LANES: usize = 8;
+/// PCA dimensions (the largest) scored before the first rejection test, and before the second.
+const EARLY: usize = 4;
+const MIDDLE: usize = 8;
+/// Stride of the nearest-neighbour search's first, sparse pass over the blocks.
+const PROBE: usize = 16;
 /// Coordinate of the padding lanes: their distance to any query is infinite.
 const PADDING: f32 = 1e30;
 
@@ -160,7 +179,8 @@ impl LevelPatches {
             cluster_regions,
             centres,
             pca: None,
-            blocks: Vec::new(),
+            early_blocks: Vec::new(),
+            late_blocks: Vec::new(),
         };
         let dims = level.dims();
         let vectors: Vec<f32> = (0..level.centres.len() as u32)
@@ -172,13 +192,16 @@ impl LevelPatches {
             .par_chunks_exact(dims)
             .map(|v| pca.project(v))
             .collect();
-        level.blocks = points
+        let lanes = |chunk: &[[f32; KEPT]], j: usize| -> [f32; LANES] {
+            std::array::from_fn(|l| chunk.get(l).map_or(PADDING, |p| p[j]))
+        };
+        level.early_blocks = points
             .chunks(LANES)
-            .map(|chunk| {
-                std::array::from_fn(|j| {
-                    std::array::from_fn(|l| chunk.get(l).map_or(PADDING, |p| p[j]))
-                })
-            })
+            .map(|chunk| std::array::from_fn(|j| lanes(chunk, j)))
+            .collect();
+        level.late_blocks = points
+            .chunks(LANES)
+            .map(|chunk| std::array::from_fn(|j| lanes(chunk, EARLY + j)))
             .collect();
         level.pca = Some(pca);
         Ok(level)
@@ -291,54 +314,57 @@ impl LevelPatches {
 
     #[inline(always)]
     fn nearest_portable(&self, query: &[f32; KEPT], k: usize) -> Vec<(f32, u32)> {
-        const EARLY: usize = 4;
-        const MIDDLE: usize = 8;
         let k = k.clamp(1, self.centres.len());
-        let mut best: Vec<(f32, u32)> = Vec::with_capacity(k + 1);
-        let mut worst = f32::INFINITY;
-        for (bi, block) in self.blocks.iter().enumerate() {
+        // The k smallest (distance, index) pairs so far, as a max-heap: distances are squared
+        // sums, never negative or NaN, so their bit patterns order like the values. Keeping the
+        // k smallest pairs makes the result independent of the visiting order: a sparse first
+        // pass (every PROBE-th block, spread over the exemplar) finds a tight k-th distance
+        // early, so the full pass rejects more blocks and inserts fewer candidates.
+        let mut best: std::collections::BinaryHeap<(u32, u32)> =
+            std::collections::BinaryHeap::with_capacity(k + 1);
+        let blocks = self.early_blocks.len();
+        let probe = (0..blocks).step_by(PROBE);
+        let rest = (0..blocks).filter(|bi| bi % PROBE != 0);
+        for bi in probe.chain(rest) {
+            // Worst kept distance (infinite until k are kept).
+            let worst = if best.len() == k {
+                f32::from_bits(best.peek().expect("k >= 1").0)
+            } else {
+                f32::INFINITY
+            };
             let mut acc = [0f32; LANES];
-            accumulate(&mut acc, &block[..EARLY], &query[..EARLY]);
-            if best.len() == k {
-                let mut low = acc[0];
-                for &a in &acc[1..] {
-                    low = low.min(a);
-                }
-                if low >= worst {
-                    continue;
-                }
+            accumulate(&mut acc, &self.early_blocks[bi], &query[..EARLY]);
+            // (Partial sums only grow: a block whose lanes all exceed the worst kept distance
+            // holds no better candidate; a tie may still win on its index, so <= keeps it.)
+            if !any_at_most(&acc, worst) {
+                continue;
             }
-            accumulate(&mut acc, &block[EARLY..MIDDLE], &query[EARLY..MIDDLE]);
-            if best.len() == k {
-                let mut low = acc[0];
-                for &a in &acc[1..] {
-                    low = low.min(a);
-                }
-                if low >= worst {
-                    continue;
-                }
+            let late = &self.late_blocks[bi];
+            accumulate(&mut acc, &late[..MIDDLE - EARLY], &query[EARLY..MIDDLE]);
+            if !any_at_most(&acc, worst) {
+                continue;
             }
-            accumulate(&mut acc, &block[MIDDLE..], &query[MIDDLE..]);
+            accumulate(&mut acc, &late[MIDDLE - EARLY..], &query[MIDDLE..]);
             for (l, &d) in acc.iter().enumerate() {
-                // Candidates come in index order, so a later one that ties the worst kept one
-                // loses the tie, as it should.
-                if d < worst || best.len() < k {
-                    let item = (d, (bi * LANES + l) as u32);
-                    if item.1 as usize >= self.centres.len() {
-                        continue;
-                    }
-                    let at = best.partition_point(|b| b.0 < d || (b.0 == d && b.1 < item.1));
-                    best.insert(at, item);
-                    if best.len() > k {
-                        best.pop();
-                    }
-                    if best.len() == k {
-                        worst = best[k - 1].0;
-                    }
+                let index = (bi * LANES + l) as u32;
+                if index as usize >= self.centres.len() {
+                    continue;
+                }
+                let item = (d.to_bits(), index);
+                if best.len() < k {
+                    best.push(item);
+                } else if let Some(mut top) = best.peek_mut().filter(|top| item < **top) {
+                    // Replace the worst kept pair in place (one sift-down).
+                    *top = item;
                 }
             }
         }
-        best
+        // (The pairs are distinct: an unstable sort gives the same order.)
+        let mut best = best.into_vec();
+        best.sort_unstable();
+        best.into_iter()
+            .map(|(d, i)| (f32::from_bits(d), i))
+            .collect()
     }
 
     /// Sum of squared differences between `line_a` of candidate `a` and `line_b` of `b`
