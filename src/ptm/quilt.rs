@@ -377,3 +377,58 @@ fn min_cut(len: u32, width: u32, err: impl Fn(u32, u32) -> u64) -> Vec<u32> {
     }
     path
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::ptm::{capture, fit, PtmFormat};
+
+    /// The wavefront gives what placing the blocks one by one in raster order gives: same
+    /// choices, same texels (also with the largest overlap, half a block, where blocks of one
+    /// wave touch). A wave of t = bx + by instead fails it.
+    #[test]
+    fn wavefront_equals_raster_order() {
+        let src = fit::fit(&capture::synthetic(48, 8, 1), PtmFormat::Lrgb, "test").unwrap();
+        for (block, overlap) in [(16, 4), (16, 8)] {
+            let mut p = QuiltParams::new(100);
+            p.block = block;
+            p.overlap = overlap;
+            p.seed = 7;
+            let searcher = Searcher::new(search::features(&src), p.block, p.overlap);
+            let (out, report) = synthesize_with(&src, &searcher, &p, &mut |_, _| {}).unwrap();
+
+            let step = block - overlap;
+            let (nbx, nby) = report.blocks;
+            let cw = nbx * step + overlap;
+            let s = src.format.texel_bytes();
+            let mut texels = vec![0u8; (cw * (nby * step + overlap)) as usize * s];
+            let mut feats = FeatureImage::new(cw, nby * step + overlap, searcher.source.dims);
+            let mut choices = vec![0u32; (nbx * nby) as usize];
+            for by in 0..nby {
+                for bx in 0..nbx {
+                    let (choice, _, _) = choose(&searcher, &feats, &choices, (bx, by), nbx, &p);
+                    choices[(by * nbx + bx) as usize] = choice;
+                    place(
+                        &src,
+                        &searcher,
+                        &mut texels,
+                        &mut feats,
+                        (bx * step, by * step),
+                        searcher.origin(choice),
+                        shape_of(bx, by),
+                        &p,
+                    );
+                }
+            }
+            assert_eq!(report.choices, choices, "block {block}, overlap {overlap}");
+            for y in 0..p.height as usize {
+                let row = &texels[y * cw as usize * s..][..p.width as usize * s];
+                let got = &out.texels[y * p.width as usize * s..][..p.width as usize * s];
+                assert!(
+                    row == got,
+                    "row {y} differs (block {block}, overlap {overlap})"
+                );
+            }
+        }
+    }
+}
