@@ -72,7 +72,7 @@ fn tricubic_eval_matches_its_reference() {
         let out = solidsynth::gpu::tricubic_eval::tricubic_eval(gpu, &s, q).unwrap();
         close(what, &cpu, &out, scale).unwrap();
     }
-    // Other channel counts (the kernel's channel count is a pipeline constant).
+    // Other channel counts.
     for channels in [1, 4, 16] {
         let s = solid(channels);
         let scale = 1.0 + 4.0 * s.data.iter().fold(0f32, |m, v| m.max(v.abs()));
@@ -89,6 +89,112 @@ fn tricubic_eval_matches_its_reference() {
     assert!(close("perturbed", &cpu, &bad, scale).is_err());
     bad[100] = f32::NAN;
     assert!(close("nan", &cpu, &bad, scale).is_err());
+}
+
+/// The kernel's 8-bit mode against the reference's: equal bytes, except a difference of one
+/// level where the float value lies within the tolerance of a rounding boundary (x.5).
+fn same_bytes(
+    what: &str,
+    floats: &[f32],
+    cpu: &[u8],
+    gpu: &[u8],
+    scale: f32,
+) -> Result<(), String> {
+    if cpu.len() != gpu.len() {
+        return Err(format!("{what}: length {} vs {}", cpu.len(), gpu.len()));
+    }
+    for (i, ((&c, &g), &f)) in cpu.iter().zip(gpu).zip(floats).enumerate() {
+        let near_boundary = ((f - f.floor()) - 0.5).abs() <= TOLERANCE * scale;
+        if c != g && !(near_boundary && c.abs_diff(g) == 1) {
+            return Err(format!(
+                "{what}: byte {i} is {g}, the reference {c} (value {f})"
+            ));
+        }
+    }
+    Ok(())
+}
+
+#[test]
+fn tricubic_eval_u8_matches_its_reference() {
+    use solidsynth::cpu::tricubic_eval::tricubic_eval_u8;
+    let _serial = crate::serial();
+    let Some(gpu) = crate::gpu() else { return };
+    // Values around the 8-bit range, so that the clamps at 0 and 255 and the rounding are hit.
+    let mut s = solid(3);
+    for v in s.data.iter_mut() {
+        *v = *v * 0.8 + 128.0;
+    }
+    let scale = 1.0 + 4.0 * s.data.iter().fold(0f32, |m, v| m.max(v.abs()));
+    let oblique = Query::Grid {
+        origin: [0.5, 1.25, -1.0],
+        a: [0.3, 0.1, 0.05],
+        b: [0.0, 0.25, 0.3],
+        c: [0.0; 3],
+        n: [37, 41, 1],
+    };
+    for (what, q) in [
+        ("volume", Query::volume([17, 13, 21])),
+        ("oblique slice", oblique),
+    ] {
+        let floats = tricubic_eval(&s, &q);
+        let cpu = tricubic_eval_u8(&s, &q);
+        let out = solidsynth::gpu::tricubic_eval::tricubic_eval_u8(gpu, &s, &q).unwrap();
+        same_bytes(what, &floats, &cpu, &out, scale).unwrap();
+        assert!(
+            cpu.contains(&0) && cpu.contains(&255),
+            "{what}: clamps not exercised"
+        );
+    }
+    for channels in [1, 2, 4] {
+        let mut s = solid(channels);
+        s.data.iter_mut().for_each(|v| *v = *v * 0.5 + 100.0);
+        let q = Query::volume([9, 7, 11]);
+        let floats = tricubic_eval(&s, &q);
+        let cpu = tricubic_eval_u8(&s, &q);
+        let out = solidsynth::gpu::tricubic_eval::tricubic_eval_u8(gpu, &s, &q).unwrap();
+        same_bytes(&format!("{channels} channels"), &floats, &cpu, &out, scale).unwrap();
+    }
+    // Cell-mode volumes split over many dispatches (a small binding limit: chunks of 4 or 8 z
+    // slices, the last one partial), and a layer too large for one binding (the general path).
+    let mut opts = solidsynth::gpu::GpuOptions::from_env();
+    opts.max_binding_bytes = Some(17 * 13 * 4 * 8);
+    let small = crate::open(opts).expect("adapter");
+    let q = Query::volume([17, 13, 21]);
+    let floats = tricubic_eval(&s, &q);
+    let out = solidsynth::gpu::tricubic_eval::tricubic_eval_u8(&small, &s, &q).unwrap();
+    same_bytes(
+        "chunked u8",
+        &floats,
+        &tricubic_eval_u8(&s, &q),
+        &out,
+        scale,
+    )
+    .unwrap();
+    let out = solidsynth::gpu::tricubic_eval::tricubic_eval(&small, &s, &q).unwrap();
+    close("chunked f32 (general path)", &floats, &out, scale).unwrap();
+    let mut opts = solidsynth::gpu::GpuOptions::from_env();
+    opts.max_binding_bytes = Some(17 * 13 * 4 * 3 * 4);
+    let small = crate::open(opts).expect("adapter");
+    let out = solidsynth::gpu::tricubic_eval::tricubic_eval(&small, &s, &q).unwrap();
+    close("chunked f32", &floats, &out, scale).unwrap();
+    // More than 4 channels do not fit a word: refused, not truncated.
+    assert!(solidsynth::gpu::tricubic_eval::tricubic_eval_u8(
+        gpu,
+        &solid(5),
+        &Query::volume([2; 3])
+    )
+    .is_err());
+    // The comparison fails on a changed byte away from a boundary.
+    let q = Query::volume([9, 9, 9]);
+    let floats = tricubic_eval(&s, &q);
+    let cpu = tricubic_eval_u8(&s, &q);
+    let i = floats
+        .iter()
+        .position(|f| ((f - f.floor()) - 0.5).abs() > 0.1 && (1.0..254.0).contains(f))
+        .unwrap();
+    let mut bad = cpu.clone();
+    bad[i] += 1;
+    assert!(same_bytes("perturbed", &floats, &cpu, &bad, scale).is_err());
 }
 
 #[test]

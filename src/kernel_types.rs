@@ -152,7 +152,8 @@ gpu_struct! {
         a_x: u32, a_y: u32, a_z: u32,
         b_x: u32, b_y: u32, b_z: u32,
         c_x: u32, c_y: u32, c_z: u32,
-        _pad0: u32, _pad1: u32,
+        /// 1: write 8-bit values, one word per point (channels <= 4); 0: f32 per channel.
+        quantize: u32, _pad1: u32,
     }
 }
 

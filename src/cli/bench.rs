@@ -16,6 +16,10 @@ pub enum BenchCommand {
     /// Direct gradient-solid synthesis per size and backend: median wall time, peak memory,
     /// per-level match/update times (each run in a fresh process).
     GradientSynth(BenchGradientArgs),
+    /// Gradient-solid rendering (kernel `tricubic_eval`, 8-bit volumes as `gradient render`
+    /// writes them) per size and backend, in one warm process: median time, CPU/GPU ratio, and
+    /// whether the backends' bytes agree.
+    GradientRender(BenchRenderArgs),
     /// PTM synthesis (projection vs brute-force search, identical output) and relighting (CPU vs
     /// GPU) on a synthetic capture.
     Ptm(super::ptm_bench::BenchPtmArgs),
@@ -40,6 +44,22 @@ pub struct BenchGradientArgs {
     /// Runs per size and backend; the median is reported.
     #[arg(long, default_value_t = 3)]
     pub runs: u32,
+}
+
+#[derive(Args, Debug)]
+pub struct BenchRenderArgs {
+    /// Rendered volume edges (each from a random 3-channel solid of that extent).
+    #[arg(long, value_delimiter = ',', default_values_t = vec![128u32, 256])]
+    pub sizes: Vec<u32>,
+    /// Timed renders per size and backend, after one untimed warm-up; the median is reported.
+    #[arg(long, default_value_t = 5)]
+    pub runs: u32,
+    /// Skip the GPU backend (CPU times only).
+    #[arg(long)]
+    pub no_gpu: bool,
+    /// Use the adapter whose name contains this (case-insensitive).
+    #[arg(long, env = "SOLIDSYNTH_ADAPTER")]
+    pub adapter: Option<String>,
 }
 
 #[derive(Args, Debug)]
@@ -94,6 +114,7 @@ pub fn run(cmd: BenchCommand) -> anyhow::Result<()> {
         BenchCommand::Analyze(args) => bench_analyze(args),
         BenchCommand::Synth(args) => bench_synth(args),
         BenchCommand::GradientSynth(args) => bench_gradient_synth(args),
+        BenchCommand::GradientRender(args) => bench_gradient_render(args),
         BenchCommand::Ptm(args) => super::ptm_bench::run(args),
         BenchCommand::Lapped(args) => super::lapped_bench::run(args),
         BenchCommand::Serve(args) => super::serve::bench(args),
@@ -156,6 +177,68 @@ fn bench_gradient_synth(args: BenchGradientArgs) -> anyhow::Result<()> {
                 median["seconds"].as_f64().unwrap_or(f64::NAN),
                 median["peak_rss_bytes"].as_f64().unwrap_or(f64::NAN) / (1 << 20) as f64,
                 format!("{:.2} / {:.2}", sum("match_seconds"), sum("update_seconds")),
+            );
+        }
+    }
+    Ok(())
+}
+
+fn bench_gradient_render(args: BenchRenderArgs) -> anyhow::Result<()> {
+    use solidsynth::backend::Compute;
+    use solidsynth::cpu::tricubic_eval::Query;
+    use solidsynth::gradient::render::{random_solid, render_u8};
+    let mut backends = vec![("cpu", Compute::Cpu)];
+    if !args.no_gpu {
+        let mut opts = solidsynth::gpu::GpuOptions::from_env();
+        opts.adapter_filter = args.adapter.clone().or(opts.adapter_filter);
+        let ctx = solidsynth::gpu::GpuContext::new(&opts)?;
+        println!("adapter: {}", ctx.describe());
+        backends.push(("gpu", Compute::Gpu(std::sync::Arc::new(ctx))));
+    }
+    println!(
+        "gradient render benchmark (3 channels, 8-bit output, read-back included): median of {} \
+         warm run(s)",
+        args.runs
+    );
+    println!(
+        "{:>6} {:>8} {:>10} {:>10}",
+        "size", "backend", "median s", "Mvoxel/s"
+    );
+    for &size in &args.sizes {
+        let solid = random_solid(size, 3, u64::from(size))?;
+        let query = Query::volume([size; 3]);
+        let mut medians = Vec::new();
+        let mut outputs = Vec::new();
+        for (name, compute) in &backends {
+            let mut out = render_u8(&solid, &query, compute)?;
+            let mut times = Vec::new();
+            for _ in 0..args.runs.max(1) {
+                let start = Instant::now();
+                out = render_u8(&solid, &query, compute)?;
+                times.push(start.elapsed().as_secs_f64());
+            }
+            times.sort_by(f64::total_cmp);
+            let median = times[times.len() / 2];
+            println!(
+                "{:>6} {:>8} {:>10.4} {:>10.1}",
+                size,
+                name,
+                median,
+                query.len() as f64 / median / 1e6
+            );
+            medians.push(median);
+            outputs.push(out);
+        }
+        if let [cpu, gpu] = &medians[..] {
+            let differing = outputs[0]
+                .iter()
+                .zip(&outputs[1])
+                .filter(|(a, b)| a != b)
+                .count();
+            println!(
+                "{size:>6}  cpu/gpu ratio {:.2}; bytes differing between the backends: {differing} of {}",
+                cpu / gpu,
+                outputs[0].len()
             );
         }
     }

@@ -3,7 +3,7 @@
 
 use clap::{Args, Subcommand};
 use solidsynth::backend::Compute;
-use solidsynth::cpu::tricubic_eval::{tricubic_eval, Query};
+use solidsynth::cpu::tricubic_eval::{quantize, tricubic_eval, Query};
 use solidsynth::gradient::regions::{self, Blend, RegionSolid};
 use solidsynth::gradient::{detail, edit, format, vectorize, GradientSolid};
 use solidsynth::io::{atomic, nrrd};
@@ -210,14 +210,11 @@ fn render_slice(a: &RenderArgs, solid: &AnySolid, normal: &str, quiet: bool) -> 
     };
     let compute = a.backend.open()?;
     let start = Instant::now();
-    let values = solid.eval(&query, &compute, blend_of(a), !a.no_detail)?;
+    let values = solid.eval_u8(&query, &compute, blend_of(a), !a.no_detail)?;
     let c = solid.channels() as usize;
     let img = image::RgbaImage::from_fn(spec.size, spec.size, |x, y| {
         let i = (y as usize * spec.size as usize + x as usize) * c;
-        let px: Vec<u8> = values[i..i + c]
-            .iter()
-            .map(|v| v.round().clamp(0.0, 255.0) as u8)
-            .collect();
+        let px = &values[i..i + c];
         match c {
             1 | 2 => image::Rgba([px[0], px[0], px[0], 255]),
             _ => image::Rgba([px[0], px[1], px[2], if c > 3 { px[3] } else { 255 }]),
@@ -291,6 +288,25 @@ impl AnySolid {
             }
             AnySolid::Regions(r) => r.eval_query(query, compute, blend),
         }
+    }
+
+    /// [`AnySolid::eval`] as 8-bit values ([`quantize`]d): plain solids through
+    /// [`solidsynth::gradient::render::render_u8`] (the kernel quantizes on the GPU), the others
+    /// quantize the float results.
+    fn eval_u8(
+        &self,
+        query: &Query,
+        compute: &Compute,
+        blend: Blend,
+        grain: bool,
+    ) -> solidsynth::Result<Vec<u8>> {
+        if let AnySolid::Plain(s) = self {
+            if s.detail == 0 {
+                return solidsynth::gradient::render::render_u8(s, query, compute);
+            }
+        }
+        let values = self.eval(query, compute, blend, grain)?;
+        Ok(values.into_iter().map(quantize).collect())
     }
 }
 
@@ -637,11 +653,8 @@ pub fn run(cmd: GradientCommand, quiet: bool) -> anyhow::Result<()> {
             let compute = a.backend.open()?;
             let start = Instant::now();
             let query = Query::volume(n);
-            let values = solid.eval(&query, &compute, blend_of(&a), !a.no_detail)?;
             let mut v = solidsynth::volume::Volume::new(n[0], n[1], n[2], solid.channels());
-            for (d, x) in v.data.iter_mut().zip(&values) {
-                *d = x.round().clamp(0.0, 255.0) as u8;
-            }
+            v.data = solid.eval_u8(&query, &compute, blend_of(&a), !a.no_detail)?;
             nrrd::save(&v, &a.output)?;
             if !quiet {
                 eprintln!(

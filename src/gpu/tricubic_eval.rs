@@ -11,8 +11,38 @@ const SENTINEL: u32 = 0x7FC0_DEAD;
 
 /// Same result as [`crate::cpu::tricubic_eval::tricubic_eval`], within float tolerance.
 pub fn tricubic_eval(gpu: &GpuContext, solid: &GradientSolid, query: &Query) -> Result<Vec<f32>> {
-    let pipeline = gpu.pipeline("tricubic_eval")?;
+    let words = run(gpu, solid, query, false)?;
+    Ok(words.into_iter().map(f32::from_bits).collect())
+}
+
+/// Same result as [`crate::cpu::tricubic_eval::tricubic_eval_u8`] (up to one level where a
+/// value lies within the float tolerance of a rounding boundary): the kernel quantizes, so a
+/// quarter of the float output is written and read back. At most 4 channels.
+pub fn tricubic_eval_u8(gpu: &GpuContext, solid: &GradientSolid, query: &Query) -> Result<Vec<u8>> {
     let c = solid.channels as usize;
+    if c > 4 {
+        return Err(crate::error::Error::invalid(
+            "tricubic_eval_u8",
+            format!("8-bit output holds at most 4 channels, the solid has {c}"),
+        ));
+    }
+    let words = run(gpu, solid, query, true)?;
+    let mut out = Vec::with_capacity(words.len() * c);
+    for w in words {
+        out.extend_from_slice(&w.to_le_bytes()[..c]);
+    }
+    Ok(out)
+}
+
+/// The kernel over `query` in dispatches of at most one binding: `channels` f32 bit patterns
+/// per point, or one packed word per point with `quantize`.
+fn run(gpu: &GpuContext, solid: &GradientSolid, query: &Query, quantize: bool) -> Result<Vec<u32>> {
+    let c = if quantize { 1 } else { solid.channels as usize };
+    let cells = cell_chunks(gpu, solid, query, c as u64 * 4);
+    let pipeline = match cells {
+        Some(_) => gpu.pipeline_with("tricubic_eval", &[("CELL_MODE", 1.0)])?,
+        None => gpu.pipeline("tricubic_eval")?,
+    };
     let control = gpu.storage_buffer("control points", bytemuck::cast_slice(&solid.data));
     let (mode, points, grid) = match query {
         Query::Points(p) => (1u32, bytemuck::cast_slice::<[f32; 3], u8>(p).to_vec(), None),
@@ -30,9 +60,23 @@ pub fn tricubic_eval(gpu: &GpuContext, solid: &GradientSolid, query: &Query) -> 
     let (o, a, b, cc, n) = grid.unwrap_or(([0.0; 3], [0.0; 3], [0.0; 3], [0.0; 3], [1; 3]));
     let (o, a, b, cc) = (bits(o), bits(a), bits(b), bits(cc));
     let mut out = Vec::with_capacity(query.len() * c);
-    for range in chunk_ranges(query.len(), c as u64 * 4, gpu.max_binding_bytes()) {
+    let ranges = match &cells {
+        Some(chunks) => chunks.clone(),
+        None => chunk_ranges(query.len(), c as u64 * 4, gpu.max_binding_bytes()),
+    };
+    for range in ranges {
         let count = range.len() as u32;
-        let (gx, gy, grid_stride) = dispatch_grid(count);
+        // Cell mode: 4 threads per control cell of the chunk's layers, rounded up to whole
+        // workgroups of 16 cells (the extra threads find no voxel).
+        let threads = match cells {
+            Some(_) => {
+                let layer = n[0] as usize * n[1] as usize;
+                let cell_layers = range.len().div_ceil(layer).div_ceil(4) as u32;
+                (n[0].div_ceil(4) * n[1].div_ceil(4) * cell_layers).div_ceil(16) * 64
+            }
+            None => count,
+        };
+        let (gx, gy, grid_stride) = dispatch_grid(threads);
         let params = TricubicParams {
             dims_x: solid.dims[0],
             dims_y: solid.dims[1],
@@ -56,21 +100,56 @@ pub fn tricubic_eval(gpu: &GpuContext, solid: &GradientSolid, query: &Query) -> 
             c_x: cc[0],
             c_y: cc[1],
             c_z: cc[2],
-            _pad0: 0,
+            quantize: quantize as u32,
             _pad1: 0,
         };
         let words = gpu.checked("tricubic_eval", || {
+            let start = std::time::Instant::now();
             let uniform = gpu.uniform_buffer("tricubic params", &params);
             let output = gpu.output_buffer("values", count as usize * c, SENTINEL);
+            let allocated = start.elapsed();
             gpu.dispatch_and_wait(
                 "tricubic_eval",
                 &pipeline,
                 &[&uniform, &control, &points, &output],
                 (gx, gy),
             )?;
-            gpu.read_words(&output, count as usize * c)
+            let ran = start.elapsed();
+            let words = gpu.read_words(&output, count as usize * c);
+            tracing::debug!(
+                "tricubic_eval: {count} points, buffers {:.3} s, kernel {:.3} s, read-back {:.3} s",
+                allocated.as_secs_f64(),
+                (ran - allocated).as_secs_f64(),
+                (start.elapsed() - ran).as_secs_f64()
+            );
+            words
         })?;
-        out.extend(words.into_iter().map(f32::from_bits));
+        out.extend(words);
     }
     Ok(out)
+}
+
+/// When the kernel's cell mode applies ([`crate::cpu::tricubic_eval::cell_mode`]): the point
+/// ranges of its dispatches, whole layers of control cells (4 z slices) each, within one storage
+/// binding. `None`: the general path (also for layers too large for one binding, where the
+/// result then matches the reference within the float tolerance only).
+fn cell_chunks(
+    gpu: &GpuContext,
+    solid: &GradientSolid,
+    query: &Query,
+    bytes_per_point: u64,
+) -> Option<Vec<std::ops::Range<usize>>> {
+    let n = crate::cpu::tricubic_eval::cell_mode(solid, query)?;
+    let layer = n[0] as u64 * n[1] as u64;
+    let slices = (gpu.max_binding_bytes() / (layer * bytes_per_point)) / 4 * 4;
+    if slices == 0 {
+        return None;
+    }
+    let per = (slices * layer) as usize;
+    let total = query.len();
+    Some(
+        (0..total.div_ceil(per))
+            .map(|i| i * per..((i + 1) * per).min(total))
+            .collect(),
+    )
 }

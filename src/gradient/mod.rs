@@ -18,6 +18,7 @@ pub mod detail;
 pub mod edit;
 pub mod format;
 pub mod regions;
+pub mod render;
 pub mod synth;
 pub mod vectorize;
 
@@ -129,24 +130,32 @@ impl GradientSolid {
     }
 }
 
+/// Cubic Hermite value basis of corner `c` (0 or 1) at `s` in [0, 1] (the kernels' order of
+/// operations).
+#[inline]
+pub fn hermite_h(c: u32, s: f32) -> f32 {
+    if c == 0 {
+        2.0 * s * s * s - 3.0 * s * s + 1.0
+    } else {
+        3.0 * s * s - 2.0 * s * s * s
+    }
+}
+
+/// Cubic Hermite derivative basis of corner `c` at `s`, scaled to per-voxel gradients.
+#[inline]
+pub fn hermite_g(c: u32, s: f32) -> f32 {
+    let d = SPACING as f32;
+    if c == 0 {
+        d * (s * s * s - 2.0 * s * s + s)
+    } else {
+        d * (s * s * s - s * s)
+    }
+}
+
 /// The 32 weights (corner-major: corner bit 0 = x, 1 = y, 2 = z; then f, fx, fy, fz) at local
 /// parameters `t` in [0, 1]^3, gradients in per-voxel units.
 pub fn weights(t: [f32; 3]) -> [f32; 32] {
-    let h = |c: u32, s: f32| {
-        if c == 0 {
-            2.0 * s * s * s - 3.0 * s * s + 1.0
-        } else {
-            3.0 * s * s - 2.0 * s * s * s
-        }
-    };
-    let g = |c: u32, s: f32| {
-        let d = SPACING as f32;
-        if c == 0 {
-            d * (s * s * s - 2.0 * s * s + s)
-        } else {
-            d * (s * s * s - s * s)
-        }
-    };
+    let (h, g) = (hermite_h, hermite_g);
     let mut w = [0f32; 32];
     for corner in 0..8u32 {
         let c = [corner & 1, (corner >> 1) & 1, corner >> 2];
