@@ -171,29 +171,30 @@ pub fn match_check_point(
 ) -> Match {
     let q = project_slices(solid, ctx, p, buffer);
     let patches = ctx.patches;
+    let probes = ctx.params.probes.map(|p| p as usize);
     let three = ctx.params.matched_slices == 3;
     match ctx.params.search {
         SliceSearch::Independent => {
-            let mut m = q.map(|q| patches.nearest(&q, 1)[0].1);
+            let mut m = q.map(|q| patches.nearest(&q, 1, probes)[0].1);
             if !three {
                 m[2] = UNMATCHED;
             }
             m
         }
         SliceSearch::Crossbar { n1, n2 } => {
-            let ex = patches.nearest(&q[0], 1)[0].1;
+            let ex = patches.nearest(&q[0], 1, probes)[0].1;
             let ey_line = match ctx.params.slice_axes() {
                 SliceAxes::Cyclic => Line::Row,
                 SliceAxes::Upright => Line::Column,
             };
-            let ey = most_consistent(&patches.nearest(&q[1], n1 as usize), |c| {
+            let ey = most_consistent(&patches.nearest(&q[1], n1 as usize, probes), |c| {
                 patches.line_distance(ex, Line::Column, c, ey_line)
             });
             if !three {
                 return [ex, ey, UNMATCHED];
             }
             // Three slices: cyclic axes.
-            let ez = most_consistent(&patches.nearest(&q[2], n2 as usize), |c| {
+            let ez = most_consistent(&patches.nearest(&q[2], n2 as usize, probes), |c| {
                 patches.line_distance(ex, Line::Row, c, Line::Column)
                     + patches.line_distance(ey, Line::Column, c, Line::Row)
             });

@@ -42,6 +42,7 @@
 pub mod buckets;
 pub mod clusters;
 pub mod frame;
+pub mod ivf;
 pub mod matching;
 pub mod patches;
 pub mod pca;
@@ -119,6 +120,10 @@ pub struct GradientSynthParams {
     pub field: Field,
     /// CGNR steps of the final eq. 3 optimization (0: off, the paper's default).
     pub optimize_iterations: u32,
+    /// Nearest-patch search: `None` exact (exhaustive); `Some(p)` approximate, scanning the `p`
+    /// lists of the candidates' inverted-file partition nearest to each query (of about
+    /// sqrt(candidates) lists; see [`patches::LevelPatches::nearest`]).
+    pub probes: Option<u32>,
 }
 
 impl Default for GradientSynthParams {
@@ -136,9 +141,15 @@ impl Default for GradientSynthParams {
             levels: PAPER_LEVELS.to_vec(),
             field: Field::None,
             optimize_iterations: 0,
+            probes: Some(DEFAULT_PROBES),
         }
     }
 }
+
+/// Lists probed by the default approximate nearest-patch search (of ~128 at the finest level).
+/// Measured at 96^3 on six exemplars: eval ratios within a few percent of the exact search's,
+/// either way, for 30-40% less time.
+pub const DEFAULT_PROBES: u32 = 8;
 
 /// Largest accepted size (the control grid of 1024^3 is 256^3 points).
 pub const MAX_SIZE: u32 = 1024;

@@ -63,20 +63,30 @@ pub struct LevelPatches {
     /// Set by `build` (an option only so `vector` can be used while building).
     pca: Option<PatchPca>,
     /// The candidates' projections, 8 per block, dimension-major inside a block (padding lanes
-    /// hold a huge value): the layout an exhaustive search vectorizes over.
+    /// hold a huge value): the layout an exhaustive search vectorizes over. Blocks are grouped
+    /// by list of the inverted-file partition ([`super::ivf`]), so a search can scan the lists
+    /// nearest to its query first (exact) or only (approximate).
     /// The first EARLY dimensions of every block, apart from the rest: the pass that rejects
     /// most blocks reads only these (186 KB for 11,664 patches: they stay in the L2 cache).
     early_blocks: Vec<[[f32; LANES]; EARLY]>,
     late_blocks: Vec<[[f32; LANES]; KEPT - EARLY]>,
+    /// Centre column and row of every candidate ([`Self::gather_lines`]).
+    lines: Vec<u8>,
+    /// Candidate index of every lane of every block (NO_CANDIDATE: padding).
+    lane_candidates: Vec<[u32; LANES]>,
+    /// Blocks of each list, and the list centres.
+    lists: Vec<std::ops::Range<usize>>,
+    list_centres: Vec<[f32; KEPT]>,
 }
+
+/// A padding lane's candidate index.
+const NO_CANDIDATE: u32 = u32::MAX;
 
 /// Candidates per block of the exhaustive search.
 const LANES: usize = 8;
 /// PCA dimensions (the largest) scored before the first rejection test, and before the second.
 const EARLY: usize = 4;
 const MIDDLE: usize = 8;
-/// Stride of the nearest-neighbour search's first, sparse pass over the blocks.
-const PROBE: usize = 16;
 /// Coordinate of the padding lanes: their distance to any query is infinite.
 const PADDING: f32 = 1e30;
 
@@ -181,7 +191,12 @@ impl LevelPatches {
             pca: None,
             early_blocks: Vec::new(),
             late_blocks: Vec::new(),
+            lines: Vec::new(),
+            lane_candidates: Vec::new(),
+            lists: Vec::new(),
+            list_centres: Vec::new(),
         };
+        level.lines = level.gather_lines();
         let dims = level.dims();
         let vectors: Vec<f32> = (0..level.centres.len() as u32)
             .into_par_iter()
@@ -192,17 +207,31 @@ impl LevelPatches {
             .par_chunks_exact(dims)
             .map(|v| pca.project(v))
             .collect();
-        let lanes = |chunk: &[[f32; KEPT]], j: usize| -> [f32; LANES] {
-            std::array::from_fn(|l| chunk.get(l).map_or(PADDING, |p| p[j]))
+        let (labels, centres) =
+            super::ivf::partition(&points, super::ivf::list_count(points.len()));
+        let mut members = vec![Vec::new(); centres.len()];
+        for (i, &list) in labels.iter().enumerate() {
+            members[list as usize].push(i as u32);
+        }
+        let lanes = |chunk: &[u32], j: usize| -> [f32; LANES] {
+            std::array::from_fn(|l| chunk.get(l).map_or(PADDING, |&i| points[i as usize][j]))
         };
-        level.early_blocks = points
-            .chunks(LANES)
-            .map(|chunk| std::array::from_fn(|j| lanes(chunk, j)))
-            .collect();
-        level.late_blocks = points
-            .chunks(LANES)
-            .map(|chunk| std::array::from_fn(|j| lanes(chunk, EARLY + j)))
-            .collect();
+        for list in &members {
+            let start = level.early_blocks.len();
+            for chunk in list.chunks(LANES) {
+                level
+                    .early_blocks
+                    .push(std::array::from_fn(|j| lanes(chunk, j)));
+                level
+                    .late_blocks
+                    .push(std::array::from_fn(|j| lanes(chunk, EARLY + j)));
+                level.lane_candidates.push(std::array::from_fn(|l| {
+                    chunk.get(l).copied().unwrap_or(NO_CANDIDATE)
+                }));
+            }
+            level.lists.push(start..level.early_blocks.len());
+        }
+        level.list_centres = centres;
         level.pca = Some(pca);
         Ok(level)
     }
@@ -291,72 +320,79 @@ impl LevelPatches {
 
     /// The `k` candidates nearest to a projected query, nearest first (ties by index).
     ///
-    /// Exhaustive, hence exact: with 16 dimensions and ~10^4 candidates a k-d tree visits most
-    /// leaves anyway (kiddo measured no faster). Blocks of 8 candidates are scored together;
+    /// With `probes: None`, exhaustive, hence exact: with 16 dimensions and ~10^4 candidates a
+    /// k-d tree visits most leaves anyway (kiddo measured no faster). With `Some(p)`, the
+    /// approximate search the paper uses at this step (ANN, 4.2.1): only the `p` lists of the
+    /// inverted-file partition whose centres are nearest to the query are scanned (more if
+    /// they hold fewer than `k` candidates). Either way the lists are scanned nearest first,
+    /// so the k-th distance is tight early; blocks of 8 candidates are scored together, and
     /// after the first `EARLY` dimensions (the PCA's largest) a block whose partial distances
     /// all reach the current k-th best is skipped: partial sums of squares only grow, so this
     /// rejection never changes the result.
-    pub fn nearest(&self, query: &[f32; KEPT], k: usize) -> Vec<(f32, u32)> {
+    pub fn nearest(&self, query: &[f32; KEPT], k: usize, probes: Option<usize>) -> Vec<(f32, u32)> {
         #[cfg(target_arch = "x86_64")]
         if std::is_x86_feature_detected!("avx2") {
             // SAFETY: the CPU supports AVX2 (checked above). Only the vector width changes: the
             // same IEEE operations in the same order (no FMA contraction), so the same result.
-            return unsafe { self.nearest_avx2(query, k) };
+            return unsafe { self.nearest_avx2(query, k, probes) };
         }
-        self.nearest_portable(query, k)
+        self.nearest_portable(query, k, probes)
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    unsafe fn nearest_avx2(&self, query: &[f32; KEPT], k: usize) -> Vec<(f32, u32)> {
-        self.nearest_portable(query, k)
+    unsafe fn nearest_avx2(
+        &self,
+        query: &[f32; KEPT],
+        k: usize,
+        probes: Option<usize>,
+    ) -> Vec<(f32, u32)> {
+        self.nearest_portable(query, k, probes)
     }
 
     #[inline(always)]
-    fn nearest_portable(&self, query: &[f32; KEPT], k: usize) -> Vec<(f32, u32)> {
+    fn nearest_portable(
+        &self,
+        query: &[f32; KEPT],
+        k: usize,
+        probes: Option<usize>,
+    ) -> Vec<(f32, u32)> {
         let k = k.clamp(1, self.centres.len());
+        // Lists by the distance of their centre to the query (ties by list index).
+        let mut order: Vec<(u32, u32)> = self
+            .list_centres
+            .iter()
+            .enumerate()
+            .map(|(j, c)| (super::ivf::distance(query, c).to_bits(), j as u32))
+            .collect();
+        // The approximate search needs only its nearest `p` lists in order (sorting all of them
+        // cost more than scanning those); the rest is sorted only if they hold fewer than k.
+        let sorted = match probes {
+            Some(p) if p < order.len() => {
+                order.select_nth_unstable(p);
+                order[..p].sort_unstable();
+                p
+            }
+            _ => {
+                order.sort_unstable();
+                order.len()
+            }
+        };
         // The k smallest (distance, index) pairs so far, as a max-heap: distances are squared
         // sums, never negative or NaN, so their bit patterns order like the values. Keeping the
-        // k smallest pairs makes the result independent of the visiting order: a sparse first
-        // pass (every PROBE-th block, spread over the exemplar) finds a tight k-th distance
-        // early, so the full pass rejects more blocks and inserts fewer candidates.
+        // k smallest pairs makes the result independent of the visiting order.
         let mut best: std::collections::BinaryHeap<(u32, u32)> =
             std::collections::BinaryHeap::with_capacity(k + 1);
-        let blocks = self.early_blocks.len();
-        let probe = (0..blocks).step_by(PROBE);
-        let rest = (0..blocks).filter(|bi| bi % PROBE != 0);
-        for bi in probe.chain(rest) {
-            // Worst kept distance (infinite until k are kept).
-            let worst = if best.len() == k {
-                f32::from_bits(best.peek().expect("k >= 1").0)
-            } else {
-                f32::INFINITY
-            };
-            let mut acc = [0f32; LANES];
-            accumulate(&mut acc, &self.early_blocks[bi], &query[..EARLY]);
-            // (Partial sums only grow: a block whose lanes all exceed the worst kept distance
-            // holds no better candidate; a tie may still win on its index, so <= keeps it.)
-            if !any_at_most(&acc, worst) {
-                continue;
+        let mut scanned = 0;
+        for probed in 0..order.len() {
+            if probes.is_some_and(|p| probed >= p && scanned >= k) {
+                break;
             }
-            let late = &self.late_blocks[bi];
-            accumulate(&mut acc, &late[..MIDDLE - EARLY], &query[EARLY..MIDDLE]);
-            if !any_at_most(&acc, worst) {
-                continue;
+            if probed == sorted {
+                order[sorted..].sort_unstable();
             }
-            accumulate(&mut acc, &late[MIDDLE - EARLY..], &query[MIDDLE..]);
-            for (l, &d) in acc.iter().enumerate() {
-                let index = (bi * LANES + l) as u32;
-                if index as usize >= self.centres.len() {
-                    continue;
-                }
-                let item = (d.to_bits(), index);
-                if best.len() < k {
-                    best.push(item);
-                } else if let Some(mut top) = best.peek_mut().filter(|top| item < **top) {
-                    // Replace the worst kept pair in place (one sift-down).
-                    *top = item;
-                }
+            for bi in self.lists[order[probed].1 as usize].clone() {
+                scanned += self.scan_block(bi, query, k, &mut best);
             }
         }
         // (The pairs are distinct: an unstable sort gives the same order.)
@@ -367,22 +403,216 @@ impl LevelPatches {
             .collect()
     }
 
+    /// Scores block `bi` against the query and keeps its candidates that beat the k-th best
+    /// in `best`; returns how many candidates the block holds.
+    #[inline(always)]
+    fn scan_block(
+        &self,
+        bi: usize,
+        query: &[f32; KEPT],
+        k: usize,
+        best: &mut std::collections::BinaryHeap<(u32, u32)>,
+    ) -> usize {
+        let candidates = &self.lane_candidates[bi];
+        let held = candidates.iter().filter(|&&c| c != NO_CANDIDATE).count();
+        // Worst kept distance (infinite until k are kept).
+        let worst = if best.len() == k {
+            f32::from_bits(best.peek().expect("k >= 1").0)
+        } else {
+            f32::INFINITY
+        };
+        let mut acc = [0f32; LANES];
+        accumulate(&mut acc, &self.early_blocks[bi], &query[..EARLY]);
+        // (Partial sums only grow: a block whose lanes all exceed the worst kept distance
+        // holds no better candidate; a tie may still win on its index, so <= keeps it.)
+        if !any_at_most(&acc, worst) {
+            return held;
+        }
+        let late = &self.late_blocks[bi];
+        accumulate(&mut acc, &late[..MIDDLE - EARLY], &query[EARLY..MIDDLE]);
+        if !any_at_most(&acc, worst) {
+            return held;
+        }
+        accumulate(&mut acc, &late[MIDDLE - EARLY..], &query[MIDDLE..]);
+        for (&d, &index) in acc.iter().zip(candidates) {
+            if index == NO_CANDIDATE {
+                continue;
+            }
+            let item = (d.to_bits(), index);
+            if best.len() < k {
+                best.push(item);
+            } else if let Some(mut top) = best.peek_mut().filter(|top| item < **top) {
+                // Replace the worst kept pair in place (one sift-down).
+                *top = item;
+            }
+        }
+        held
+    }
+
     /// Sum of squared differences between `line_a` of candidate `a` and `line_b` of `b`
     /// (the crossbar consistency of paper 4.2.1).
     pub fn line_distance(&self, a: u32, line_a: Line, b: u32, line_b: Line) -> u32 {
+        let (pa, pb) = (self.line(a, line_a), self.line(b, line_b));
+        pa.iter()
+            .zip(pb)
+            .map(|(&x, &y)| {
+                let d = x as i32 - y as i32;
+                (d * d) as u32
+            })
+            .sum()
+    }
+
+    /// The values of `line` of candidate `i`, sample after sample (N * channels bytes).
+    fn line(&self, i: u32, line: Line) -> &[u8] {
+        let len = self.size as usize * self.channels;
+        let start = (2 * i as usize + matches!(line, Line::Row) as usize) * len;
+        &self.lines[start..start + len]
+    }
+
+    /// Every candidate's centre column then centre row, contiguous (what [`Self::line`] reads):
+    /// the crossbar tests compare ~120 lines per check point, which gathered pixel by pixel
+    /// from the exemplar cost more than the comparisons.
+    fn gather_lines(&self) -> Vec<u8> {
         let h = self.size / 2;
-        let at = |i: u32, line: Line, t: u32| match line {
-            Line::Column => self.pixel_index(i, h, t),
-            Line::Row => self.pixel_index(i, t, h),
-        };
-        let mut sum = 0u32;
-        for t in 0..self.size {
-            let (pa, pb) = (self.value(at(a, line_a, t)), self.value(at(b, line_b, t)));
-            for (x, y) in pa.iter().zip(pb) {
-                let d = *x as i32 - *y as i32;
-                sum += (d * d) as u32;
+        let mut lines =
+            Vec::with_capacity(self.centres.len() * 2 * self.size as usize * self.channels);
+        for i in 0..self.centres.len() as u32 {
+            for t in 0..self.size {
+                lines.extend_from_slice(self.value(self.pixel_index(i, h, t)));
+            }
+            for t in 0..self.size {
+                lines.extend_from_slice(self.value(self.pixel_index(i, t, h)));
             }
         }
-        sum
+        lines
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::util::hash::SeededRng;
+
+    /// Candidates of a 64x64 crop of the built-in exemplar (3,600 patches of 5x5 samples).
+    fn level() -> LevelPatches {
+        let full = crate::exemplar::default_exemplar();
+        let mut img = Image::new(64, 64, full.channels);
+        for y in 0..64 {
+            for x in 0..64 {
+                let p = full.at(x, y).to_vec();
+                let i = ((y * 64 + x) * full.channels) as usize;
+                img.pixels[i..i + p.len()].copy_from_slice(&p);
+            }
+        }
+        LevelPatches::build(&img, 1, 5, None, None, 3).unwrap()
+    }
+
+    /// Every candidate's projection, by candidate index (read back from the blocks).
+    fn projections(level: &LevelPatches) -> Vec<[f32; KEPT]> {
+        let mut out = vec![[0f32; KEPT]; level.candidates()];
+        for (bi, lanes) in level.lane_candidates.iter().enumerate() {
+            for (l, &i) in lanes.iter().enumerate() {
+                if i != NO_CANDIDATE {
+                    out[i as usize] = std::array::from_fn(|j| {
+                        if j < EARLY {
+                            level.early_blocks[bi][j][l]
+                        } else {
+                            level.late_blocks[bi][j - EARLY][l]
+                        }
+                    });
+                }
+            }
+        }
+        out
+    }
+
+    /// The k nearest by brute force, distances summed in the search's order.
+    fn brute(points: &[[f32; KEPT]], q: &[f32; KEPT], k: usize) -> Vec<(f32, u32)> {
+        let mut all: Vec<(u32, u32)> = points
+            .iter()
+            .enumerate()
+            .map(|(i, p)| (super::super::ivf::distance(q, p).to_bits(), i as u32))
+            .collect();
+        all.sort_unstable();
+        all.truncate(k);
+        all.into_iter()
+            .map(|(d, i)| (f32::from_bits(d), i))
+            .collect()
+    }
+
+    /// Queries near the candidates (a candidate's projection plus noise), as in synthesis.
+    fn queries(points: &[[f32; KEPT]], n: usize) -> Vec<[f32; KEPT]> {
+        let mut rng = SeededRng::new(11);
+        (0..n)
+            .map(|_| {
+                let p = points[rng.below(points.len() as u64) as usize];
+                std::array::from_fn(|j| p[j] + (rng.below(2001) as f32 - 1000.0) / 50.0)
+            })
+            .collect()
+    }
+
+    #[test]
+    fn every_candidate_is_in_exactly_one_list() {
+        let level = level();
+        let mut seen = vec![0u32; level.candidates()];
+        for list in &level.lists {
+            for bi in list.clone() {
+                for &i in &level.lane_candidates[bi] {
+                    if i != NO_CANDIDATE {
+                        seen[i as usize] += 1;
+                    }
+                }
+            }
+        }
+        assert!(seen.iter().all(|&n| n == 1));
+        assert_eq!(
+            level.lists.len(),
+            super::super::ivf::list_count(level.candidates())
+        );
+    }
+
+    #[test]
+    fn exact_search_equals_brute_force() {
+        let level = level();
+        let points = projections(&level);
+        for q in queries(&points, 60) {
+            for k in [1, 20, 50] {
+                assert_eq!(level.nearest(&q, k, None), brute(&points, &q, k), "k = {k}");
+            }
+        }
+        // Probing every list is the exact search.
+        let q = queries(&points, 1)[0];
+        let all = Some(level.lists.len());
+        assert_eq!(level.nearest(&q, 20, all), level.nearest(&q, 20, None));
+    }
+
+    #[test]
+    fn approximate_search_finds_most_nearest_patches() {
+        let level = level();
+        let points = projections(&level);
+        let qs = queries(&points, 400);
+        let (mut hits, mut recall) = (0, 0.0);
+        for q in &qs {
+            let approx = level.nearest(q, 20, Some(8));
+            let exact = brute(&points, q, 20);
+            // k distinct candidates, nearest first, with their true distances.
+            assert_eq!(approx.len(), 20);
+            assert!(approx
+                .windows(2)
+                .all(|w| (w[0].0, w[0].1) < (w[1].0, w[1].1)));
+            for &(d, i) in &approx {
+                assert_eq!(d, super::super::ivf::distance(q, &points[i as usize]));
+            }
+            hits += (approx[0] == exact[0]) as u32;
+            recall += approx.iter().filter(|a| exact.contains(a)).count() as f64 / 20.0;
+        }
+        let (hit_rate, recall) = (hits as f64 / qs.len() as f64, recall / qs.len() as f64);
+        assert!(
+            hit_rate >= 0.95,
+            "nearest found for {hit_rate:.3} of the queries"
+        );
+        assert!(recall >= 0.9, "recall of the 20 nearest {recall:.3}");
+        // Fewer candidates in the probed lists than k: more lists are scanned.
+        assert_eq!(level.nearest(&qs[0], 3000, Some(1)).len(), 3000);
     }
 }
