@@ -88,6 +88,10 @@ impl Layer<'_> {
                             if candidate == UNMATCHED {
                                 continue;
                             }
+                            if frame.is_identity() {
+                                self.axis_aligned_samples(p, o, candidate, &mut visit);
+                                continue;
+                            }
                             for b in 0..n {
                                 // z is monotone along a row: its two ends bound it.
                                 let (za, zb) = (
@@ -115,6 +119,45 @@ impl Layer<'_> {
                         }
                     }
                 }
+            }
+        }
+    }
+
+    /// [`Self::for_each_sample`] for one axis-aligned slice (no direction field): the samples
+    /// step by whole voxels along the slice's two axes, so a row whose z is constant is tested
+    /// against the layer once, and positions and exemplar pixels advance incrementally (the
+    /// same samples as [`MatchContext::sample_position`] gives, in the same order).
+    fn axis_aligned_samples(
+        &self,
+        p: [i64; 3],
+        o: usize,
+        candidate: u32,
+        visit: &mut impl FnMut(usize, usize),
+    ) {
+        let ctx = self.ctx;
+        let patches = ctx.patches;
+        let p_len = self.period();
+        let (n, s) = (patches.size, patches.spacing as i64);
+        let h = (n / 2) as i64;
+        let (u, v) = ctx.params.slice_axes().of(o);
+        let z0 = self.z0();
+        let in_layer = |z: i64| wrap(z - z0, p_len) < LAYER;
+        for b in 0..n {
+            let mut q = p;
+            q[v] += s * (b as i64 - h);
+            q[u] -= s * h;
+            // Along a row only q[u] changes: unless u is z, the row is in the layer or not.
+            if u != 2 && !in_layer(q[2]) {
+                continue;
+            }
+            let first_pixel = patches.pixel_index(candidate, 0, b);
+            for a in 0..n as usize {
+                if u != 2 || in_layer(q[2]) {
+                    let bucket = ((wrap(q[2] - z0, p_len) * p_len + wrap(q[1], p_len)) * p_len
+                        + wrap(q[0], p_len)) as usize;
+                    visit(bucket, first_pixel + a * patches.spacing as usize);
+                }
+                q[u] += s;
             }
         }
     }
