@@ -117,16 +117,13 @@ fn project_slices(
             let (u, v) = ctx.params.slice_axes().of(o);
             let s = ctx.patches.spacing as i64;
             let h = (n / 2) as i64;
-            let mut at = 0;
+            let row = n as usize * c;
             for b in 0..n as i64 {
                 let mut q = p;
                 q[v] += s * (b - h);
                 q[u] -= s * h;
-                for _ in 0..n {
-                    solid.taylor(q, &mut buffer[at..at + c]);
-                    at += c;
-                    q[u] += s;
-                }
+                let at = b as usize * row;
+                solid.taylor_row(q, u, s, n as usize, &mut buffer[at..at + row]);
             }
         } else {
             for b in 0..n {
