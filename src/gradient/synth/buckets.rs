@@ -25,9 +25,6 @@ use rayon::prelude::*;
 
 /// Voxels of a layer's buckets along z (one control spacing).
 const LAYER: i64 = SPACING as i64;
-/// Largest per-cluster sums of one layer accumulated in one pass (per layer in flight: 16 MB
-/// at 128^3 with 12 clusters and 3 channels; larger solids take two passes and less memory).
-const ONE_PASS_BYTES: usize = 32 << 20;
 /// Ridge on the gradient unknowns of eq. 2 (in bucket-count x voxel^2 units; a full
 /// neighbourhood has ~100 on the diagonal): keeps under-determined directions (all buckets
 /// coplanar) at zero gradient instead of singular.
@@ -162,43 +159,13 @@ impl Layer<'_> {
         }
     }
 
-    /// Both passes of the bucket accumulation, streamed (CPU backend). When the layer's
-    /// per-cluster sums fit [`ONE_PASS_BYTES`], the samples are visited once: every (voxel,
-    /// cluster) gets its count and sums, and the two dominant clusters' sums are read out
-    /// afterwards, the same integers as two passes (the sample positions, computed per visit,
-    /// are most of the cost).
+    /// Both passes of the bucket accumulation, streamed (CPU backend).
     fn accumulate_streaming(&self) -> Buckets {
         let patches = self.ctx.patches;
         let clusters = patches.cluster_count() as usize;
         let channels = self.solid.channels;
         let voxels = self.voxels();
         let per = 1 + channels;
-        if voxels * clusters * per * 4 <= ONE_PASS_BYTES {
-            let mut all = vec![0u32; voxels * clusters * per];
-            self.for_each_sample(|v, px| {
-                let base = (v * clusters + patches.cluster(px) as usize) * per;
-                all[base] += 1;
-                for (c, &value) in patches.value(px).iter().enumerate() {
-                    all[base + 1 + c] += (value as u32) << 8;
-                }
-            });
-            let counts: Vec<u32> = all.iter().step_by(per).copied().collect();
-            let mut sums = vec![0u32; voxels * 2 * per];
-            for (v, (counts, slots)) in counts
-                .chunks_exact(clusters)
-                .zip(sums.chunks_exact_mut(2 * per))
-                .enumerate()
-            {
-                // (Dominant ids are distinct, or u32::MAX for a slot without samples.)
-                for (slot, &cluster) in dominant(counts).iter().enumerate() {
-                    if cluster != u32::MAX {
-                        let from = (v * clusters + cluster as usize) * per;
-                        slots[slot * per..(slot + 1) * per].copy_from_slice(&all[from..from + per]);
-                    }
-                }
-            }
-            return Buckets { counts, sums };
-        }
         let mut counts = vec![0u32; voxels * clusters];
         self.for_each_sample(|v, px| counts[v * clusters + patches.cluster(px) as usize] += 1);
         let dominant: Vec<[u32; 2]> = counts.chunks_exact(clusters).map(dominant).collect();
