@@ -77,6 +77,8 @@ pub struct LevelPatches {
     /// Blocks of each list, and the list centres.
     lists: Vec<std::ops::Range<usize>>,
     list_centres: Vec<[f32; KEPT]>,
+    /// The list centres, 8 per block, dimension-major (the candidates' layout).
+    centre_blocks: Vec<[[f32; LANES]; KEPT]>,
 }
 
 /// A padding lane's candidate index.
@@ -195,6 +197,7 @@ impl LevelPatches {
             lane_candidates: Vec::new(),
             lists: Vec::new(),
             list_centres: Vec::new(),
+            centre_blocks: Vec::new(),
         };
         level.lines = level.gather_lines();
         let dims = level.dims();
@@ -231,6 +234,14 @@ impl LevelPatches {
             }
             level.lists.push(start..level.early_blocks.len());
         }
+        level.centre_blocks = centres
+            .chunks(LANES)
+            .map(|chunk| {
+                std::array::from_fn(|j| {
+                    std::array::from_fn(|l| chunk.get(l).map_or(PADDING, |c| c[j]))
+                })
+            })
+            .collect();
         level.list_centres = centres;
         level.pca = Some(pca);
         Ok(level)
@@ -358,15 +369,22 @@ impl LevelPatches {
         probes: Option<usize>,
     ) -> Vec<(f32, u32)> {
         let k = k.clamp(1, self.centres.len());
-        // Lists by the distance of their centre to the query (ties by list index).
-        let mut order: Vec<(u32, u32)> = self
-            .list_centres
-            .iter()
-            .enumerate()
-            .map(|(j, c)| (super::ivf::distance(query, c).to_bits(), j as u32))
-            .collect();
+        // Lists by the distance of their centre to the query (ties by list index), the centres
+        // scored 8 at a time like the candidates.
+        let mut order: Vec<(u32, u32)> = Vec::with_capacity(self.list_centres.len());
+        for (bi, block) in self.centre_blocks.iter().enumerate() {
+            let mut acc = [0f32; LANES];
+            accumulate(&mut acc, block, query);
+            for (l, d) in acc.iter().enumerate() {
+                let list = bi * LANES + l;
+                if list < self.list_centres.len() {
+                    order.push((d.to_bits(), list as u32));
+                }
+            }
+        }
         // The approximate search needs only its nearest `p` lists in order (sorting all of them
-        // cost more than scanning those); the rest is sorted only if they hold fewer than k.
+        // cost about as much as scanning those); the rest is sorted only if they hold fewer
+        // than k candidates.
         let sorted = match probes {
             Some(p) if p < order.len() => {
                 order.select_nth_unstable(p);
