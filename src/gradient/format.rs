@@ -241,4 +241,60 @@ mod tests {
             }
         }
     }
+
+    /// Mutations with the checksum recomputed, so that the structure checks behind it are
+    /// what meets them: the parser returns an error or a consistent solid, never panics or
+    /// allocates what the file does not hold.
+    #[test]
+    fn fuzz_structure_behind_a_valid_checksum() {
+        let mut rng = crate::util::hash::SeededRng::new(6);
+        let (mut accepted, mut refused) = (0, 0);
+        for round in 0..4000 {
+            let encoding = if round % 2 == 0 {
+                Encoding::U8
+            } else {
+                Encoding::F32
+            };
+            let mut b = to_bytes(&sample(), encoding);
+            for _ in 0..1 + rng.below(4) {
+                // Mostly the header fields (dims, channels, encoding, length, detail).
+                let i = if rng.below(2) == 0 {
+                    8 + rng.below(44) as usize
+                } else {
+                    rng.below(b.len() as u64) as usize
+                };
+                if (44..48).contains(&i) {
+                    continue;
+                }
+                b[i] = match rng.below(3) {
+                    0 => b[i] ^ (1 << rng.below(8)),
+                    1 => rng.below(256) as u8,
+                    _ => [0, 1, 2, 255][rng.below(4) as usize],
+                };
+            }
+            if rng.below(4) == 0 {
+                b.truncate(HEADER + rng.below((b.len() - HEADER) as u64) as usize);
+            }
+            let crc = checksum(&b[..44], &b[HEADER.min(b.len())..]);
+            b[44..48].copy_from_slice(&crc.to_le_bytes());
+            match from_bytes(&b, "fuzz.gsolid") {
+                Ok(s) => {
+                    accepted += 1;
+                    let points: usize = s.dims.iter().map(|&d| d as usize).product();
+                    assert_eq!(s.data.len(), points * s.channels as usize * 4);
+                    assert!(s.data.iter().all(|v| v.is_finite()));
+                }
+                Err(e) => {
+                    refused += 1;
+                    // The error names the input.
+                    assert!(e.to_string().contains("fuzz.gsolid"), "{e}");
+                }
+            }
+        }
+        // Both outcomes occur (payload-only changes stay valid files).
+        assert!(
+            accepted > 100 && refused > 100,
+            "{accepted} accepted, {refused} refused"
+        );
+    }
 }

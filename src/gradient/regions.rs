@@ -582,4 +582,51 @@ mod tests {
             .to_string()
             .contains("single region"));
     }
+
+    /// Mutations with the trailing checksum recomputed: the nested grids, split flags and
+    /// negative set are checked; the parser returns an error or a consistent solid, never
+    /// panics.
+    #[test]
+    fn fuzz_structure_behind_a_valid_checksum() {
+        let (v, m) = two_regions(13);
+        let rs = vectorize_regions(&v, &m, "mask").unwrap();
+        let mut rng = crate::util::hash::SeededRng::new(8);
+        let (mut accepted, mut refused) = (0, 0);
+        for round in 0..1500 {
+            let encoding = if round % 2 == 0 {
+                Encoding::U8
+            } else {
+                Encoding::F32
+            };
+            let good = rs.to_bytes(encoding);
+            let mut b = good[..good.len() - 4].to_vec();
+            for _ in 0..1 + rng.below(3) {
+                let i = if rng.below(2) == 0 {
+                    rng.below(80.min(b.len() as u64)) as usize
+                } else {
+                    rng.below(b.len() as u64) as usize
+                };
+                b[i] = match rng.below(3) {
+                    0 => b[i] ^ (1 << rng.below(8)),
+                    1 => rng.below(256) as u8,
+                    _ => [0, 1, 2, 255][rng.below(4) as usize],
+                };
+            }
+            if rng.below(5) == 0 {
+                b.truncate(rng.below(b.len() as u64) as usize);
+            }
+            let crc = crc32fast::hash(&b);
+            b.extend(crc.to_le_bytes());
+            match RegionSolid::from_bytes(&b, "t") {
+                Ok(r) => {
+                    accepted += 1;
+                    let points: usize = r.positive.dims.iter().map(|&d| d as usize).product();
+                    assert_eq!(r.split.len(), points);
+                    assert_eq!(r.negative.data.len(), r.positive.data.len());
+                }
+                Err(_) => refused += 1,
+            }
+        }
+        assert!(refused > 100, "{accepted} accepted, {refused} refused");
+    }
 }
