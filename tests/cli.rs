@@ -566,6 +566,37 @@ fn region_is_the_same_solid_as_synth_and_checks_its_box() {
     for (x, y, z) in [(0u32, 3u32, 5u32), (5, 8, 9), (3, 4, 9)] {
         assert_eq!(va.at(x, y, z), vc.at(x + 4, y - 3, z - 5));
     }
+    // Small groups (cubes of 8 voxels: 8 of them here) give the same bytes.
+    let g = d.join("g.nrrd");
+    let o = run(&[
+        "region",
+        ssa.to_str().unwrap(),
+        "--box",
+        "0,0,0,10,10,10",
+        "--seed",
+        "2",
+        "--max-group",
+        "8",
+        "--backend",
+        "cpu",
+        "-o",
+        g.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(std::fs::read(&a).unwrap() == std::fs::read(&g).unwrap());
+    std::fs::remove_file(&g).unwrap();
+    let o = run(&[
+        "region",
+        ssa.to_str().unwrap(),
+        "--box",
+        "0,0,0,10,10,10",
+        "--max-group",
+        "2",
+        "-o",
+        g.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--max-group"));
     let keep = ["c.ssa", "a.nrrd", "b.nrrd", "c.nrrd"];
     for (bad, needle) in [
         ("1,1,1,1,2,2", "X1 must be greater"),

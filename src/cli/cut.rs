@@ -6,7 +6,6 @@ use super::synth::SolidParams;
 use clap::Args;
 use solidsynth::io::atomic;
 use solidsynth::lazy::cut::{CutSession, CutSpec};
-use solidsynth::lazy::Synthesizer;
 use solidsynth::Error;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -75,7 +74,7 @@ pub fn run(args: CutArgs, quiet: bool) -> anyhow::Result<()> {
     params.validate()?;
     let compute = args.solid.input.backend.open()?;
     let analysis = load_or_analyze(&args.solid.input, &compute, quiet || args.json)?;
-    let mut session = CutSession::new(Synthesizer::new(&analysis, params, &compute)?);
+    let mut session = CutSession::new(args.solid.synthesizer(&analysis, &compute)?);
     let mut latencies = Vec::new();
     let mut image = None;
     for _ in 0..args.repeat {

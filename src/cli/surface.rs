@@ -4,7 +4,6 @@ use super::analyze::load_or_analyze;
 use super::synth::SolidParams;
 use clap::Args;
 use solidsynth::io::atomic;
-use solidsynth::lazy::Synthesizer;
 use solidsynth::mesh::{self, bake, Placement};
 use solidsynth::Error;
 use std::path::{Path, PathBuf};
@@ -92,7 +91,7 @@ pub fn run(args: SurfaceArgs, quiet: bool) -> anyhow::Result<()> {
         bar.set_position((f * 1000.0) as u64);
         bar.set_message(m.to_string());
     };
-    let mut synth = Synthesizer::new(&analysis, params, &compute)?;
+    let mut synth = args.solid.synthesizer(&analysis, &compute)?;
     let colors = synth.sample(&voxels, &report)?;
     bar.finish_and_clear();
     let seconds = start.elapsed().as_secs_f64();

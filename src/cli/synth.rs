@@ -63,9 +63,28 @@ pub struct SolidParams {
     /// request then synthesizes only the finest level. A different solid, as deterministic.
     #[arg(long, value_name = "N")]
     pub coarse_cache: Option<u32>,
+    /// Largest group of the request synthesized at once: a cube of this edge in voxels (a
+    /// multiple of 4; default 512). Smaller groups bound the working memory of large boxes and
+    /// surfaces, at the cost of each group recomputing its own dependency padding; the output is
+    /// the same whatever the grouping.
+    #[arg(long, value_name = "VOXELS", value_parser = clap::value_parser!(u32).range(4..=512))]
+    pub max_group: Option<u32>,
 }
 
 impl SolidParams {
+    /// A synthesizer for these parameters, grouped as asked.
+    pub fn synthesizer(
+        &self,
+        analysis: &solidsynth::analysis::Analysis,
+        compute: &solidsynth::backend::Compute,
+    ) -> solidsynth::Result<Synthesizer> {
+        let mut synth = Synthesizer::new(analysis, self.synth_params(), compute)?;
+        if let Some(side) = self.max_group {
+            synth.set_max_chunk_side(side);
+        }
+        Ok(synth)
+    }
+
     pub fn synth_params(&self) -> SynthParams {
         SynthParams {
             seed: self.seed,
@@ -288,7 +307,7 @@ fn run_box(args: &SolidArgs, region: Box3, tileable: bool, quiet: bool) -> anyho
         bar.set_message(m.to_string());
     };
     let synth_start = Instant::now();
-    let mut synth = Synthesizer::new(&analysis, params, &compute)?;
+    let mut synth = args.solid.synthesizer(&analysis, &compute)?;
     if args.profile {
         synth.enable_profiling();
     }

@@ -265,8 +265,17 @@ impl Synthesizer {
     /// The packed colours of arbitrary voxels (any order, repeats allowed): only the bricks
     /// holding them are synthesized.
     pub fn sample(&mut self, voxels: &[[i32; 3]], progress: Progress) -> Result<Vec<u32>> {
-        let mut wanted: Vec<Brick> = voxels.iter().map(|p| bricks::brick_of(*p)).collect();
+        // Neighbouring voxels (atlas texels) mostly share a brick: dropping repeats on the way
+        // keeps this list near the brick count instead of one entry per voxel.
+        let mut wanted: Vec<Brick> = Vec::new();
+        for p in voxels {
+            let b = bricks::brick_of(*p);
+            if wanted.last() != Some(&b) {
+                wanted.push(b);
+            }
+        }
         bricks::normalize(&mut wanted);
+        wanted.shrink_to_fit();
         let result = self.synthesize_bricks(&wanted, progress, false)?;
         Ok(voxels
             .iter()
