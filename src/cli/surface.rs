@@ -85,14 +85,24 @@ pub fn run(args: SurfaceArgs, quiet: bool) -> anyhow::Result<()> {
     let compute = args.solid.input.backend.open()?;
     let analysis = load_or_analyze(&args.solid.input, &compute, quiet || args.json)?;
     let start = Instant::now();
-    let voxels = atlas.texel_voxels(&mesh, &place);
+    // The texel positions are visited twice (for their bricks, then for their colours) rather
+    // than listed: at 1024^3 the list is 75 MB.
+    let mut wanted = solidsynth::lazy::bricks::BrickSet::default();
+    atlas.for_each_texel_voxel(&mesh, &place, |_, p| wanted.add(p));
+    let wanted = wanted.finish();
     let bar = super::progress_bar(quiet || args.json);
     let report = |m: &str, f: f32| {
         bar.set_position((f * 1000.0) as u64);
         bar.set_message(m.to_string());
     };
     let mut synth = args.solid.synthesizer(&analysis, &compute)?;
-    let colors = synth.sample(&voxels, &report)?;
+    let result = synth.synthesize_bricks(&wanted, &report, false)?;
+    drop(wanted);
+    let mut colors = vec![0u32; atlas.width as usize * atlas.height as usize];
+    atlas.for_each_texel_voxel(&mesh, &place, |i, p| {
+        colors[i] = result.color(p).expect("requested voxel");
+    });
+    drop(result);
     bar.finish_and_clear();
     let seconds = start.elapsed().as_secs_f64();
     let image = bake::atlas_image(&atlas, &colors, synth.color_channels()).to_rgba8();

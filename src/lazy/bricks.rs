@@ -50,6 +50,34 @@ pub fn normalize(bricks: &mut Vec<Brick>) {
     bricks.dedup();
 }
 
+/// The bricks of voxels visited one by one, normalized at the end. Neighbouring voxels (atlas
+/// texels) mostly share a brick: repeats of the previous brick are dropped on the way, so the
+/// list stays near the brick count instead of one entry per voxel.
+#[derive(Default)]
+pub struct BrickSet(Vec<Brick>);
+
+impl BrickSet {
+    pub fn add(&mut self, voxel: [i32; 3]) {
+        let b = brick_of(voxel);
+        if self.0.last() != Some(&b) {
+            self.0.push(b);
+        }
+    }
+
+    pub fn finish(mut self) -> Vec<Brick> {
+        normalize(&mut self.0);
+        self.0.shrink_to_fit();
+        self.0
+    }
+}
+
+/// The bricks holding `voxels`, normalized.
+pub fn bricks_of_voxels(voxels: &[[i32; 3]]) -> Vec<Brick> {
+    let mut set = BrickSet::default();
+    voxels.iter().for_each(|p| set.add(*p));
+    set.finish()
+}
+
 /// The bricks covering a box.
 pub fn bricks_of_box(b: Box3) -> Vec<Brick> {
     if b.is_empty() {

@@ -225,7 +225,7 @@ impl Synthesizer {
     ) -> Result<BrickColors> {
         let mut all = requested.to_vec();
         bricks::normalize(&mut all);
-        let grid = BrickGrid::new(&all);
+        let grid = BrickColors::lookup(&all);
         let mut colors = vec![0u32; all.len() * 64];
         let mut triples = vec![0u32; if want_triples { all.len() * 64 * 3 } else { 0 }];
         let groups = self.groups(&all);
@@ -244,7 +244,7 @@ impl Synthesizer {
                 &mut stats,
             )?;
             for (j, b) in group.iter().enumerate() {
-                let slot = grid.slot(*b).expect("requested brick") as usize;
+                let slot = BrickColors::slot_in(&all, grid.as_ref(), *b).expect("requested brick");
                 colors[slot * 64..(slot + 1) * 64].copy_from_slice(&c[j * 64..(j + 1) * 64]);
                 if want_triples {
                     triples[slot * 192..(slot + 1) * 192]
@@ -265,17 +265,7 @@ impl Synthesizer {
     /// The packed colours of arbitrary voxels (any order, repeats allowed): only the bricks
     /// holding them are synthesized.
     pub fn sample(&mut self, voxels: &[[i32; 3]], progress: Progress) -> Result<Vec<u32>> {
-        // Neighbouring voxels (atlas texels) mostly share a brick: dropping repeats on the way
-        // keeps this list near the brick count instead of one entry per voxel.
-        let mut wanted: Vec<Brick> = Vec::new();
-        for p in voxels {
-            let b = bricks::brick_of(*p);
-            if wanted.last() != Some(&b) {
-                wanted.push(b);
-            }
-        }
-        bricks::normalize(&mut wanted);
-        wanted.shrink_to_fit();
+        let wanted = bricks::bricks_of_voxels(voxels);
         let result = self.synthesize_bricks(&wanted, progress, false)?;
         Ok(voxels
             .iter()
@@ -813,9 +803,12 @@ pub struct SynthStats {
 
 /// The colours (and, when asked, triples) of a set of finest-level bricks.
 pub struct BrickColors {
-    /// The bricks, sorted; `grid` maps a brick to its position in this list.
+    /// The bricks, sorted as [`bricks::normalize`] sorts them (z, then y, then x).
     pub bricks: Vec<Brick>,
-    pub grid: BrickGrid,
+    /// A dense brick -> position table when the bricks fill their bounding box well enough (a
+    /// box); `None` for a sparse request (a surface's shell), whose bounding box would cost more
+    /// than the bricks: positions are then found by binary search.
+    pub grid: Option<BrickGrid>,
     /// 64 packed colours per brick (x fastest inside the brick).
     pub colors: Vec<u32>,
     /// 3 packed coordinates per voxel, when asked.
@@ -823,9 +816,34 @@ pub struct BrickColors {
 }
 
 impl BrickColors {
+    /// The dense table for `sorted` bricks, when it holds at most 8 cells per brick.
+    fn lookup(sorted: &[Brick]) -> Option<BrickGrid> {
+        let mut lo = sorted.first().copied().unwrap_or_default();
+        let mut hi = lo;
+        for b in sorted {
+            for i in 0..3 {
+                lo[i] = lo[i].min(b[i]);
+                hi[i] = hi[i].max(b[i]);
+            }
+        }
+        let cells: u64 = (0..3).map(|i| (hi[i] - lo[i] + 1) as u64).product();
+        (cells <= 8 * sorted.len().max(1) as u64).then(|| BrickGrid::new(sorted))
+    }
+
+    /// Position of brick `b` in `sorted`, through `grid` when there is one.
+    fn slot_in(sorted: &[Brick], grid: Option<&BrickGrid>, b: Brick) -> Option<usize> {
+        match grid {
+            Some(g) => g.slot(b).map(|s| s as usize),
+            None => sorted
+                .binary_search_by_key(&(b[2], b[1], b[0]), |x| (x[2], x[1], x[0]))
+                .ok(),
+        }
+    }
+
     /// Position of voxel `p` in `colors` (None when its brick was not requested).
     pub fn index(&self, p: [i32; 3]) -> Option<usize> {
-        self.grid.voxel_index(p)
+        Self::slot_in(&self.bricks, self.grid.as_ref(), bricks::brick_of(p))
+            .map(|s| s * bricks::BRICK_VOXELS as usize + bricks::local_index(p) as usize)
     }
 
     /// Packed colour of voxel `p`.

@@ -92,25 +92,40 @@ impl Atlas {
     /// the first triangle's corner so the request stays local).
     pub fn texel_voxels(&self, mesh: &Mesh, place: &Placement) -> Vec<[i32; 3]> {
         let mut out = vec![[0i32; 3]; self.width as usize * self.height as usize];
+        self.for_each_texel_voxel(mesh, place, |i, p| out[i] = p);
+        out
+    }
+
+    /// [`Self::texel_voxels`] without the list: `visit(texel index, voxel)`, every texel first
+    /// with the fallback voxel, then each used texel again with its own (large atlases: the
+    /// list is 75 MB at 1024^3).
+    pub fn for_each_texel_voxel(
+        &self,
+        mesh: &Mesh,
+        place: &Placement,
+        mut visit: impl FnMut(usize, [i32; 3]),
+    ) {
         let t = self.texels;
         let fallback = place
             .to_voxels(mesh.positions[mesh.triangles[0][0] as usize])
             .floor();
-        out.iter_mut().for_each(|v| {
-            *v = [fallback.x as i32, fallback.y as i32, fallback.z as i32];
-        });
+        let fallback = [fallback.x as i32, fallback.y as i32, fallback.z as i32];
+        for i in 0..self.width as usize * self.height as usize {
+            visit(i, fallback);
+        }
         for (k, tri) in mesh.triangles.iter().enumerate() {
             let corners = tri.map(|i| place.to_voxels(mesh.positions[i as usize]));
             let (cx, cy) = ((k as u32 % self.cols) * t, (k as u32 / self.cols) * t);
             for j in 0..t {
                 for i in 0..t {
                     let p = self.point(&corners, i, j).floor();
-                    out[((cy + j) * self.width + cx + i) as usize] =
-                        [p.x as i32, p.y as i32, p.z as i32];
+                    visit(
+                        ((cy + j) * self.width + cx + i) as usize,
+                        [p.x as i32, p.y as i32, p.z as i32],
+                    );
                 }
             }
         }
-        out
     }
 }
 
