@@ -925,6 +925,20 @@ fn gradient_vectorize_and_render_round_trip_and_refuse_corrupt_files() {
         b.join("o.nrrd").to_str().unwrap(),
     ]);
     assert_user_error(&o, "bad.gsolid", b, &["bad.gsolid"]);
+    // A volume over the kernels' 32-bit indices (and this machine's memory): refused before
+    // anything is allocated.
+    let o = run(&[
+        "gradient",
+        "render",
+        gs.to_str().unwrap(),
+        "--size",
+        "2048",
+        "--backend",
+        "cpu",
+        "-o",
+        b.join("o.nrrd").to_str().unwrap(),
+    ]);
+    assert_user_error(&o, "--size 2048", b, &["bad.gsolid"]);
 }
 
 #[test]

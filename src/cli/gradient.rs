@@ -237,6 +237,42 @@ fn render_slice(a: &RenderArgs, solid: &AnySolid, normal: &str, quiet: bool) -> 
     Ok(())
 }
 
+/// Refuse a render volume before allocating it: its points must fit the kernels' 32-bit
+/// indices, and the output (plus the float values of the paths that are not quantized in the
+/// kernel) must fit the available memory.
+fn check_render_memory(n: [u32; 3], solid: &AnySolid) -> solidsynth::Result<()> {
+    let points = n.iter().map(|&v| v as u64).product::<u64>();
+    let what = || format!("--size {}", n[0]);
+    if points > u32::MAX as u64 {
+        return Err(Error::invalid(
+            what(),
+            "a rendered volume holds at most 2^32 - 1 voxels (1625^3)",
+        ));
+    }
+    // Bytes per voxel: the output, plus the GPU's packed words for a plain solid (quantized as
+    // it is evaluated), or the float values of the other paths (a region solid evaluates three
+    // grids).
+    let channels = solid.channels() as u64;
+    let per_voxel = match solid {
+        AnySolid::Plain(s) if s.detail == 0 => channels + 4,
+        AnySolid::Plain(_) => channels * 9,
+        AnySolid::Regions(_) => channels + 4 * (1 + 3 * channels),
+    };
+    let estimate = points * per_voxel;
+    let available = super::synth::available_memory();
+    if estimate > available {
+        return Err(Error::invalid(
+            what(),
+            format!(
+                "needs about {:.1} GiB of memory, {:.1} GiB is available",
+                estimate as f64 / (1u64 << 30) as f64,
+                available as f64 / (1u64 << 30) as f64
+            ),
+        ));
+    }
+    Ok(())
+}
+
 fn load(path: &Path) -> solidsynth::Result<GradientSolid> {
     match load_any(path)? {
         AnySolid::Plain(s) => Ok(s),
@@ -656,6 +692,7 @@ pub fn run(cmd: GradientCommand, quiet: bool) -> anyhow::Result<()> {
                 )
                 .into());
             }
+            check_render_memory(n, &solid)?;
             let compute = a.backend.open()?;
             let start = Instant::now();
             let query = Query::volume(n);

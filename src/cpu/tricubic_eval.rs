@@ -60,7 +60,7 @@ impl Query {
 /// `channels` values per point of the query, in query order.
 pub fn tricubic_eval(solid: &GradientSolid, query: &Query) -> Vec<f32> {
     if let Some(n) = cell_mode(solid, query) {
-        return eval_cells(solid, n);
+        return eval_cells(solid, n, |v| v);
     }
     let c = solid.channels as usize;
     let mut out = vec![0f32; query.len() * c];
@@ -85,6 +85,10 @@ pub fn quantize(v: f32) -> u8 {
 /// mode: the same bytes wherever the float value is not within the float tolerance of a
 /// rounding boundary).
 pub fn tricubic_eval_u8(solid: &GradientSolid, query: &Query) -> Vec<u8> {
+    // (A volume is quantized as it is evaluated: no float copy of it.)
+    if let Some(n) = cell_mode(solid, query) {
+        return eval_cells(solid, n, quantize);
+    }
     tricubic_eval(solid, query)
         .into_iter()
         .map(quantize)
@@ -108,12 +112,17 @@ pub fn cell_mode(solid: &GradientSolid, query: &Query) -> Option<[u32; 3]> {
 /// reduced along z (value, x and y derivative terms); per row, those along y to the 4
 /// coefficients of the cubic along x (a0, a1, b0, b1: value and derivative terms of its two x
 /// faces); per voxel, that cubic is evaluated at the voxel's fraction.
-fn eval_cells(solid: &GradientSolid, n: [u32; 3]) -> Vec<f32> {
+/// Each value goes through `store` (the identity, or the 8-bit quantization).
+fn eval_cells<T: Copy + Default + Send>(
+    solid: &GradientSolid,
+    n: [u32; 3],
+    store: impl Fn(f32) -> T + Sync,
+) -> Vec<T> {
     type V4 = [f32; 4];
     let c = solid.channels as usize;
     let d = SPACING;
     let (nx, ny) = (n[0] as usize, n[1] as usize);
-    let mut out = vec![0f32; nx * ny * n[2] as usize * c];
+    let mut out = vec![T::default(); nx * ny * n[2] as usize * c];
     // [f, gx, gy, gz] of channels 0..3 (0 past the solid's channels).
     let load = |p: [u32; 3]| -> [V4; 4] {
         let mut k = [[0f32; 4]; 4];
@@ -178,7 +187,7 @@ fn eval_cells(solid: &GradientSolid, n: [u32; 3]) -> Vec<f32> {
                             let o = (y as usize * nx + x as usize) * c;
                             for ch in 0..c {
                                 plane[o + ch] =
-                                    a0[ch] * h0 + a1[ch] * h1 + b0[ch] * g0 + b1[ch] * g1;
+                                    store(a0[ch] * h0 + a1[ch] * h1 + b0[ch] * g0 + b1[ch] * g1);
                             }
                         }
                     }
