@@ -5,6 +5,14 @@ mod cli;
 use clap::Parser;
 
 fn main() {
+    // Mesa's implicit Vulkan layer VK_LAYER_MESA_device_select connects to the display server to
+    // order the GPUs; on a headless machine (no XDG_RUNTIME_DIR) libwayland then prints "error:
+    // XDG_RUNTIME_DIR is invalid or not set" on every start of a command that probes Vulkan. We
+    // rank the adapters ourselves (`gpu::GpuContext::new`), so the layer is skipped unless the
+    // user set NODEVICE_SELECT. (First thing in main: no other thread exists yet.)
+    if std::env::var_os("NODEVICE_SELECT").is_none() {
+        std::env::set_var("NODEVICE_SELECT", "1");
+    }
     let args = cli::Cli::parse();
     let default_level = if args.quiet { "warn" } else { "info" };
     tracing_subscriber::fmt()
