@@ -51,6 +51,24 @@ fn wrong_magic_version_checksum_and_truncation_are_named() {
     assert!(ssa::from_bytes(&[]).is_err());
 }
 
+/// The correction scores a 3D candidate's own coordinate once per list, so a list holding a
+/// triple without its pixel must be refused, not synthesized from.
+#[test]
+fn a_3d_candidate_without_its_own_pixel_is_refused() {
+    let mut a = analyze(vec![fixture("marble32.png")], Border::Mirror);
+    let level = &mut a.exemplars[0].levels[0];
+    let p = level
+        .counts_3d
+        .iter()
+        .position(|&c| c > 0)
+        .expect("a pixel with candidates");
+    let k = a.params.max_3d as usize;
+    let t = &mut level.candidates_3d[p * k];
+    t[0] = if t[0] == 0 { 1 } else { 0 };
+    let err = ssa::from_bytes(&ssa::to_bytes(&a)).unwrap_err();
+    assert!(err.contains("does not contain it"), "{err}");
+}
+
 /// Mutations behind a valid checksum reach the structural checks: they must return errors (or a
 /// valid analysis), never panic or allocate absurdly.
 #[test]

@@ -187,6 +187,16 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             if (params.shared_sets != 0u) {
                 owner = 0u;
             }
+            // Every 3D candidate of pixel best2d[a] has it as its a coordinate (the .ssa reader
+            // checks it): its distance on plane a is scored once.
+            var own = 0u;
+            if (a == 0u) {
+                own = distance(&q0, 0u, best2d.x);
+            } else if (a == 1u) {
+                own = distance(&q1, 1u, best2d.y);
+            } else {
+                own = distance(&q2, 2u, best2d.z);
+            }
             let pixel = u32(coord_y(best2d[a])) * params.ex_width + u32(coord_x(best2d[a]));
             let counts = select(select(params.counts2, params.counts1, owner == 1u), params.counts0, owner == 0u);
             let cand3d = select(select(params.cand3d2, params.cand3d1, owner == 1u), params.cand3d0, owner == 0u);
@@ -198,7 +208,16 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
                 if (params.shared_sets != 0u) {
                     t = rotate(t, a);
                 }
-                let d = distance(&q0, 0u, t.x) + distance(&q1, 1u, t.y) + distance(&q2, 2u, t.z);
+                var d = own;
+                if (a != 0u) {
+                    d += distance(&q0, 0u, t.x);
+                }
+                if (a != 1u) {
+                    d += distance(&q1, 1u, t.y);
+                }
+                if (a != 2u) {
+                    d += distance(&q2, 2u, t.z);
+                }
                 if (d < best_d) {
                     best_d = d;
                     best = t;

@@ -274,6 +274,10 @@ impl Ctx<'_> {
         let mut best_d = self.total_distance(&q, best);
         for a in 0..3 {
             let set = if p.shared_sets != 0 { 0 } else { a };
+            // Every 3D candidate of pixel best2d[a] has that pixel as its a coordinate (the
+            // .ssa reader checks it): its distance on plane a is scored once.
+            let own = self.distance(&q[a], a, best2d[a]);
+            let (b, c) = ((a + 1) % 3, (a + 2) % 3);
             let (x, y) = coord(best2d[a]);
             let pixel = y as u32 * p.ex_width + x as u32;
             let count = self.level[([p.counts0, p.counts1, p.counts2][set] + pixel) as usize]
@@ -285,7 +289,7 @@ impl Ctx<'_> {
                 if p.shared_sets != 0 {
                     t = rotate_from_shared(t, a);
                 }
-                let d = self.total_distance(&q, t);
+                let d = own + self.distance(&q[b], b, t[b]) + self.distance(&q[c], c, t[c]);
                 if d < best_d {
                     best_d = d;
                     best = t;

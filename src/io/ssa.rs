@@ -27,7 +27,7 @@
 //! Loading checks the magic, version, length and checksum first, then every size and coordinate,
 //! so a damaged or hostile file is an error, never a panic or an out-of-bounds read later.
 
-use crate::analysis::frame::{unpack, NO_COORD};
+use crate::analysis::frame::{pack, unpack, NO_COORD};
 use crate::analysis::pca::PcaBasis;
 use crate::analysis::{
     Analysis, AnalysisParams, ExemplarData, LevelData, LevelStats, ANALYSED_LEVELS,
@@ -350,6 +350,10 @@ pub fn parse_payload(payload: &[u8]) -> R<Analysis> {
                                 format!("level {level}: 3D candidate slot out of range")
                             })?;
                         }
+                        // The correction relies on it (it scores that coordinate once).
+                        check(!used || t[e] == pack(p as u32 % w, p as u32 / w), || {
+                            format!("level {level}: 3D candidate of pixel {p} does not contain it")
+                        })?;
                     }
                 }
                 for &c3 in &slab_flat {
