@@ -85,6 +85,55 @@ fn synthesis_kernels_bit_exact_on_gpu_and_cpu() {
             s.synthesize(b, &|_, _| {}).unwrap()
         });
     }
+    // Four channels (RGB + feature: one value word per voxel) and five (RGBA + feature: two
+    // words; the CPU correction reads those through the brick index, not a window).
+    for rgba in [false, true] {
+        let cells = fixture(include_bytes!("../tests/fixtures/cells32.png"));
+        let exemplar = if rgba {
+            let mut e = solidsynth::exemplar::Image::new(32, 32, 4);
+            for (i, (d, s)) in e
+                .pixels
+                .chunks_exact_mut(4)
+                .zip(cells.pixels.chunks_exact(3))
+                .enumerate()
+            {
+                d[..3].copy_from_slice(s);
+                d[3] = (i * 7 % 256) as u8;
+            }
+            e
+        } else {
+            cells
+        };
+        let mut mask = solidsynth::exemplar::Image::new(32, 32, 1);
+        for (i, m) in mask.pixels.iter_mut().enumerate() {
+            *m = if (i % 32) / 8 % 2 == 0 { 255 } else { 0 };
+        }
+        let input = AnalysisInput {
+            exemplars: vec![exemplar],
+            masks: vec![mask],
+            border: Border::Wrap,
+            names: vec!["fixture with a feature".into()],
+        };
+        let a = analysis::analyze(
+            &input,
+            &AnalysisParams::default(),
+            &Compute::Cpu,
+            &|_, _| {},
+        )
+        .unwrap();
+        assert_eq!(
+            a.exemplar(0).levels[0].image.channels,
+            if rgba { 5 } else { 4 }
+        );
+        let params = SynthParams {
+            seed: 3,
+            ..Default::default()
+        };
+        let b = Box3::new([-3, 5, 0], [9, 13, 10]);
+        same_on_both(&format!("feature, rgba={rgba}"), &a, &params, &gpu, |s| {
+            s.synthesize(b, &|_, _| {}).unwrap()
+        });
+    }
     // A tileable solid (reads wrap around each level's period; periodic jitter and tiling).
     let a = analysis(false, Border::Wrap);
     let params = SynthParams {

@@ -30,6 +30,135 @@ pub const MAX_PCA_OUT: usize = 16;
 /// distances become 16-bit multiply-adds.
 type Projection = [i16; MAX_PCA_OUT];
 
+/// Where a voxel's correction reads its neighbours: the state through the brick index
+/// ([`Ctx`]), or a [`Window`] copied from it around one brick. Voxels that are not stored read
+/// as zero either way.
+trait Neighbours {
+    fn triple(&self, pos: [i32; 3]) -> [u32; 3];
+    /// Value word `w` (of `pixel_words`).
+    fn word(&self, pos: [i32; 3], w: usize) -> u32;
+}
+
+/// Edge of a [`Window`]: a brick (4) and the 2 voxels on each side that the projection planes
+/// of its voxels reach.
+const WINDOW: i32 = 8;
+
+/// The triples and value words around one brick, copied from the state a row segment at a time:
+/// its 8 voxels of a class then read their ~100 neighbours each without a brick-index lookup.
+/// Only for one value word per voxel, and periods that are whole bricks.
+struct Window {
+    origin: [i32; 3],
+    values: [u32; 512],
+    triples: [[u32; 3]; 512],
+}
+
+impl Window {
+    fn new() -> Window {
+        Window {
+            origin: [0; 3],
+            values: [0; 512],
+            triples: [[0; 3]; 512],
+        }
+    }
+
+    #[inline(always)]
+    fn slot(&self, pos: [i32; 3]) -> usize {
+        let d = [0, 1, 2].map(|i| pos[i] - self.origin[i]);
+        debug_assert!(d.iter().all(|v| (0..WINDOW).contains(v)), "{pos:?} outside");
+        ((d[2] * WINDOW + d[1]) * WINDOW + d[0]) as usize
+    }
+
+    /// Copy from the state what the corrections of brick `b`'s voxels of class `class` read,
+    /// a row segment per index lookup (in a brick, x-consecutive voxels are consecutive in the
+    /// state). The rest of the window is stale and never read.
+    ///
+    /// What is read (window coordinates; class voxels at c + 2 and c + 4 along each axis, c
+    /// the class): values on the voxels' three planes within 2, triples within 1. So a row
+    /// (y, z) is read along x from c_x to c_x + 6 when y or z is a class coordinate (and the
+    /// other within reach), only at c_x + 2 and c_x + 4 when both are merely within reach,
+    /// else not at all; its triples where the same holds with reach 1.
+    fn fill(&mut self, ctx: &Ctx, b: [i32; 3], class: [i32; 3]) {
+        self.origin = b.map(|v| v * 4 - 2);
+        // A triple and one value word per voxel.
+        const STRIDE: usize = 4;
+        debug_assert_eq!(ctx.stride(), STRIDE);
+        let on = |v: i32, c: i32| v == c + 2 || v == c + 4;
+        let near = |v: i32, c: i32, reach: i32| (c + 2 - reach..=c + 4 + reach).contains(&v);
+        let [cx, cy, cz] = class;
+        // Debug builds poison the window, so a read of a position not filled shows up as a
+        // difference from the shader in the kernels-tests.
+        #[cfg(debug_assertions)]
+        {
+            self.values.fill(0xA5A5_A5A5);
+            self.triples.fill([0x0123_4567; 3]);
+        }
+        for z in 0..WINDOW {
+            for y in 0..WINDOW {
+                let reads = |reach| {
+                    let full =
+                        (on(y, cy) && near(z, cz, reach)) || (on(z, cz) && near(y, cy, reach));
+                    (full, near(y, cy, reach) && near(z, cz, reach))
+                };
+                let (full, pair) = reads(2);
+                let (full1, pair1) = reads(1);
+                let xs = if full {
+                    cx..cx + 7
+                } else if pair {
+                    cx + 2..cx + 5
+                } else {
+                    continue;
+                };
+                let with_triples = full1 || pair1;
+                // Split at the brick edges (window x 2 and 6).
+                let mut x0 = xs.start;
+                while x0 < xs.end {
+                    let x1 = xs.end.min(if x0 < 2 {
+                        2
+                    } else if x0 < 6 {
+                        6
+                    } else {
+                        WINDOW
+                    });
+                    let (row, len) = (
+                        ((z * WINDOW + y) * WINDOW + x0) as usize,
+                        (x1 - x0) as usize,
+                    );
+                    let pos = [self.origin[0] + x0, self.origin[1] + y, self.origin[2] + z];
+                    match ctx.state_index(pos) {
+                        None => {
+                            self.values[row..row + len].fill(0);
+                            self.triples[row..row + len].fill([0; 3]);
+                        }
+                        Some(s) => {
+                            let words = &ctx.state[s * STRIDE..(s + len) * STRIDE];
+                            for (i, v) in words.chunks_exact(STRIDE).enumerate() {
+                                self.values[row + i] = v[3];
+                                if with_triples {
+                                    self.triples[row + i] = [v[0], v[1], v[2]];
+                                }
+                            }
+                        }
+                    }
+                    x0 = x1;
+                }
+            }
+        }
+    }
+}
+
+impl Neighbours for Window {
+    #[inline(always)]
+    fn triple(&self, pos: [i32; 3]) -> [u32; 3] {
+        self.triples[self.slot(pos)]
+    }
+
+    #[inline(always)]
+    fn word(&self, pos: [i32; 3], w: usize) -> u32 {
+        debug_assert_eq!(w, 0);
+        self.values[self.slot(pos)]
+    }
+}
+
 struct Ctx<'a> {
     p: &'a CorrectParams,
     level: &'a [u32],
@@ -45,6 +174,24 @@ struct Ctx<'a> {
     /// order of accumulation, so the results equal the shader's bit for bit.
     weights_t: [Vec<i32>; 3],
     means: [Vec<i32>; 3],
+}
+
+/// Voxels outside the stored bricks read as zero (only voxels the plan does not need read them).
+impl Neighbours for Ctx<'_> {
+    #[inline(always)]
+    fn triple(&self, pos: [i32; 3]) -> [u32; 3] {
+        let Some(s) = self.state_index(pos) else {
+            return [0; 3];
+        };
+        let i = s * self.stride();
+        [self.state[i], self.state[i + 1], self.state[i + 2]]
+    }
+
+    #[inline(always)]
+    fn word(&self, pos: [i32; 3], w: usize) -> u32 {
+        self.state_index(pos)
+            .map_or(0, |s| self.state[s * self.stride() + 3 + w])
+    }
 }
 
 impl Ctx<'_> {
@@ -80,30 +227,19 @@ impl Ctx<'_> {
         )
     }
 
-    /// Voxels outside the stored bricks read as zero (only voxels the plan does not need read
-    /// them).
-    #[inline(always)]
-    fn triple(&self, pos: [i32; 3]) -> [u32; 3] {
-        let Some(s) = self.state_index(pos) else {
-            return [0; 3];
-        };
-        let i = s * self.stride();
-        [self.state[i], self.state[i + 1], self.state[i + 2]]
-    }
-
     /// Projection of the plane of exemplar `a` through voxel `pos`.
     #[inline(always)]
-    fn project_plane(&self, pos: [i32; 3], a: usize) -> Projection {
+    fn project_plane(&self, r: &impl Neighbours, pos: [i32; 3], a: usize) -> Projection {
         // Accumulate only the kept dimensions (8 at the finest level, 12 above): the unused
         // weights are zero, so the result is the same; the loop is just shorter. With the
         // channel count a constant too, the compiler unrolls the channels and vectorizes the K
         // multiply-adds (integer sums: same result in any order).
         match (self.p.pca_out, self.p.channels) {
-            (0..=8, 3) => self.project_plane_k::<8, 3>(pos, a),
-            (0..=8, 4) => self.project_plane_k::<8, 4>(pos, a),
-            (9..=12, 3) => self.project_plane_k::<12, 3>(pos, a),
-            (9..=12, 4) => self.project_plane_k::<12, 4>(pos, a),
-            _ => self.project_plane_any(pos, a),
+            (0..=8, 3) => self.project_plane_k::<8, 3>(r, pos, a),
+            (0..=8, 4) => self.project_plane_k::<8, 4>(r, pos, a),
+            (9..=12, 3) => self.project_plane_k::<12, 3>(r, pos, a),
+            (9..=12, 4) => self.project_plane_k::<12, 4>(r, pos, a),
+            _ => self.project_plane_any(r, pos, a),
         }
     }
 
@@ -111,6 +247,7 @@ impl Ctx<'_> {
     #[inline(always)]
     fn project_plane_k<const K: usize, const C: usize>(
         &self,
+        r: &impl Neighbours,
         pos: [i32; 3],
         a: usize,
     ) -> Projection {
@@ -123,10 +260,7 @@ impl Ctx<'_> {
                 let mut n = pos;
                 n[ua] += du;
                 n[va] += dv;
-                // One brick lookup per neighbour; absent voxels read as zero.
-                let word = self
-                    .state_index(n)
-                    .map_or(0, |s| self.state[s * self.stride() + 3]);
+                let word = r.word(n, 0);
                 for ch in 0..C {
                     let centred = ((word >> (ch * 8)) & 0xFF) as i32 - mean[i];
                     let row: &[i32; K] =
@@ -142,7 +276,7 @@ impl Ctx<'_> {
     }
 
     /// [`Ctx::project_plane`] for any channel count.
-    fn project_plane_any(&self, pos: [i32; 3], a: usize) -> Projection {
+    fn project_plane_any(&self, r: &impl Neighbours, pos: [i32; 3], a: usize) -> Projection {
         let p = self.p;
         let (ua, va) = ((a + 1) % 3, (a + 2) % 3);
         let (wt, mean) = (&self.weights_t[a], &self.means[a]);
@@ -153,11 +287,8 @@ impl Ctx<'_> {
                 let mut n = pos;
                 n[ua] += du;
                 n[va] += dv;
-                let value = self.state_index(n).map(|s| s * self.stride() + 3);
                 for ch in 0..p.channels {
-                    let byte = value.map_or(0, |v| {
-                        (self.state[v + ch as usize / 4] >> ((ch % 4) * 8)) & 0xFF
-                    });
+                    let byte = (r.word(n, ch as usize / 4) >> ((ch % 4) * 8)) & 0xFF;
                     let centred = byte as i32 - mean[i];
                     let row = &wt[i * MAX_PCA_OUT..(i + 1) * MAX_PCA_OUT];
                     for j in 0..MAX_PCA_OUT {
@@ -205,7 +336,7 @@ impl Ctx<'_> {
 
     /// Best k-coherent 2D candidate of exemplar `a` for the voxel at `pos`.
     #[inline(always)]
-    fn best_2d(&self, pos: [i32; 3], a: usize, q: &Projection) -> u32 {
+    fn best_2d(&self, r: &impl Neighbours, pos: [i32; 3], a: usize, q: &Projection) -> u32 {
         let p = self.p;
         let (ua, va) = ((a + 1) % 3, (a + 2) % 3);
         let cand2d = [p.cand2d0, p.cand2d1, p.cand2d2][a];
@@ -219,7 +350,7 @@ impl Ctx<'_> {
                 let mut n = pos;
                 n[ua] += du;
                 n[va] += dv;
-                let (cx, cy) = coord(self.triple(n)[a]);
+                let (cx, cy) = coord(r.triple(n)[a]);
                 let (sx, sy) = (cx - du, cy - dv);
                 if p.border != 0
                     && (sx < 0 || sy < 0 || sx >= p.ex_width as i32 || sy >= p.ex_height as i32)
@@ -255,22 +386,22 @@ impl Ctx<'_> {
     }
 
     #[inline(always)]
-    fn correct_voxel(&self, pos: [i32; 3]) -> [u32; 3] {
+    fn correct_voxel(&self, r: &impl Neighbours, pos: [i32; 3]) -> [u32; 3] {
         let p = self.p;
         let q = [
-            self.project_plane(pos, 0),
-            self.project_plane(pos, 1),
-            self.project_plane(pos, 2),
+            self.project_plane(r, pos, 0),
+            self.project_plane(r, pos, 1),
+            self.project_plane(r, pos, 2),
         ];
         let best2d = [
-            self.best_2d(pos, 0, &q[0]),
-            self.best_2d(pos, 1, &q[1]),
-            self.best_2d(pos, 2, &q[2]),
+            self.best_2d(r, pos, 0, &q[0]),
+            self.best_2d(r, pos, 1, &q[1]),
+            self.best_2d(r, pos, 2, &q[2]),
         ];
         if p.mode == 1 {
             return best2d;
         }
-        let mut best = self.triple(pos);
+        let mut best = r.triple(pos);
         let mut best_d = self.total_distance(&q, best);
         for a in 0..3 {
             let set = if p.shared_sets != 0 { 0 } else { a };
@@ -301,22 +432,72 @@ impl Ctx<'_> {
 }
 
 impl Ctx<'_> {
-    /// [`Ctx::correct_voxel`], compiled for AVX2 when the CPU has it (detected at run time):
+    /// Correct the voxels of brick `i` of the sub-pass list that `mask` marks (bit k: class
+    /// voxel k), appending (state index, new triple).
+    #[inline(always)]
+    fn correct_brick(
+        &self,
+        window: &mut Window,
+        i: u32,
+        mask: u32,
+        out: &mut Vec<(usize, [u32; 3])>,
+    ) {
+        let p = self.p;
+        let b = brick_at(self.bricks, p.list_offset, i);
+        // A window costs ~200 index lookups and a 3 KiB copy; a voxel read through the index
+        // ~100 lookups. (The same values either way.)
+        let windowed = p.pixel_words == 1 && p.period % 4 == 0 && mask.count_ones() >= 3;
+        let class = [p.class_x as i32, p.class_y as i32, p.class_z as i32];
+        if windowed {
+            window.fill(self, b, class);
+        }
+        for k in 0..8 {
+            if (mask >> k) & 1 == 0 {
+                continue;
+            }
+            let pos = [
+                b[0] * 4 + class[0] + 2 * (k & 1),
+                b[1] * 4 + class[1] + 2 * ((k >> 1) & 1),
+                b[2] * 4 + class[2] + 2 * (k >> 2),
+            ];
+            let index = self.state_index(pos).expect("active bricks are stored");
+            let t = if windowed {
+                self.correct_voxel(window, pos)
+            } else {
+                self.correct_voxel(self, pos)
+            };
+            out.push((index, t));
+        }
+    }
+
+    /// [`Ctx::correct_brick`], compiled for AVX2 when the CPU has it (detected at run time):
     /// the projections' 8-wide integer multiply-adds then take one instruction. Integer
     /// arithmetic: the same result either way.
-    fn correct_voxel_dispatch(&self, pos: [i32; 3]) -> [u32; 3] {
+    fn correct_brick_dispatch(
+        &self,
+        window: &mut Window,
+        i: u32,
+        mask: u32,
+        out: &mut Vec<(usize, [u32; 3])>,
+    ) {
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the CPU supports AVX2 (checked just above).
-            return unsafe { self.correct_voxel_avx2(pos) };
+            return unsafe { self.correct_brick_avx2(window, i, mask, out) };
         }
-        self.correct_voxel(pos)
+        self.correct_brick(window, i, mask, out)
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    fn correct_voxel_avx2(&self, pos: [i32; 3]) -> [u32; 3] {
-        self.correct_voxel(pos)
+    fn correct_brick_avx2(
+        &self,
+        window: &mut Window,
+        i: u32,
+        mask: u32,
+        out: &mut Vec<(usize, [u32; 3])>,
+    ) {
+        self.correct_brick(window, i, mask, out)
     }
 }
 
@@ -374,26 +555,23 @@ pub fn correct(
         grid_lo: [p.grid_lo_x, p.grid_lo_y, p.grid_lo_z],
         grid_dims: [p.grid_x, p.grid_y, p.grid_z],
     };
-    let class = [p.class_x as i32, p.class_y as i32, p.class_z as i32];
-    let needed = |t: u32| {
-        let b = t / 8;
-        (bricks[(p.mask_offset + b / 4) as usize] >> ((b % 4) * 8 + t % 8)) & 1 != 0
-    };
-    (0..p.list_count * 8)
+    // The sub-pass's mask: one byte per brick, bit k for class voxel k.
+    let mask = |i: u32| (bricks[(p.mask_offset + i / 4) as usize] >> ((i % 4) * 8)) & 0xFF;
+    let parts: Vec<Vec<(usize, [u32; 3])>> = (0..p.list_count)
         .into_par_iter()
-        .filter(|&t| needed(t))
-        .map(|t| {
-            let b = brick_at(bricks, p.list_offset, t / 8);
-            let k = (t % 8) as i32;
-            let pos = [
-                b[0] * 4 + class[0] + 2 * (k & 1),
-                b[1] * 4 + class[1] + 2 * ((k >> 1) & 1),
-                b[2] * 4 + class[2] + 2 * (k >> 2),
-            ];
-            let index = ctx.state_index(pos).expect("active bricks are stored");
-            (index, ctx.correct_voxel_dispatch(pos))
-        })
-        .collect()
+        .fold(
+            || (Box::new(Window::new()), Vec::new()),
+            |(mut window, mut out), i| {
+                let m = mask(i);
+                if m != 0 {
+                    ctx.correct_brick_dispatch(&mut window, i, m, &mut out);
+                }
+                (window, out)
+            },
+        )
+        .map(|(_, out)| out)
+        .collect();
+    parts.concat()
 }
 
 /// Apply a sub-pass's results to the state: each voxel's new triple and its value.
