@@ -82,7 +82,7 @@ fn exact_plane_is_kept(axis: usize) {
         let updates = solidsynth::cpu::correct::correct(&p, &pack.words, &state, &index);
         assert_eq!(updates.len(), interior.len() * 8);
         let mut kept = 0;
-        for (i, t) in &updates {
+        for (i, t) in updates.iter() {
             if t[axis] == state[i * stride + axis] {
                 kept += 1;
             }

@@ -440,7 +440,7 @@ impl Ctx<'_> {
         window: &mut Window,
         i: u32,
         mask: u32,
-        out: &mut Vec<(usize, [u32; 3])>,
+        out: &mut Vec<(u32, [u32; 3])>,
     ) {
         let p = self.p;
         let b = brick_at(self.bricks, p.list_offset, i);
@@ -466,7 +466,7 @@ impl Ctx<'_> {
             } else {
                 self.correct_voxel(self, pos)
             };
-            out.push((index, t));
+            out.push((index as u32, t));
         }
     }
 
@@ -478,7 +478,7 @@ impl Ctx<'_> {
         window: &mut Window,
         i: u32,
         mask: u32,
-        out: &mut Vec<(usize, [u32; 3])>,
+        out: &mut Vec<(u32, [u32; 3])>,
     ) {
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
@@ -495,7 +495,7 @@ impl Ctx<'_> {
         window: &mut Window,
         i: u32,
         mask: u32,
-        out: &mut Vec<(usize, [u32; 3])>,
+        out: &mut Vec<(u32, [u32; 3])>,
     ) {
         self.correct_brick(window, i, mask, out)
     }
@@ -513,14 +513,31 @@ fn squared_distance<const K: usize>(q: &Projection, stored: &[u8]) -> u32 {
     d as u32
 }
 
+/// A sub-pass's results: (state voxel index, new triple), kept in the parts the workers produced
+/// (a sub-pass of a large box updates tens of millions of voxels: no concatenating copy).
+pub struct Updates(Vec<Vec<(u32, [u32; 3])>>);
+
+impl Updates {
+    pub fn len(&self) -> usize {
+        self.0.iter().map(Vec::len).sum()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    pub fn iter(&self) -> impl Iterator<Item = (usize, [u32; 3])> + '_ {
+        self.0.iter().flatten().map(|&(i, t)| (i as usize, t))
+    }
+}
+
 /// Run one sub-pass: returns (state index, new triple) for every voxel of the class in the
 /// bricks of the list in `p`.
-pub fn correct(
-    p: &CorrectParams,
-    level: &[u32],
-    state: &[u32],
-    bricks: &[u32],
-) -> Vec<(usize, [u32; 3])> {
+pub fn correct(p: &CorrectParams, level: &[u32], state: &[u32], bricks: &[u32]) -> Updates {
+    assert!(
+        state.len() / (3 + p.pixel_words as usize) <= u32::MAX as usize,
+        "state indices fit 32 bits"
+    );
     let transpose = |a: usize| {
         let (w0, m0) = (
             [p.weights0, p.weights1, p.weights2][a] as usize,
@@ -557,7 +574,7 @@ pub fn correct(
     };
     // The sub-pass's mask: one byte per brick, bit k for class voxel k.
     let mask = |i: u32| (bricks[(p.mask_offset + i / 4) as usize] >> ((i % 4) * 8)) & 0xFF;
-    let parts: Vec<Vec<(usize, [u32; 3])>> = (0..p.list_count)
+    let parts: Vec<Vec<(u32, [u32; 3])>> = (0..p.list_count)
         .into_par_iter()
         .fold(
             || (Box::new(Window::new()), Vec::new()),
@@ -571,14 +588,14 @@ pub fn correct(
         )
         .map(|(_, out)| out)
         .collect();
-    parts.concat()
+    Updates(parts)
 }
 
 /// Apply a sub-pass's results to the state: each voxel's new triple and its value.
-pub fn apply(p: &CorrectParams, level: &[u32], state: &mut [u32], updates: &[(usize, [u32; 3])]) {
+pub fn apply(p: &CorrectParams, level: &[u32], state: &mut [u32], updates: &Updates) {
     let stride = 3 + p.pixel_words as usize;
     let pixels = [p.pixels0, p.pixels1, p.pixels2];
-    for &(i, t) in updates {
+    for (i, t) in updates.iter() {
         write_voxel(
             &mut state[i * stride..(i + 1) * stride],
             level,

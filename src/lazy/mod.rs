@@ -186,31 +186,48 @@ impl Synthesizer {
         want_triples: bool,
     ) -> Result<(Volume, Vec<u32>)> {
         let size = out.size();
-        let result = self.synthesize_bricks(&bricks::bricks_of_box(out), progress, want_triples)?;
         let channels = self.color_channels() as usize;
         let mut volume = Volume::new(size[0], size[1], size[2], channels as u32);
-        let mut triples = Vec::with_capacity(if want_triples {
-            out.voxels() as usize * 3
-        } else {
-            0
-        });
-        for z in out.lo[2]..out.hi[2] {
-            for y in out.lo[1]..out.hi[1] {
-                for x in out.lo[0]..out.hi[0] {
-                    let i = result.index([x, y, z]).expect("requested voxel");
-                    let word = result.colors[i].to_le_bytes();
-                    let (vx, vy, vz) = (
-                        (x - out.lo[0]) as u32,
-                        (y - out.lo[1]) as u32,
-                        (z - out.lo[2]) as u32,
-                    );
-                    volume.at_mut(vx, vy, vz).copy_from_slice(&word[..channels]);
-                    if want_triples {
-                        triples.extend_from_slice(&result.triples[i * 3..i * 3 + 3]);
+        let mut triples = vec![
+            0u32;
+            if want_triples {
+                out.voxels() as usize * 3
+            } else {
+                0
+            }
+        ];
+        let mut all = bricks::bricks_of_box(out);
+        bricks::normalize(&mut all);
+        // Each group's voxels go straight into the volume: no colour buffer of the whole box.
+        self.for_each_group(
+            &all,
+            progress,
+            want_triples,
+            |group, colors, group_triples| {
+                for (j, &b) in group.iter().enumerate() {
+                    for local in 0..64 {
+                        let p = bricks::voxel_of(b, local);
+                        if !(0..3).all(|i| (out.lo[i]..out.hi[i]).contains(&p[i])) {
+                            continue;
+                        }
+                        let v = [0, 1, 2].map(|i| (p[i] - out.lo[i]) as u32);
+                        let src = j * 64 + local as usize;
+                        let word = colors[src].to_le_bytes();
+                        volume
+                            .at_mut(v[0], v[1], v[2])
+                            .copy_from_slice(&word[..channels]);
+                        if want_triples {
+                            let dst = ((v[2] as usize * size[1] as usize + v[1] as usize)
+                                * size[0] as usize
+                                + v[0] as usize)
+                                * 3;
+                            triples[dst..dst + 3]
+                                .copy_from_slice(&group_triples[src * 3..src * 3 + 3]);
+                        }
                     }
                 }
-            }
-        }
+            },
+        )?;
         Ok((volume, triples))
     }
 
@@ -228,7 +245,34 @@ impl Synthesizer {
         let grid = BrickColors::lookup(&all);
         let mut colors = vec![0u32; all.len() * 64];
         let mut triples = vec![0u32; if want_triples { all.len() * 64 * 3 } else { 0 }];
-        let groups = self.groups(&all);
+        self.for_each_group(&all, progress, want_triples, |group, c, t| {
+            for (j, b) in group.iter().enumerate() {
+                let slot = BrickColors::slot_in(&all, grid.as_ref(), *b).expect("requested brick");
+                colors[slot * 64..(slot + 1) * 64].copy_from_slice(&c[j * 64..(j + 1) * 64]);
+                if want_triples {
+                    triples[slot * 192..(slot + 1) * 192]
+                        .copy_from_slice(&t[j * 192..(j + 1) * 192]);
+                }
+            }
+        })?;
+        Ok(BrickColors {
+            bricks: all,
+            grid,
+            colors,
+            triples,
+        })
+    }
+
+    /// Synthesize the sorted bricks `all` group by group, handing each group's bricks, their
+    /// colours (64 per brick, x fastest) and, when asked, their triples to `sink`.
+    fn for_each_group(
+        &mut self,
+        all: &[Brick],
+        progress: Progress,
+        want_triples: bool,
+        mut sink: impl FnMut(&[Brick], &[u32], &[u32]),
+    ) -> Result<()> {
+        let groups = self.groups(all);
         let mut stats = SynthStats {
             voxels_per_level: vec![0; ANALYSED_LEVELS],
             peak_state_bytes: 0,
@@ -243,23 +287,11 @@ impl Synthesizer {
                 want_triples,
                 &mut stats,
             )?;
-            for (j, b) in group.iter().enumerate() {
-                let slot = BrickColors::slot_in(&all, grid.as_ref(), *b).expect("requested brick");
-                colors[slot * 64..(slot + 1) * 64].copy_from_slice(&c[j * 64..(j + 1) * 64]);
-                if want_triples {
-                    triples[slot * 192..(slot + 1) * 192]
-                        .copy_from_slice(&t[j * 192..(j + 1) * 192]);
-                }
-            }
+            sink(group, &c, &t);
         }
         progress("done", 1.0);
         self.last_stats = Some(stats);
-        Ok(BrickColors {
-            bricks: all,
-            grid,
-            colors,
-            triples,
-        })
+        Ok(())
     }
 
     /// The packed colours of arbitrary voxels (any order, repeats allowed): only the bricks
@@ -535,15 +567,19 @@ impl Synthesizer {
         stats: &mut SynthStats,
     ) -> Result<GroupResult> {
         let period = |l: usize| periods.map_or(0, |p| p[l]);
-        let layouts: Vec<IndexLayout> = (0..levels.len())
-            .map(|l| {
-                IndexLayout::new(
-                    &levels[l],
-                    l.checked_sub(1).map(|p| &levels[p]),
-                    (l + 1 == levels.len()).then_some(group),
-                )
-            })
-            .collect();
+        // Each level's brick index is built when the level starts and dropped after it (with
+        // the level's sub-pass plans): a large box's indices are several bytes per voxel.
+        let mut levels = levels;
+        let last = levels.len() - 1;
+        let index_of = |exec: &mut exec::Executor, levels: &[SparseLevel], l: usize| {
+            let mut layout = IndexLayout::new(
+                &levels[l],
+                l.checked_sub(1).map(|p| &levels[p]),
+                (l == last).then_some(group),
+            );
+            let index = exec.upload_index(std::mem::take(&mut layout.words));
+            (layout, index)
+        };
         let mut state_bytes = 0u64;
         for (l, lv) in levels.iter().enumerate() {
             stats.voxels_per_level[first_pack + l] += lv.voxels();
@@ -556,10 +592,7 @@ impl Synthesizer {
             1
         };
         stats.peak_state_bytes = stats.peak_state_bytes.max(state_bytes * gpu_copies);
-        let indices: Vec<exec::IndexBuf> = layouts
-            .iter()
-            .map(|l| self.exec.upload_index(l.words.clone()))
-            .collect();
+        let (mut layout, mut index) = index_of(&mut self.exec, &levels, 0);
         let seed_lo = self.params.seed as u32;
         let seed_hi = (self.params.seed >> 32) as u32;
         let coarse = &self.packs[0];
@@ -567,7 +600,7 @@ impl Synthesizer {
         let sig = jitter::sigma2_fixed();
         let count0 = levels[0].bricks.len() as u32;
         let init = InitParams {
-            list_offset: layouts[0].storage_list,
+            list_offset: layout.storage_list,
             list_count: count0,
             grid_stride: stride_for(count0 as u64 * 64),
             period: period(0),
@@ -604,13 +637,18 @@ impl Synthesizer {
         let mut state = match start {
             Some(s) => s,
             None => exec::timed(&mut self.exec, &mut self.times, "init", |e| {
-                e.init(first_pack, &init, &indices[0])
+                e.init(first_pack, &init, &index)
             })?,
         };
-        for (level, lv) in levels.iter().enumerate() {
+        for level in 0..levels.len() {
+            if level > 0 {
+                (layout, index) = index_of(&mut self.exec, &levels, level);
+                // The parent's sub-pass plans are done with.
+                levels[level - 1].subpasses = Vec::new();
+            }
+            let lv = &levels[level];
             let pack_index = first_pack + level;
             let pack = &self.packs[pack_index];
-            let layout = &layouts[level];
             if level > 0 {
                 let parent = &levels[level - 1].grid;
                 let count = lv.bricks.len() as u32;
@@ -637,7 +675,7 @@ impl Synthesizer {
                     _r1: 0,
                 };
                 state = exec::timed(&mut self.exec, &mut self.times, "upsample", |e| {
-                    e.upsample(pack_index, &up, state, &indices[level])
+                    e.upsample(pack_index, &up, state, &index)
                 })?;
             }
             progress(
@@ -667,7 +705,7 @@ impl Synthesizer {
                 p.mask_offset = layout.subpass_lists[s].1;
                 p.period = period(level);
                 exec::timed(&mut self.exec, &mut self.times, "correct", |e| {
-                    e.correct(pack_index, &p, &mut state, &indices[level])
+                    e.correct(pack_index, &p, &mut state, &index)
                 })?;
             }
         }
@@ -679,7 +717,6 @@ impl Synthesizer {
             });
         }
         let finest = levels.last().unwrap();
-        let layout = layouts.last().unwrap();
         let pack = self.packs.last().unwrap();
         let count = group.len() as u32;
         let c = ColorizeParams {
@@ -704,9 +741,8 @@ impl Synthesizer {
             pixels2: pack.offsets.pixels[2],
             _pad: 0,
         };
-        let last = levels.len() - 1;
         let colors = exec::timed(&mut self.exec, &mut self.times, "colorize", |e| {
-            e.colorize(first_pack + last, &c, &state, &indices[last])
+            e.colorize(first_pack + last, &c, &state, &index)
         })?;
         let mut triples = Vec::new();
         if want_triples {
@@ -759,7 +795,19 @@ impl IndexLayout {
     /// The level's table first (offset 0), then its stored bricks, each sub-pass's bricks, a
     /// copy of the parent level's table (for `upsample`) and the output bricks (finest level).
     fn new(level: &SparseLevel, parent: Option<&SparseLevel>, output: Option<&[Brick]>) -> Self {
-        let mut words = level.grid.table.clone();
+        // Sized exactly up front: a large box's index is tens of MB, doubling growth would
+        // nearly double it.
+        let len = level.grid.table.len()
+            + 3 * level.bricks.len()
+            + level
+                .subpasses
+                .iter()
+                .map(|sp| 3 * sp.bricks.len() + sp.masks.len().div_ceil(4))
+                .sum::<usize>()
+            + parent.map_or(0, |p| p.grid.table.len())
+            + 3 * output.map_or(0, <[Brick]>::len);
+        let mut words = Vec::with_capacity(len);
+        words.extend_from_slice(&level.grid.table);
         let push = bricks::push_list;
         let storage_list = push(&mut words, &level.bricks);
         let subpass_lists = level
