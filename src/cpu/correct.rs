@@ -30,6 +30,18 @@ pub const MAX_PCA_OUT: usize = 16;
 /// distances become 16-bit multiply-adds.
 type Projection = [i16; MAX_PCA_OUT];
 
+/// A 2D candidate and a copy of its stored projection: a source pixel's k2d candidates are then
+/// scored from one contiguous run instead of k2d scattered reads of the exemplar's projections.
+#[derive(Clone, Copy)]
+struct Candidate2d {
+    coord: u32,
+    projection: [u8; MAX_TABLE_PCA_OUT],
+}
+
+/// Longest projection [`Candidate2d`] holds (the analysis keeps 8 or 12); longer ones are read
+/// from the level data directly.
+const MAX_TABLE_PCA_OUT: usize = 12;
+
 /// Where a voxel's correction reads its neighbours: the state through the brick index
 /// ([`Ctx`]), or a [`Window`] copied from it around one brick. Voxels that are not stored read
 /// as zero either way.
@@ -174,6 +186,11 @@ struct Ctx<'a> {
     /// order of accumulation, so the results equal the shader's bit for bit.
     weights_t: [Vec<i32>; 3],
     means: [Vec<i32>; 3],
+    /// Per exemplar, an index into `candidates_2d` (exemplars sharing their lists share a table),
+    /// or None when the projections are too long for [`Candidate2d`].
+    candidates_2d_of: [Option<usize>; 3],
+    /// `k2d` [`Candidate2d`] per exemplar pixel, row-major.
+    candidates_2d: Vec<Vec<Candidate2d>>,
 }
 
 /// Voxels outside the stored bricks read as zero (only voxels the plan does not need read them).
@@ -364,7 +381,24 @@ impl Ctx<'_> {
                 seen[seen_count] = src;
                 seen_count += 1;
                 let (px, py) = coord(src);
-                let list = cand2d + (py as u32 * p.ex_width + px as u32) * p.k2d;
+                let pixel = py as u32 * p.ex_width + px as u32;
+                if let Some(table) = self.candidates_2d_of[a] {
+                    let k = p.k2d as usize;
+                    let run = &self.candidates_2d[table][pixel as usize * k..][..k];
+                    for c in run {
+                        let stored = &c.projection[..p.pca_out as usize];
+                        let d = match stored.len() {
+                            8 => squared_distance::<8>(q, stored),
+                            _ => squared_distance::<12>(q, stored),
+                        };
+                        if d < best_d {
+                            best_d = d;
+                            best = c.coord;
+                        }
+                    }
+                    continue;
+                }
+                let list = cand2d + pixel * p.k2d;
                 for j in 0..p.k2d {
                     let c = self.level[(list + j) as usize];
                     let d = self.distance(q, a, c);
@@ -561,12 +595,50 @@ pub fn correct(p: &CorrectParams, level: &[u32], state: &[u32], bricks: &[u32]) 
     let (t0, m0) = transpose(0);
     let (t1, m1) = transpose(1);
     let (t2, m2) = transpose(2);
+    let level_bytes: &[u8] = bytemuck::cast_slice(level);
+    // Tables of the 2D candidates with their projections, one per distinct (list, projections).
+    let mut candidates_2d: Vec<Vec<Candidate2d>> = Vec::new();
+    let mut candidates_2d_of = [None; 3];
+    let mut built: Vec<(u32, u32)> = Vec::new();
+    let k = p.pca_out as usize;
+    if matches!(k, 8 | 12) {
+        for a in 0..3 {
+            let (list, proj) = (
+                [p.cand2d0, p.cand2d1, p.cand2d2][a],
+                [p.proj0, p.proj1, p.proj2][a],
+            );
+            if let Some(i) = built.iter().position(|&b| b == (list, proj)) {
+                candidates_2d_of[a] = Some(i);
+                continue;
+            }
+            let n = (p.ex_width * p.ex_height * p.k2d) as usize;
+            let table = level[list as usize..list as usize + n]
+                .par_iter()
+                .map(|&c| {
+                    let (x, y) = coord(c);
+                    let base =
+                        (proj + (y as u32 * p.ex_width + x as u32) * p.proj_words) as usize * 4;
+                    let mut projection = [0u8; MAX_TABLE_PCA_OUT];
+                    projection[..k].copy_from_slice(&level_bytes[base..base + k]);
+                    Candidate2d {
+                        coord: c,
+                        projection,
+                    }
+                })
+                .collect();
+            candidates_2d_of[a] = Some(candidates_2d.len());
+            candidates_2d.push(table);
+            built.push((list, proj));
+        }
+    }
     let ctx = Ctx {
         p,
         level,
-        level_bytes: bytemuck::cast_slice(level),
+        level_bytes,
         weights_t: [t0, t1, t2],
         means: [m0, m1, m2],
+        candidates_2d_of,
+        candidates_2d,
         state,
         bricks,
         grid_lo: [p.grid_lo_x, p.grid_lo_y, p.grid_lo_z],
