@@ -181,16 +181,7 @@ struct Ctx<'a> {
     bricks: &'a [u32],
     grid_lo: [i32; 3],
     grid_dims: [u32; 3],
-    /// Per exemplar: the PCA weights transposed to input-major (input_dims x MAX_PCA_OUT, zero
-    /// padded) and the mean, so the inner loop is contiguous. Integer sums do not depend on the
-    /// order of accumulation, so the results equal the shader's bit for bit.
-    weights_t: [Vec<i32>; 3],
-    means: [Vec<i32>; 3],
-    /// Per exemplar, an index into `candidates_2d` (exemplars sharing their lists share a table),
-    /// or None when the projections are too long for [`Candidate2d`].
-    candidates_2d_of: [Option<usize>; 3],
-    /// `k2d` [`Candidate2d`] per exemplar pixel, row-major.
-    candidates_2d: Vec<Vec<Candidate2d>>,
+    prepared: &'a Prepared,
 }
 
 /// Voxels outside the stored bricks read as zero (only voxels the plan does not need read them).
@@ -269,7 +260,7 @@ impl Ctx<'_> {
         a: usize,
     ) -> Projection {
         let (ua, va) = ((a + 1) % 3, (a + 2) % 3);
-        let (wt, mean) = (&self.weights_t[a], &self.means[a]);
+        let (wt, mean) = (&self.prepared.weights_t[a], &self.prepared.means[a]);
         let mut acc = [0i32; K];
         let mut i = 0usize;
         for dv in -2..=2 {
@@ -296,7 +287,7 @@ impl Ctx<'_> {
     fn project_plane_any(&self, r: &impl Neighbours, pos: [i32; 3], a: usize) -> Projection {
         let p = self.p;
         let (ua, va) = ((a + 1) % 3, (a + 2) % 3);
-        let (wt, mean) = (&self.weights_t[a], &self.means[a]);
+        let (wt, mean) = (&self.prepared.weights_t[a], &self.prepared.means[a]);
         let mut acc = [0i32; MAX_PCA_OUT];
         let mut i = 0usize;
         for dv in -2..=2 {
@@ -382,9 +373,9 @@ impl Ctx<'_> {
                 seen_count += 1;
                 let (px, py) = coord(src);
                 let pixel = py as u32 * p.ex_width + px as u32;
-                if let Some(table) = self.candidates_2d_of[a] {
+                if let Some(table) = self.prepared.candidates_2d_of[a] {
                     let k = p.k2d as usize;
-                    let run = &self.candidates_2d[table][pixel as usize * k..][..k];
+                    let run = &self.prepared.candidates_2d[table][pixel as usize * k..][..k];
                     for c in run {
                         let stored = &c.projection[..p.pca_out as usize];
                         let d = match stored.len() {
@@ -568,77 +559,124 @@ impl Updates {
 /// Run one sub-pass: returns (state index, new triple) for every voxel of the class in the
 /// bricks of the list in `p`.
 pub fn correct(p: &CorrectParams, level: &[u32], state: &[u32], bricks: &[u32]) -> Updates {
+    correct_prepared(&Prepared::new(p, level), p, level, state, bricks)
+}
+
+/// What a correction derives from a level's data alone: the PCA weights transposed, the means,
+/// and the 2D candidate tables. The same for every sub-pass of a level, so an executor builds
+/// it once per level ([`correct_prepared`]).
+pub struct Prepared {
+    /// The parameters it was built from (the level-data offsets and sizes it depends on).
+    key: [u32; 16],
+    /// Per exemplar: the PCA weights transposed to input-major (input_dims x MAX_PCA_OUT, zero
+    /// padded) and the mean, so the inner loop is contiguous. Integer sums do not depend on the
+    /// order of accumulation, so the results equal the shader's bit for bit.
+    weights_t: [Vec<i32>; 3],
+    means: [Vec<i32>; 3],
+    /// Per exemplar, an index into `candidates_2d` (exemplars sharing their lists share a table),
+    /// or None when the projections are too long for [`Candidate2d`].
+    candidates_2d_of: [Option<usize>; 3],
+    /// `k2d` [`Candidate2d`] per exemplar pixel, row-major.
+    candidates_2d: Vec<Vec<Candidate2d>>,
+}
+
+impl Prepared {
+    fn key(p: &CorrectParams) -> [u32; 16] {
+        [
+            p.weights0, p.weights1, p.weights2, p.mean0, p.mean1, p.mean2, p.cand2d0, p.cand2d1,
+            p.cand2d2, p.proj0, p.proj1, p.proj2, p.pca_in, p.pca_out, p.k2d,
+            p.ex_width ^ p.ex_height.rotate_left(16) ^ p.proj_words.rotate_left(8),
+        ]
+    }
+
+    pub fn new(p: &CorrectParams, level: &[u32]) -> Prepared {
+        let transpose = |a: usize| {
+            let (w0, m0) = (
+                [p.weights0, p.weights1, p.weights2][a] as usize,
+                [p.mean0, p.mean1, p.mean2][a] as usize,
+            );
+            let (d, k) = (p.pca_in as usize, p.pca_out as usize);
+            let mut t = vec![0i32; d * MAX_PCA_OUT];
+            for i in 0..d {
+                for j in 0..k {
+                    t[i * MAX_PCA_OUT + j] = level[w0 + j * d + i] as i32;
+                }
+            }
+            (t, level[m0..m0 + d].iter().map(|&m| m as i32).collect::<Vec<i32>>())
+        };
+        let (t0, m0) = transpose(0);
+        let (t1, m1) = transpose(1);
+        let (t2, m2) = transpose(2);
+        let level_bytes: &[u8] = bytemuck::cast_slice(level);
+        // Tables of the 2D candidates with their projections, one per distinct (list, projections).
+        let mut candidates_2d: Vec<Vec<Candidate2d>> = Vec::new();
+        let mut candidates_2d_of = [None; 3];
+        let mut built: Vec<(u32, u32)> = Vec::new();
+        let k = p.pca_out as usize;
+        if matches!(k, 8 | 12) {
+            for a in 0..3 {
+                let (list, proj) = (
+                    [p.cand2d0, p.cand2d1, p.cand2d2][a],
+                    [p.proj0, p.proj1, p.proj2][a],
+                );
+                if let Some(i) = built.iter().position(|&b| b == (list, proj)) {
+                    candidates_2d_of[a] = Some(i);
+                    continue;
+                }
+                let n = (p.ex_width * p.ex_height * p.k2d) as usize;
+                let table = level[list as usize..list as usize + n]
+                    .par_iter()
+                    .map(|&c| {
+                        let (x, y) = coord(c);
+                        let base = (proj + (y as u32 * p.ex_width + x as u32) * p.proj_words)
+                            as usize
+                            * 4;
+                        let mut projection = [0u8; MAX_TABLE_PCA_OUT];
+                        projection[..k].copy_from_slice(&level_bytes[base..base + k]);
+                        Candidate2d {
+                            coord: c,
+                            projection,
+                        }
+                    })
+                    .collect();
+                candidates_2d_of[a] = Some(candidates_2d.len());
+                candidates_2d.push(table);
+                built.push((list, proj));
+            }
+        }
+        Prepared {
+            key: Self::key(p),
+            weights_t: [t0, t1, t2],
+            means: [m0, m1, m2],
+            candidates_2d_of,
+            candidates_2d,
+        }
+    }
+
+    /// Whether it was built for a level laid out as `p` says.
+    pub fn fits(&self, p: &CorrectParams) -> bool {
+        self.key == Self::key(p)
+    }
+}
+
+/// [`correct`] with the level's [`Prepared`] data (built from the same level and layout).
+pub fn correct_prepared(
+    prepared: &Prepared,
+    p: &CorrectParams,
+    level: &[u32],
+    state: &[u32],
+    bricks: &[u32],
+) -> Updates {
+    assert!(prepared.fits(p), "prepared for another level layout");
     assert!(
         state.len() / (3 + p.pixel_words as usize) <= u32::MAX as usize,
         "state indices fit 32 bits"
     );
-    let transpose = |a: usize| {
-        let (w0, m0) = (
-            [p.weights0, p.weights1, p.weights2][a] as usize,
-            [p.mean0, p.mean1, p.mean2][a] as usize,
-        );
-        let (d, k) = (p.pca_in as usize, p.pca_out as usize);
-        let mut t = vec![0i32; d * MAX_PCA_OUT];
-        for i in 0..d {
-            for j in 0..k {
-                t[i * MAX_PCA_OUT + j] = level[w0 + j * d + i] as i32;
-            }
-        }
-        (
-            t,
-            level[m0..m0 + d]
-                .iter()
-                .map(|&m| m as i32)
-                .collect::<Vec<i32>>(),
-        )
-    };
-    let (t0, m0) = transpose(0);
-    let (t1, m1) = transpose(1);
-    let (t2, m2) = transpose(2);
-    let level_bytes: &[u8] = bytemuck::cast_slice(level);
-    // Tables of the 2D candidates with their projections, one per distinct (list, projections).
-    let mut candidates_2d: Vec<Vec<Candidate2d>> = Vec::new();
-    let mut candidates_2d_of = [None; 3];
-    let mut built: Vec<(u32, u32)> = Vec::new();
-    let k = p.pca_out as usize;
-    if matches!(k, 8 | 12) {
-        for a in 0..3 {
-            let (list, proj) = (
-                [p.cand2d0, p.cand2d1, p.cand2d2][a],
-                [p.proj0, p.proj1, p.proj2][a],
-            );
-            if let Some(i) = built.iter().position(|&b| b == (list, proj)) {
-                candidates_2d_of[a] = Some(i);
-                continue;
-            }
-            let n = (p.ex_width * p.ex_height * p.k2d) as usize;
-            let table = level[list as usize..list as usize + n]
-                .par_iter()
-                .map(|&c| {
-                    let (x, y) = coord(c);
-                    let base =
-                        (proj + (y as u32 * p.ex_width + x as u32) * p.proj_words) as usize * 4;
-                    let mut projection = [0u8; MAX_TABLE_PCA_OUT];
-                    projection[..k].copy_from_slice(&level_bytes[base..base + k]);
-                    Candidate2d {
-                        coord: c,
-                        projection,
-                    }
-                })
-                .collect();
-            candidates_2d_of[a] = Some(candidates_2d.len());
-            candidates_2d.push(table);
-            built.push((list, proj));
-        }
-    }
     let ctx = Ctx {
         p,
         level,
-        level_bytes,
-        weights_t: [t0, t1, t2],
-        means: [m0, m1, m2],
-        candidates_2d_of,
-        candidates_2d,
+        level_bytes: bytemuck::cast_slice(level),
+        prepared,
         state,
         bricks,
         grid_lo: [p.grid_lo_x, p.grid_lo_y, p.grid_lo_z],

@@ -38,6 +38,9 @@ pub enum Executor {
     Cpu {
         levels: Vec<Vec<u32>>,
         table: Vec<u32>,
+        /// Per level, the correction's derived tables, built at the level's first sub-pass and
+        /// kept for the executor's life (a warm cut session reuses them).
+        prepared: Vec<std::sync::OnceLock<crate::cpu::correct::Prepared>>,
     },
     Gpu(Box<GpuSynth>),
 }
@@ -48,6 +51,7 @@ impl Executor {
             Compute::Cpu => Executor::Cpu {
                 levels: packs.iter().map(|p| p.words.clone()).collect(),
                 table: table.to_vec(),
+                prepared: packs.iter().map(|_| Default::default()).collect(),
             },
             Compute::Gpu(ctx) => Executor::Gpu(Box::new(GpuSynth::new(ctx.clone(), packs, table)?)),
         })
@@ -87,7 +91,7 @@ impl Executor {
 
     pub fn init(&mut self, level: usize, p: &InitParams, index: &IndexBuf) -> Result<State> {
         match self {
-            Executor::Cpu { levels, table } => Ok(State::Cpu(crate::cpu::init::init(
+            Executor::Cpu { levels, table, .. } => Ok(State::Cpu(crate::cpu::init::init(
                 p,
                 table,
                 &levels[level],
@@ -124,8 +128,19 @@ impl Executor {
         index: &IndexBuf,
     ) -> Result<()> {
         match (self, state) {
-            (Executor::Cpu { levels, .. }, State::Cpu(v)) => {
-                let updates = crate::cpu::correct::correct(p, &levels[level], v, index.cpu());
+            (Executor::Cpu {
+                levels, prepared, ..
+            }, State::Cpu(v)) => {
+                use crate::cpu::correct::{correct_prepared, Prepared};
+                let data = &levels[level];
+                let mut prep = prepared[level].get_or_init(|| Prepared::new(p, data));
+                // (A pack's layout does not change between sub-passes; rebuilt if it ever did.)
+                let rebuilt;
+                if !prep.fits(p) {
+                    rebuilt = Prepared::new(p, data);
+                    prep = &rebuilt;
+                }
+                let updates = correct_prepared(prep, p, data, v, index.cpu());
                 crate::cpu::correct::apply(p, &levels[level], v, &updates);
                 Ok(())
             }
