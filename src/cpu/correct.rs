@@ -38,6 +38,16 @@ struct Candidate2d {
     projection: [u8; MAX_TABLE_PCA_OUT],
 }
 
+/// A 3D candidate of a pixel of E_a (a triple whose a coordinate is that pixel) with copies of
+/// the stored projections of its two other coordinates, E_{a+1}'s and E_{a+2}'s: what scoring
+/// it needs besides the pixel's own distance, in one contiguous run per pixel.
+#[derive(Clone, Copy)]
+struct Candidate3d {
+    triple: [u32; 3],
+    next: [u8; MAX_TABLE_PCA_OUT],
+    last: [u8; MAX_TABLE_PCA_OUT],
+}
+
 /// Longest projection [`Candidate2d`] holds (the analysis keeps 8 or 12); longer ones are read
 /// from the level data directly.
 const MAX_TABLE_PCA_OUT: usize = 12;
@@ -438,6 +448,35 @@ impl Ctx<'_> {
             let pixel = y as u32 * p.ex_width + x as u32;
             let count = self.level[([p.counts0, p.counts1, p.counts2][set] + pixel) as usize]
                 .min(p.k3d_used);
+            if let Some(table) = self.prepared.candidates_3d.get(set) {
+                // The same scores from the table: the triple's coordinates after the own one
+                // (rotated into place for a shared set) are those of `next` and `last`.
+                let used = p.k3d_used as usize;
+                let run = &table[pixel as usize * used..][..count as usize];
+                let k = p.pca_out as usize;
+                for e in run {
+                    let d = own
+                        + match k {
+                            8 => {
+                                squared_distance::<8>(&q[b], &e.next[..8])
+                                    + squared_distance::<8>(&q[c], &e.last[..8])
+                            }
+                            _ => {
+                                squared_distance::<12>(&q[b], &e.next[..12])
+                                    + squared_distance::<12>(&q[c], &e.last[..12])
+                            }
+                        };
+                    if d < best_d {
+                        best_d = d;
+                        best = if p.shared_sets != 0 {
+                            rotate_from_shared(e.triple, a)
+                        } else {
+                            e.triple
+                        };
+                    }
+                }
+                continue;
+            }
             let list = [p.cand3d0, p.cand3d1, p.cand3d2][set] + pixel * p.k3d_stride * 3;
             for j in 0..count {
                 let e = (list + j * 3) as usize;
@@ -567,7 +606,7 @@ pub fn correct(p: &CorrectParams, level: &[u32], state: &[u32], bricks: &[u32]) 
 /// it once per level ([`correct_prepared`]).
 pub struct Prepared {
     /// The parameters it was built from (the level-data offsets and sizes it depends on).
-    key: [u32; 16],
+    key: [u32; 25],
     /// Per exemplar: the PCA weights transposed to input-major (input_dims x MAX_PCA_OUT, zero
     /// padded) and the mean, so the inner loop is contiguous. Integer sums do not depend on the
     /// order of accumulation, so the results equal the shader's bit for bit.
@@ -578,15 +617,91 @@ pub struct Prepared {
     candidates_2d_of: [Option<usize>; 3],
     /// `k2d` [`Candidate2d`] per exemplar pixel, row-major.
     candidates_2d: Vec<Vec<Candidate2d>>,
+    /// Per candidate set (one when shared), `k3d_used` [`Candidate3d`] per pixel (slots past
+    /// the pixel's count unused); empty when the projections are too long, or a shared set's
+    /// exemplars do not share their projections.
+    candidates_3d: Vec<Vec<Candidate3d>>,
 }
 
 impl Prepared {
-    fn key(p: &CorrectParams) -> [u32; 16] {
+    fn key(p: &CorrectParams) -> [u32; 25] {
         [
-            p.weights0, p.weights1, p.weights2, p.mean0, p.mean1, p.mean2, p.cand2d0, p.cand2d1,
-            p.cand2d2, p.proj0, p.proj1, p.proj2, p.pca_in, p.pca_out, p.k2d,
-            p.ex_width ^ p.ex_height.rotate_left(16) ^ p.proj_words.rotate_left(8),
+            p.weights0,
+            p.weights1,
+            p.weights2,
+            p.mean0,
+            p.mean1,
+            p.mean2,
+            p.cand2d0,
+            p.cand2d1,
+            p.cand2d2,
+            p.proj0,
+            p.proj1,
+            p.proj2,
+            p.pca_in,
+            p.pca_out,
+            p.k2d,
+            p.ex_width,
+            p.ex_height,
+            p.proj_words,
+            p.counts0,
+            p.counts1,
+            p.counts2,
+            p.cand3d0,
+            p.cand3d1,
+            p.cand3d2,
+            p.k3d_used ^ (p.k3d_stride << 8) ^ (p.shared_sets << 16),
         ]
+    }
+
+    /// The [`Candidate3d`] tables (see the field).
+    fn candidates_3d(p: &CorrectParams, level: &[u32]) -> Vec<Vec<Candidate3d>> {
+        let k = p.pca_out as usize;
+        let proj = [p.proj0, p.proj1, p.proj2];
+        if !matches!(k, 8 | 12)
+            || (p.shared_sets != 0 && (proj[1] != proj[0] || proj[2] != proj[0]))
+        {
+            return Vec::new();
+        }
+        let level_bytes: &[u8] = bytemuck::cast_slice(level);
+        let projection = |e: usize, c: u32| {
+            let (x, y) = coord(c);
+            let base = (proj[e] + (y as u32 * p.ex_width + x as u32) * p.proj_words) as usize * 4;
+            let mut out = [0u8; MAX_TABLE_PCA_OUT];
+            out[..k].copy_from_slice(&level_bytes[base..base + k]);
+            out
+        };
+        let used = p.k3d_used as usize;
+        let sets = if p.shared_sets != 0 { 1 } else { 3 };
+        (0..sets)
+            .map(|set| {
+                let counts = [p.counts0, p.counts1, p.counts2][set] as usize;
+                let list = [p.cand3d0, p.cand3d1, p.cand3d2][set] as usize;
+                let (next, last) = ((set + 1) % 3, (set + 2) % 3);
+                (0..(p.ex_width * p.ex_height) as usize)
+                    .into_par_iter()
+                    .flat_map_iter(|pixel| {
+                        let count = (level[counts + pixel] as usize).min(used);
+                        (0..used).map(move |j| {
+                            if j >= count {
+                                return Candidate3d {
+                                    triple: [0; 3],
+                                    next: [0; MAX_TABLE_PCA_OUT],
+                                    last: [0; MAX_TABLE_PCA_OUT],
+                                };
+                            }
+                            let e = list + (pixel * p.k3d_stride as usize + j) * 3;
+                            let triple = [level[e], level[e + 1], level[e + 2]];
+                            Candidate3d {
+                                triple,
+                                next: projection(next, triple[next]),
+                                last: projection(last, triple[last]),
+                            }
+                        })
+                    })
+                    .collect()
+            })
+            .collect()
     }
 
     pub fn new(p: &CorrectParams, level: &[u32]) -> Prepared {
@@ -602,7 +717,13 @@ impl Prepared {
                     t[i * MAX_PCA_OUT + j] = level[w0 + j * d + i] as i32;
                 }
             }
-            (t, level[m0..m0 + d].iter().map(|&m| m as i32).collect::<Vec<i32>>())
+            (
+                t,
+                level[m0..m0 + d]
+                    .iter()
+                    .map(|&m| m as i32)
+                    .collect::<Vec<i32>>(),
+            )
         };
         let (t0, m0) = transpose(0);
         let (t1, m1) = transpose(1);
@@ -628,9 +749,8 @@ impl Prepared {
                     .par_iter()
                     .map(|&c| {
                         let (x, y) = coord(c);
-                        let base = (proj + (y as u32 * p.ex_width + x as u32) * p.proj_words)
-                            as usize
-                            * 4;
+                        let base =
+                            (proj + (y as u32 * p.ex_width + x as u32) * p.proj_words) as usize * 4;
                         let mut projection = [0u8; MAX_TABLE_PCA_OUT];
                         projection[..k].copy_from_slice(&level_bytes[base..base + k]);
                         Candidate2d {
@@ -650,6 +770,7 @@ impl Prepared {
             means: [m0, m1, m2],
             candidates_2d_of,
             candidates_2d,
+            candidates_3d: Self::candidates_3d(p, level),
         }
     }
 

@@ -128,9 +128,12 @@ impl Executor {
         index: &IndexBuf,
     ) -> Result<()> {
         match (self, state) {
-            (Executor::Cpu {
-                levels, prepared, ..
-            }, State::Cpu(v)) => {
+            (
+                Executor::Cpu {
+                    levels, prepared, ..
+                },
+                State::Cpu(v),
+            ) => {
                 use crate::cpu::correct::{correct_prepared, Prepared};
                 let data = &levels[level];
                 let mut prep = prepared[level].get_or_init(|| Prepared::new(p, data));
