@@ -61,45 +61,57 @@ trait Neighbours {
     fn word(&self, pos: [i32; 3], w: usize) -> u32;
 }
 
-/// Edge of a [`Window`]: a brick (4) and the 2 voxels on each side that the projection planes
-/// of its voxels reach.
+/// Edge of a [`Window`] along y and z: a brick (4) and the 2 voxels on each side that the
+/// projection planes of its voxels reach.
 const WINDOW: i32 = 8;
+/// Most bricks in one window: a run of bricks consecutive along x shares one window, so the
+/// voxels between them are copied once, not once per brick.
+const MAX_RUN: i32 = 8;
+/// The window's row length (x): the run's bricks and 2 voxels on each side.
+const ROW: i32 = 4 * MAX_RUN + 4;
+const WINDOW_VOXELS: usize = (WINDOW * WINDOW * ROW) as usize;
 
-/// The triples and value words around one brick, copied from the state a row segment at a time:
-/// its 8 voxels of a class then read their ~100 neighbours each without a brick-index lookup.
-/// Only for one value word per voxel, and periods that are whole bricks.
+/// The triples and value words around a run of bricks along x, copied from the state a row
+/// segment at a time: their voxels of a class then read their ~100 neighbours each without a
+/// brick-index lookup. Only for one value word per voxel, and periods that are whole bricks.
 struct Window {
     origin: [i32; 3],
-    values: [u32; 512],
-    triples: [[u32; 3]; 512],
+    values: [u32; WINDOW_VOXELS],
+    triples: [[u32; 3]; WINDOW_VOXELS],
 }
 
 impl Window {
     fn new() -> Window {
         Window {
             origin: [0; 3],
-            values: [0; 512],
-            triples: [[0; 3]; 512],
+            values: [0; WINDOW_VOXELS],
+            triples: [[0; 3]; WINDOW_VOXELS],
         }
     }
 
     #[inline(always)]
     fn slot(&self, pos: [i32; 3]) -> usize {
         let d = [0, 1, 2].map(|i| pos[i] - self.origin[i]);
-        debug_assert!(d.iter().all(|v| (0..WINDOW).contains(v)), "{pos:?} outside");
-        ((d[2] * WINDOW + d[1]) * WINDOW + d[0]) as usize
+        debug_assert!(
+            (0..ROW).contains(&d[0]) && (0..WINDOW).contains(&d[1]) && (0..WINDOW).contains(&d[2]),
+            "{pos:?} outside"
+        );
+        ((d[2] * WINDOW + d[1]) * ROW + d[0]) as usize
     }
 
-    /// Copy from the state what the corrections of brick `b`'s voxels of class `class` read,
-    /// a row segment per index lookup (in a brick, x-consecutive voxels are consecutive in the
-    /// state). The rest of the window is stale and never read.
+    /// Copy from the state what the corrections of the voxels of class `class` in the `n`
+    /// bricks from `b` along x read, a row segment per index lookup (in a brick,
+    /// x-consecutive voxels are consecutive in the state). The rest of the window is stale and
+    /// never read.
     ///
-    /// What is read (window coordinates; class voxels at c + 2 and c + 4 along each axis, c
-    /// the class): values on the voxels' three planes within 2, triples within 1. So a row
-    /// (y, z) is read along x from c_x to c_x + 6 when y or z is a class coordinate (and the
-    /// other within reach), only at c_x + 2 and c_x + 4 when both are merely within reach,
+    /// What is read (window coordinates; a brick's class voxels at c + 2 and c + 4 along each
+    /// axis plus 4 per brick along x, c the class): values on the voxels' three planes within
+    /// 2, triples within 1. So a row (y, z) is read along x from c_x to c_x + 4 (n - 1) + 6
+    /// when y or z is a class coordinate (and the other within reach), only at the voxels'
+    /// own x when both are merely within reach (copied from c_x + 2 to c_x + 4 (n - 1) + 4),
     /// else not at all; its triples where the same holds with reach 1.
-    fn fill(&mut self, ctx: &Ctx, b: [i32; 3], class: [i32; 3]) {
+    fn fill(&mut self, ctx: &Ctx, b: [i32; 3], n: i32, class: [i32; 3]) {
+        debug_assert!((1..=MAX_RUN).contains(&n));
         self.origin = b.map(|v| v * 4 - 2);
         // A triple and one value word per voxel.
         const STRIDE: usize = 4;
@@ -107,6 +119,7 @@ impl Window {
         let on = |v: i32, c: i32| v == c + 2 || v == c + 4;
         let near = |v: i32, c: i32, reach: i32| (c + 2 - reach..=c + 4 + reach).contains(&v);
         let [cx, cy, cz] = class;
+        let span = 4 * (n - 1);
         // Debug builds poison the window, so a read of a position not filled shows up as a
         // difference from the shader in the kernels-tests.
         #[cfg(debug_assertions)]
@@ -124,27 +137,20 @@ impl Window {
                 let (full, pair) = reads(2);
                 let (full1, pair1) = reads(1);
                 let xs = if full {
-                    cx..cx + 7
+                    cx..cx + span + 7
                 } else if pair {
-                    cx + 2..cx + 5
+                    cx + 2..cx + span + 5
                 } else {
                     continue;
                 };
                 let with_triples = full1 || pair1;
-                // Split at the brick edges (window x 2 and 6).
+                // Split at the brick edges (window x 2, 6, 10, ...).
                 let mut x0 = xs.start;
                 while x0 < xs.end {
-                    let x1 = xs.end.min(if x0 < 2 {
-                        2
-                    } else if x0 < 6 {
-                        6
-                    } else {
-                        WINDOW
-                    });
-                    let (row, len) = (
-                        ((z * WINDOW + y) * WINDOW + x0) as usize,
-                        (x1 - x0) as usize,
-                    );
+                    let edge = if x0 < 2 { 2 } else { x0 + 4 - (x0 - 2) % 4 };
+                    let x1 = xs.end.min(edge);
+                    let row = ((z * WINDOW + y) * ROW + x0) as usize;
+                    let len = (x1 - x0) as usize;
                     let pos = [self.origin[0] + x0, self.origin[1] + y, self.origin[2] + z];
                     match ctx.state_index(pos) {
                         None => {
@@ -496,72 +502,78 @@ impl Ctx<'_> {
 }
 
 impl Ctx<'_> {
-    /// Correct the voxels of brick `i` of the sub-pass list that `mask` marks (bit k: class
-    /// voxel k), appending (state index, new triple).
+    /// Correct the voxels the sub-pass's masks mark (bit k: class voxel k) in the run of `n`
+    /// bricks from entry `i` of its list (consecutive along x), appending (state index, new
+    /// triple).
     #[inline(always)]
-    fn correct_brick(
-        &self,
-        window: &mut Window,
-        i: u32,
-        mask: u32,
-        out: &mut Vec<(u32, [u32; 3])>,
-    ) {
+    fn correct_run(&self, window: &mut Window, i: u32, n: u32, out: &mut Vec<(u32, [u32; 3])>) {
         let p = self.p;
-        let b = brick_at(self.bricks, p.list_offset, i);
-        // A window costs ~200 index lookups and a 3 KiB copy; a voxel read through the index
-        // ~100 lookups. (The same values either way.)
-        let windowed = p.pixel_words == 1 && p.period % 4 == 0 && mask.count_ones() >= 3;
+        let first = brick_at(self.bricks, p.list_offset, i);
+        // A window costs ~100 index lookups and a few KiB copied per brick; a voxel read through
+        // the index ~100 lookups. (The same values either way.)
+        let windowed =
+            p.pixel_words == 1 && p.period % 4 == 0 && (n > 1 || self.mask(i).count_ones() >= 3);
         let class = [p.class_x as i32, p.class_y as i32, p.class_z as i32];
         if windowed {
-            window.fill(self, b, class);
+            window.fill(self, first, n as i32, class);
         }
-        for k in 0..8 {
-            if (mask >> k) & 1 == 0 {
-                continue;
+        for m in 0..n {
+            let mask = self.mask(i + m);
+            let b = [first[0] + m as i32, first[1], first[2]];
+            for k in 0..8 {
+                if (mask >> k) & 1 == 0 {
+                    continue;
+                }
+                let pos = [
+                    b[0] * 4 + class[0] + 2 * (k & 1),
+                    b[1] * 4 + class[1] + 2 * ((k >> 1) & 1),
+                    b[2] * 4 + class[2] + 2 * (k >> 2),
+                ];
+                let index = self.state_index(pos).expect("active bricks are stored");
+                let t = if windowed {
+                    self.correct_voxel(window, pos)
+                } else {
+                    self.correct_voxel(self, pos)
+                };
+                out.push((index as u32, t));
             }
-            let pos = [
-                b[0] * 4 + class[0] + 2 * (k & 1),
-                b[1] * 4 + class[1] + 2 * ((k >> 1) & 1),
-                b[2] * 4 + class[2] + 2 * (k >> 2),
-            ];
-            let index = self.state_index(pos).expect("active bricks are stored");
-            let t = if windowed {
-                self.correct_voxel(window, pos)
-            } else {
-                self.correct_voxel(self, pos)
-            };
-            out.push((index as u32, t));
         }
     }
 
-    /// [`Ctx::correct_brick`], compiled for AVX2 when the CPU has it (detected at run time):
+    /// The sub-pass's mask of list entry `i`: bit k for class voxel k.
+    #[inline(always)]
+    fn mask(&self, i: u32) -> u32 {
+        (self.bricks[(self.p.mask_offset + i / 4) as usize] >> ((i % 4) * 8)) & 0xFF
+    }
+
+    /// [`Ctx::correct_run`], compiled for AVX2 when the CPU has it (detected at run time):
     /// the projections' 8-wide integer multiply-adds then take one instruction. Integer
     /// arithmetic: the same result either way.
-    fn correct_brick_dispatch(
+    fn correct_run_dispatch(
         &self,
         window: &mut Window,
         i: u32,
-        mask: u32,
+        n: u32,
         out: &mut Vec<(u32, [u32; 3])>,
     ) {
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the CPU supports AVX2 (checked just above).
-            return unsafe { self.correct_brick_avx2(window, i, mask, out) };
+            return unsafe { self.correct_run_avx2(window, i, n, out) };
         }
-        self.correct_brick(window, i, mask, out)
+        self.correct_run(window, i, n, out)
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    fn correct_brick_avx2(
+    fn correct_run_avx2(
         &self,
         window: &mut Window,
         i: u32,
-        mask: u32,
+        n: u32,
         out: &mut Vec<(u32, [u32; 3])>,
     ) {
-        self.correct_brick(window, i, mask, out)
+        self.correct_run(window, i, n, out)
     }
 }
 
@@ -803,17 +815,32 @@ pub fn correct_prepared(
         grid_lo: [p.grid_lo_x, p.grid_lo_y, p.grid_lo_z],
         grid_dims: [p.grid_x, p.grid_y, p.grid_z],
     };
-    // The sub-pass's mask: one byte per brick, bit k for class voxel k.
-    let mask = |i: u32| (bricks[(p.mask_offset + i / 4) as usize] >> ((i % 4) * 8)) & 0xFF;
-    let parts: Vec<Vec<(u32, [u32; 3])>> = (0..p.list_count)
+    // Runs of needed bricks consecutive along x (the list is sorted z, y, x), each one window.
+    let mut runs: Vec<(u32, u32)> = Vec::new();
+    let mut i = 0;
+    while i < p.list_count {
+        if ctx.mask(i) == 0 {
+            i += 1;
+            continue;
+        }
+        let first = brick_at(bricks, p.list_offset, i);
+        let mut n = 1;
+        while n < MAX_RUN as u32
+            && i + n < p.list_count
+            && ctx.mask(i + n) != 0
+            && brick_at(bricks, p.list_offset, i + n) == [first[0] + n as i32, first[1], first[2]]
+        {
+            n += 1;
+        }
+        runs.push((i, n));
+        i += n;
+    }
+    let parts: Vec<Vec<(u32, [u32; 3])>> = runs
         .into_par_iter()
         .fold(
             || (Box::new(Window::new()), Vec::new()),
-            |(mut window, mut out), i| {
-                let m = mask(i);
-                if m != 0 {
-                    ctx.correct_brick_dispatch(&mut window, i, m, &mut out);
-                }
+            |(mut window, mut out), (i, n)| {
+                ctx.correct_run_dispatch(&mut window, i, n, &mut out);
                 (window, out)
             },
         )
