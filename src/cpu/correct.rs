@@ -19,7 +19,7 @@
 //! a value it produced (the GPU ping-pongs two buffers for the same reason).
 //!
 //! Same results as the shader, organised for a CPU: voxels are corrected a run of bricks at a
-//! time from a [`Window`] copied out of the state, and candidates are scored from per-level
+//! time from a `Window` copied out of the state, and candidates are scored from per-level
 //! tables ([`Prepared`]) that hold their projections contiguously.
 
 use super::synth_common::{brick_at, coord, pack_resolved, voxel_index, write_voxel};
