@@ -64,6 +64,54 @@ fn exact_plane_is_kept(axis: usize) {
     // Every class voxel of every listed brick is needed.
     let masks = index.len() as u32;
     index.extend(std::iter::repeat_n(u32::MAX, interior.len().div_ceil(4)));
+    // The CPU reference scores candidates from per-level tables, or (exemplars too large for
+    // them) from the level data directly: the same updates, on scrambled triples, in both modes.
+    let mut scrambled = state.clone();
+    for (v, voxel) in scrambled.chunks_exact_mut(stride).enumerate() {
+        let t = [0, 1, 2].map(|a| {
+            let r = (v as u32)
+                .wrapping_mul(2_654_435_761)
+                .rotate_left(7 * a as u32 + 3);
+            solidsynth::analysis::frame::pack(r % w, (r >> 16) % h)
+        });
+        solidsynth::cpu::synth_common::write_voxel(
+            voxel,
+            &pack.words,
+            t,
+            o.pixels,
+            w,
+            pack.pixel_words,
+            pack.channels,
+        );
+    }
+    for mode in [CandidateMode::TwoD, CandidateMode::ThreeD] {
+        let p = solidsynth::kernel_types::CorrectParams {
+            mask_offset: masks,
+            ..solidsynth::lazy::correct_params(
+                &pack,
+                &grid,
+                (list, interior.len() as u32),
+                3,
+                4,
+                0,
+                mode,
+            )
+        };
+        use solidsynth::cpu::correct::{correct, correct_prepared, Prepared};
+        let direct = Prepared::new(&p, &pack.words).without_tables();
+        let with_tables: Vec<_> = correct(&p, &pack.words, &scrambled, &index)
+            .iter()
+            .collect();
+        let without: Vec<_> = correct_prepared(&direct, &p, &pack.words, &scrambled, &index)
+            .iter()
+            .collect();
+        assert_eq!(with_tables, without, "{mode:?}: tables change the result");
+        let moved = with_tables
+            .iter()
+            .filter(|(i, t)| t[..] != scrambled[i * stride..i * stride + 3])
+            .count();
+        assert!(moved > 0, "{mode:?}: the search changed nothing");
+    }
     // 2D mode: exemplar `axis`'s own search decides its coordinate.
     for class in [0, 5] {
         let p = solidsynth::lazy::correct_params(

@@ -52,6 +52,11 @@ struct Candidate3d {
     last: [u8; MAX_TABLE_PCA_OUT],
 }
 
+/// Largest candidate table (bytes) built for one level; beyond it (large exemplars) the
+/// candidates are scored from the level data directly, with the same results. A 256^2 exemplar's
+/// tables fit; three 512^2 exemplars' would add ~270 MB.
+const MAX_TABLE_BYTES: usize = 32 << 20;
+
 /// Longest projection [`Candidate2d`] holds (the analysis keeps 8 or 12); longer ones are read
 /// from the level data directly.
 const MAX_TABLE_PCA_OUT: usize = 12;
@@ -629,7 +634,7 @@ pub struct Prepared {
     weights_t: [Vec<i32>; 3],
     means: [Vec<i32>; 3],
     /// Per exemplar, an index into `candidates_2d` (exemplars sharing their lists share a table),
-    /// or None when the projections are too long for [`Candidate2d`].
+    /// or None when the projections are too long for [`Candidate2d`] or the tables too large.
     candidates_2d_of: [Option<usize>; 3],
     /// `k2d` [`Candidate2d`] per exemplar pixel, row-major.
     candidates_2d: Vec<Vec<Candidate2d>>,
@@ -674,7 +679,12 @@ impl Prepared {
     fn candidates_3d(p: &CorrectParams, level: &[u32]) -> Vec<Vec<Candidate3d>> {
         let k = p.pca_out as usize;
         let proj = [p.proj0, p.proj1, p.proj2];
+        let sets = if p.shared_sets != 0 { 1 } else { 3 };
+        let bytes = sets
+            * (p.ex_width * p.ex_height * p.k3d_used) as usize
+            * std::mem::size_of::<Candidate3d>();
         if !matches!(k, 8 | 12)
+            || bytes > MAX_TABLE_BYTES
             || (p.shared_sets != 0 && (proj[1] != proj[0] || proj[2] != proj[0]))
         {
             return Vec::new();
@@ -688,7 +698,6 @@ impl Prepared {
             out
         };
         let used = p.k3d_used as usize;
-        let sets = if p.shared_sets != 0 { 1 } else { 3 };
         (0..sets)
             .map(|set| {
                 let counts = [p.counts0, p.counts1, p.counts2][set] as usize;
@@ -750,7 +759,9 @@ impl Prepared {
         let mut candidates_2d_of = [None; 3];
         let mut built: Vec<(u32, u32)> = Vec::new();
         let k = p.pca_out as usize;
-        if matches!(k, 8 | 12) {
+        let table_bytes =
+            (p.ex_width * p.ex_height * p.k2d) as usize * std::mem::size_of::<Candidate2d>();
+        if matches!(k, 8 | 12) && 3 * table_bytes <= MAX_TABLE_BYTES {
             for a in 0..3 {
                 let (list, proj) = (
                     [p.cand2d0, p.cand2d1, p.cand2d2][a],
@@ -788,6 +799,15 @@ impl Prepared {
             candidates_2d,
             candidates_3d: Self::candidates_3d(p, level),
         }
+    }
+
+    /// Without the candidate tables: every candidate scored from the level data directly, as
+    /// for exemplars too large for the tables (the same results; tests compare the two).
+    pub fn without_tables(mut self) -> Prepared {
+        self.candidates_2d_of = [None; 3];
+        self.candidates_2d.clear();
+        self.candidates_3d.clear();
+        self
     }
 
     /// Whether it was built for a level laid out as `p` says.
