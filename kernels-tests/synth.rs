@@ -30,13 +30,21 @@ fn analysis(three: bool, border: Border) -> Analysis {
         border,
         names,
     };
-    analysis::analyze(
+    let a = analysis::analyze(
         &input,
         &AnalysisParams::default(),
         &Compute::Cpu,
         &|_, _| {},
     )
-    .unwrap()
+    .unwrap();
+    // The default analysis balances usage: the kernels then scale distances by penalties.
+    assert!(
+        a.exemplars
+            .iter()
+            .all(|e| e.levels.iter().any(|l| l.penalty.iter().any(|&p| p > 0))),
+        "the kernels must be tested with usage penalties"
+    );
+    a
 }
 
 /// Whole box syntheses run every kernel in sequence (init, upsample, 8 sub-passes x passes per

@@ -117,6 +117,20 @@ fn distance(q: ptr<function, array<i32, MAX_PCA_OUT>>, a: u32, c: u32) -> u32 {
     return d;
 }
 
+// Usage penalty of pixel c of E_a in sixteenths (analysis::balance): one word per pixel right
+// after E_a's pixels in the level data (lazy::pack).
+fn penalty(a: u32, c: u32) -> u32 {
+    let pixels = select(select(params.pixels2, params.pixels1, a == 1u), params.pixels0, a == 0u);
+    let table = pixels + params.ex_width * params.ex_height * params.pixel_words;
+    return level[table + u32(coord_y(c)) * params.ex_width + u32(coord_x(c))];
+}
+
+// The scale of a triple's distance: 16 + the penalties of its three pixels (the scaled
+// distance stays below 2^32: at most 3 x 12 x 255^2 x (16 + 3 x 255)).
+fn factor(t: vec3<u32>) -> u32 {
+    return 16u + penalty(0u, t.x) + penalty(1u, t.y) + penalty(2u, t.z);
+}
+
 fn best_2d(pos: vec3<i32>, a: u32, q: ptr<function, array<i32, MAX_PCA_OUT>>) -> u32 {
     let eu = axis((a + 1u) % 3u);
     let ev = axis((a + 2u) % 3u);
@@ -135,7 +149,7 @@ fn best_2d(pos: vec3<i32>, a: u32, q: ptr<function, array<i32, MAX_PCA_OUT>>) ->
             let list = cand2d + (u32(coord_y(src)) * params.ex_width + u32(coord_x(src))) * params.k2d;
             for (var j = 0u; j < K2D; j++) {
                 let cand = level[list + j];
-                let d = distance(q, a, cand);
+                let d = distance(q, a, cand) * (16u + penalty(a, cand));
                 if (d < best_d) {
                     best_d = d;
                     best = cand;
@@ -181,7 +195,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     var best = best2d;
     if (params.mode == 0u) {
         best = triple(pos);
-        var best_d = distance(&q0, 0u, best.x) + distance(&q1, 1u, best.y) + distance(&q2, 2u, best.z);
+        var best_d = (distance(&q0, 0u, best.x) + distance(&q1, 1u, best.y) + distance(&q2, 2u, best.z)) * factor(best);
         for (var a = 0u; a < 3u; a++) {
             var owner = a;
             if (params.shared_sets != 0u) {
@@ -218,6 +232,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
                 if (a != 2u) {
                     d += distance(&q2, 2u, t.z);
                 }
+                d *= factor(t);
                 if (d < best_d) {
                     best_d = d;
                     best = t;

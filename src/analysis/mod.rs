@@ -2,6 +2,7 @@
 //! 2D candidates, crossbar-consistent and coherence-filtered 3D candidates, and candidate slabs.
 //! Everything synthesis needs, persisted by `io::ssa`.
 
+pub mod balance;
 pub mod coherence;
 pub mod crossbar;
 pub mod frame;
@@ -38,6 +39,11 @@ pub struct AnalysisParams {
     pub max_filter_rounds: u32,
     /// Weight of the feature-distance channel relative to a colour channel.
     pub feature_weight: f32,
+    /// Usage-balancing rounds ([`balance`]): calibration syntheses that find the exemplar
+    /// pixels the correction over-uses. 0 keeps the paper's unmodified search.
+    pub balance_rounds: u32,
+    /// How strongly an over-used pixel is penalized ([`balance`]).
+    pub balance_strength: f32,
 }
 
 impl Default for AnalysisParams {
@@ -50,6 +56,8 @@ impl Default for AnalysisParams {
             max_3d: 12,
             max_filter_rounds: 4,
             feature_weight: 1.0,
+            balance_rounds: balance::DEFAULT_ROUNDS,
+            balance_strength: 1.0,
         }
     }
 }
@@ -75,6 +83,18 @@ impl AnalysisParams {
             return Err(Error::invalid(
                 "--feature-weight",
                 "must be a number in 0..=16",
+            ));
+        }
+        if self.balance_rounds > balance::MAX_ROUNDS {
+            return Err(Error::invalid(
+                "--balance-rounds",
+                format!("must be 0..={}", balance::MAX_ROUNDS),
+            ));
+        }
+        if !(self.balance_strength.is_finite() && (0.0..=8.0).contains(&self.balance_strength)) {
+            return Err(Error::invalid(
+                "--balance-strength",
+                "must be a number in 0..=8",
             ));
         }
         Ok(())
@@ -120,6 +140,9 @@ pub struct LevelData {
     /// The slab triple of each pixel: its first 3D candidate, or its best crossbar triple when
     /// the filter left it none.
     pub slab: Vec<[u32; 3]>,
+    /// Usage penalty of each pixel, in sixteenths ([`balance`]): the correction scales a
+    /// candidate's distance by (16 + its pixels' penalties) / 16. All zero without balancing.
+    pub penalty: Vec<u8>,
     pub stats: LevelStats,
 }
 
@@ -275,8 +298,9 @@ pub fn analyze(
 
     let mut per_exemplar: Vec<Vec<LevelData>> = vec![Vec::new(); pyramids.len()];
     for level in 0..ANALYSED_LEVELS {
-        let base = level as f32 / ANALYSED_LEVELS as f32;
-        let step = 1.0 / ANALYSED_LEVELS as f32;
+        // The last tenth of the progress is the usage balancing.
+        let base = 0.9 * level as f32 / ANALYSED_LEVELS as f32;
+        let step = 0.9 / ANALYSED_LEVELS as f32;
         let say = |what: &str, f: f32| progress(&format!("level {level}: {what}"), base + step * f);
         let images: Vec<&Image> = pyramids.iter().map(|p| &p[level]).collect();
 
@@ -371,6 +395,7 @@ pub fn analyze(
         for (i, (basis, projected, candidates_2d)) in partial.into_iter().enumerate() {
             let (candidates_3d, counts_3d, slab, stats) = results[i].clone();
             per_exemplar[i].push(LevelData {
+                penalty: vec![0; images[i].pixel_count()],
                 image: images[i].clone(),
                 pca: basis,
                 projected,
@@ -382,8 +407,7 @@ pub fn analyze(
             });
         }
     }
-    progress("done", 1.0);
-    Ok(Analysis {
+    let mut analysis = Analysis {
         params: params.clone(),
         border,
         color_channels,
@@ -393,7 +417,12 @@ pub fn analyze(
             .into_iter()
             .map(|levels| ExemplarData { levels })
             .collect(),
-    })
+    };
+    balance::balance(&mut analysis, compute, &|stage, f| {
+        progress(&format!("usage balancing: {stage}"), 0.9 + 0.1 * f)
+    })?;
+    progress("done", 1.0);
+    Ok(analysis)
 }
 
 /// Candidate statistics of one exemplar's set at one level (for `inspect`, cf. Fig. 13).

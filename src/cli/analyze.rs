@@ -37,6 +37,14 @@ pub struct InputArgs {
     /// neighbourhood straddles the seam of a non-tileable image. The built-in exemplar tiles.
     #[arg(long)]
     pub periodic: bool,
+    /// Usage-balancing rounds of the analysis: small calibration solids that find the exemplar
+    /// pixels the correction over-uses, which it then penalizes (keeps photographs from washing
+    /// out to a few flat pixels). 0: the paper's unmodified search.
+    #[arg(long, default_value_t = solidsynth::analysis::balance::DEFAULT_ROUNDS)]
+    pub balance_rounds: u32,
+    /// Strength of the usage penalty (0..=8).
+    #[arg(long, default_value_t = 1.0)]
+    pub balance_strength: f32,
     #[command(flatten)]
     pub backend: super::BackendArgs,
 }
@@ -101,6 +109,8 @@ impl InputArgs {
         }
         let params = AnalysisParams {
             feature_weight: self.feature_weight,
+            balance_rounds: self.balance_rounds,
+            balance_strength: self.balance_strength,
             ..Default::default()
         };
         Ok((
@@ -127,6 +137,13 @@ pub fn load_or_analyze(
             return Err(Error::invalid(
                 "--ey/--feature-mask",
                 "are analysis inputs; an .ssa file already holds them",
+            ));
+        }
+        if args.balance_rounds != analysis::balance::DEFAULT_ROUNDS || args.balance_strength != 1.0
+        {
+            return Err(Error::invalid(
+                "--balance-rounds/--balance-strength",
+                "are analysis parameters; an .ssa file already holds them",
             ));
         }
         return ssa::load(args.input.as_ref().unwrap());

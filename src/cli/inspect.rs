@@ -46,13 +46,16 @@ pub fn run(args: InspectArgs) -> anyhow::Result<()> {
             "three exemplars"
         },
     ));
-    table.push_str("level  size       exemplar  PCA dims  energy  3D cand. mean  min  max  none   best CB  rounds\n");
+    table.push_str("level  size       exemplar  PCA dims  energy  3D cand. mean  min  max  none   best CB  rounds  penalized  max pen.\n");
     for level in 0..a.level_count() {
         for ax in 0..axes {
             let l = &a.exemplar(ax).levels[level];
             let s = candidate_stats(&a, ax, level);
+            let penalized =
+                l.penalty.iter().filter(|&&p| p > 0).count() as f64 / l.penalty.len().max(1) as f64;
+            let max_penalty = l.penalty.iter().copied().max().unwrap_or(0);
             table.push_str(&format!(
-                "{:<6} {:<10} {:<9} {:>8}  {:>5.1}%  {:>13.2}  {:>3}  {:>3}  {:>4}  {:>8.0}  {:>6}\n",
+                "{:<6} {:<10} {:<9} {:>8}  {:>5.1}%  {:>13.2}  {:>3}  {:>3}  {:>4}  {:>8.0}  {:>6}  {:>8.1}%  {:>8}\n",
                 level,
                 format!("{}x{}", l.image.width, l.image.height),
                 ["x", "y", "z"][ax],
@@ -64,6 +67,8 @@ pub fn run(args: InspectArgs) -> anyhow::Result<()> {
                 s.pixels_without,
                 l.stats.mean_best_cb,
                 l.stats.filter_rounds,
+                100.0 * penalized,
+                max_penalty,
             ));
             let axis = ["x", "y", "z"][ax];
             levels_json.push(serde_json::json!({
@@ -73,6 +78,7 @@ pub fn run(args: InspectArgs) -> anyhow::Result<()> {
                 "candidates_3d": s, "k2d": a.params.k2d[level],
                 "mean_best_crossbar_error": l.stats.mean_best_cb,
                 "filter_rounds": l.stats.filter_rounds,
+                "penalized_fraction": penalized, "max_penalty_sixteenths": max_penalty,
             }));
         }
     }
@@ -89,6 +95,11 @@ pub fn run(args: InspectArgs) -> anyhow::Result<()> {
         print!("{table}");
         println!(
             "level 0 is the finest; 'none' = pixels left without 3D candidates (cf. paper Fig. 13)"
+        );
+        println!(
+            "usage balancing: {} rounds, strength {}; 'penalized' = pixels the correction \
+             over-used in calibration, 'max pen.' in sixteenths of a distance",
+            a.params.balance_rounds, a.params.balance_strength
         );
         println!(
             "candidate slab of Ex (rows: levels, columns: depth -2..2) -> {}",

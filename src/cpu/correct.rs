@@ -39,6 +39,8 @@ type Projection = [i16; MAX_PCA_OUT];
 #[derive(Clone, Copy)]
 struct Candidate2d {
     coord: u32,
+    /// 16 + the pixel's usage penalty: its distance's scale.
+    factor: u16,
     projection: [u8; MAX_TABLE_PCA_OUT],
 }
 
@@ -48,6 +50,8 @@ struct Candidate2d {
 #[derive(Clone, Copy)]
 struct Candidate3d {
     triple: [u32; 3],
+    /// 16 + the usage penalties of its three pixels: its distance's scale.
+    factor: u32,
     next: [u8; MAX_TABLE_PCA_OUT],
     last: [u8; MAX_TABLE_PCA_OUT],
 }
@@ -406,7 +410,7 @@ impl Ctx<'_> {
                         let d = match stored.len() {
                             8 => squared_distance::<8>(q, stored),
                             _ => squared_distance::<12>(q, stored),
-                        };
+                        } * c.factor as u32;
                         if d < best_d {
                             best_d = d;
                             best = c.coord;
@@ -417,7 +421,7 @@ impl Ctx<'_> {
                 let list = cand2d + pixel * p.k2d;
                 for j in 0..p.k2d {
                     let c = self.level[(list + j) as usize];
-                    let d = self.distance(q, a, c);
+                    let d = self.distance(q, a, c) * (16 + self.penalty(a, c));
                     if d < best_d {
                         best_d = d;
                         best = c;
@@ -429,10 +433,24 @@ impl Ctx<'_> {
     }
 
     #[inline(always)]
+    fn penalty(&self, a: usize, c: u32) -> u32 {
+        penalty(self.p, self.level, a, c)
+    }
+
+    /// The scale of a triple's distance: 16 + the penalties of its three pixels.
+    #[inline(always)]
+    fn factor(&self, t: [u32; 3]) -> u32 {
+        16 + self.penalty(0, t[0]) + self.penalty(1, t[1]) + self.penalty(2, t[2])
+    }
+
+    /// A triple's distance to the voxel's three plane projections, scaled by its usage
+    /// penalties (at most 3 x 12 x 255^2 x (16 + 3 x 255) < 2^32).
+    #[inline(always)]
     fn total_distance(&self, q: &[Projection; 3], t: [u32; 3]) -> u32 {
-        self.distance(&q[0], 0, t[0])
+        (self.distance(&q[0], 0, t[0])
             + self.distance(&q[1], 1, t[1])
-            + self.distance(&q[2], 2, t[2])
+            + self.distance(&q[2], 2, t[2]))
+            * self.factor(t)
     }
 
     #[inline(always)]
@@ -470,8 +488,8 @@ impl Ctx<'_> {
                 let run = &table[pixel as usize * used..][..count as usize];
                 let k = p.pca_out as usize;
                 for e in run {
-                    let d = own
-                        + match k {
+                    let d =
+                        (own + match k {
                             8 => {
                                 squared_distance::<8>(&q[b], &e.next[..8])
                                     + squared_distance::<8>(&q[c], &e.last[..8])
@@ -480,7 +498,7 @@ impl Ctx<'_> {
                                 squared_distance::<12>(&q[b], &e.next[..12])
                                     + squared_distance::<12>(&q[c], &e.last[..12])
                             }
-                        };
+                        }) * e.factor;
                     if d < best_d {
                         best_d = d;
                         best = if p.shared_sets != 0 {
@@ -499,7 +517,8 @@ impl Ctx<'_> {
                 if p.shared_sets != 0 {
                     t = rotate_from_shared(t, a);
                 }
-                let d = own + self.distance(&q[b], b, t[b]) + self.distance(&q[c], c, t[c]);
+                let d = (own + self.distance(&q[b], b, t[b]) + self.distance(&q[c], c, t[c]))
+                    * self.factor(t);
                 if d < best_d {
                     best_d = d;
                     best = t;
@@ -616,6 +635,16 @@ impl Updates {
     }
 }
 
+/// Usage penalty of pixel `c` of E_a (see `analysis::balance`), in sixteenths: the level data
+/// holds one word per pixel right after E_a's pixels (see `lazy::pack`).
+#[inline(always)]
+fn penalty(p: &CorrectParams, level: &[u32], a: usize, c: u32) -> u32 {
+    let (x, y) = coord(c);
+    let pixels = [p.pixels0, p.pixels1, p.pixels2][a];
+    let table = pixels + p.ex_width * p.ex_height * p.pixel_words;
+    level[(table + y as u32 * p.ex_width + x as u32) as usize]
+}
+
 /// Run one sub-pass: returns (state index, new triple) for every voxel of the class in the
 /// bricks of the list in `p`.
 pub fn correct(p: &CorrectParams, level: &[u32], state: &[u32], bricks: &[u32]) -> Updates {
@@ -627,7 +656,7 @@ pub fn correct(p: &CorrectParams, level: &[u32], state: &[u32], bricks: &[u32]) 
 /// it once per level ([`correct_prepared`]).
 pub struct Prepared {
     /// The parameters it was built from (the level-data offsets and sizes it depends on).
-    key: [u32; 25],
+    key: [u32; 29],
     /// Per exemplar: the PCA weights transposed to input-major (input_dims x MAX_PCA_OUT, zero
     /// padded) and the mean, so the inner loop is contiguous. Integer sums do not depend on the
     /// order of accumulation, so the results equal the shader's bit for bit.
@@ -645,7 +674,7 @@ pub struct Prepared {
 }
 
 impl Prepared {
-    fn key(p: &CorrectParams) -> [u32; 25] {
+    fn key(p: &CorrectParams) -> [u32; 29] {
         [
             p.weights0,
             p.weights1,
@@ -672,6 +701,11 @@ impl Prepared {
             p.cand3d1,
             p.cand3d2,
             p.k3d_used ^ (p.k3d_stride << 8) ^ (p.shared_sets << 16),
+            // The penalties follow the pixels (the candidate tables hold them).
+            p.pixels0,
+            p.pixels1,
+            p.pixels2,
+            p.pixel_words,
         ]
     }
 
@@ -711,6 +745,7 @@ impl Prepared {
                             if j >= count {
                                 return Candidate3d {
                                     triple: [0; 3],
+                                    factor: 0,
                                     next: [0; MAX_TABLE_PCA_OUT],
                                     last: [0; MAX_TABLE_PCA_OUT],
                                 };
@@ -719,6 +754,8 @@ impl Prepared {
                             let triple = [level[e], level[e + 1], level[e + 2]];
                             Candidate3d {
                                 triple,
+                                factor: 16
+                                    + (0..3).map(|e| penalty(p, level, e, triple[e])).sum::<u32>(),
                                 next: projection(next, triple[next]),
                                 last: projection(last, triple[last]),
                             }
@@ -757,7 +794,7 @@ impl Prepared {
         // Tables of the 2D candidates with their projections, one per distinct (list, projections).
         let mut candidates_2d: Vec<Vec<Candidate2d>> = Vec::new();
         let mut candidates_2d_of = [None; 3];
-        let mut built: Vec<(u32, u32)> = Vec::new();
+        let mut built: Vec<(u32, u32, u32)> = Vec::new();
         let k = p.pca_out as usize;
         let table_bytes =
             (p.ex_width * p.ex_height * p.k2d) as usize * std::mem::size_of::<Candidate2d>();
@@ -767,7 +804,8 @@ impl Prepared {
                     [p.cand2d0, p.cand2d1, p.cand2d2][a],
                     [p.proj0, p.proj1, p.proj2][a],
                 );
-                if let Some(i) = built.iter().position(|&b| b == (list, proj)) {
+                let pixels = [p.pixels0, p.pixels1, p.pixels2][a];
+                if let Some(i) = built.iter().position(|&b| b == (list, proj, pixels)) {
                     candidates_2d_of[a] = Some(i);
                     continue;
                 }
@@ -782,13 +820,14 @@ impl Prepared {
                         projection[..k].copy_from_slice(&level_bytes[base..base + k]);
                         Candidate2d {
                             coord: c,
+                            factor: (16 + penalty(p, level, a, c)) as u16,
                             projection,
                         }
                     })
                     .collect();
                 candidates_2d_of[a] = Some(candidates_2d.len());
                 candidates_2d.push(table);
-                built.push((list, proj));
+                built.push((list, proj, pixels));
             }
         }
         Prepared {

@@ -10,7 +10,7 @@
 //! 28  reserved u32      0
 //! 32  payload:
 //!   params     pca_dims[4] k2d[4] strips crossbar_keep max_3d max_filter_rounds (u32)
-//!              feature_weight (f32)
+//!              feature_weight (f32) balance_rounds (u32) balance_strength (f32)
 //!   header     border color_channels has_feature shared exemplar_count level_count (u32)
 //!   per exemplar (1 or 3), per level (finest first):
 //!     image    width height channels (u32), pixels (u8, padded to 4 bytes)
@@ -22,8 +22,10 @@
 //!       candidates_3d [u32; pixels * max_3d * 3]       unused slots 0xFFFFFFFF
 //!       counts_3d     [u8; pixels] (padded to 4 bytes)
 //!       slab          [u32; pixels * 3]
+//!     penalty  [u8; pixels] (padded to 4 bytes)         usage penalties, see analysis::balance
 //!     stats    mean_best_cb (f64), filter_rounds (u32)
 //! ```
+//! Version 2 added the balancing parameters and the penalties.
 //! Loading checks the magic, version, length and checksum first, then every size and coordinate,
 //! so a damaged or hostile file is an error, never a panic or an out-of-bounds read later.
 
@@ -37,7 +39,7 @@ use crate::exemplar::{Border, Image};
 use std::path::Path;
 
 pub const MAGIC: &[u8; 8] = b"SOLIDSSA";
-pub const FORMAT_VERSION: u32 = 1;
+pub const FORMAT_VERSION: u32 = 2;
 const HEADER_LEN: usize = 32;
 
 struct Writer(Vec<u8>);
@@ -77,6 +79,8 @@ pub fn to_bytes(a: &Analysis) -> Vec<u8> {
         p.max_filter_rounds,
     ]);
     w.f32(p.feature_weight);
+    w.u32(p.balance_rounds);
+    w.f32(p.balance_strength);
     w.u32s(&[
         a.border.code(),
         a.color_channels,
@@ -102,6 +106,7 @@ pub fn to_bytes(a: &Analysis) -> Vec<u8> {
                 w.bytes_padded(&l.counts_3d);
                 l.slab.iter().for_each(|t| w.u32s(t));
             }
+            w.bytes_padded(&l.penalty);
             w.f64(l.stats.mean_best_cb);
             w.u32(l.stats.filter_rounds);
         }
@@ -192,6 +197,11 @@ pub fn from_bytes(bytes: &[u8]) -> R<Analysis> {
     check(version == FORMAT_VERSION, || {
         format!("format version {version}, this solidsynth reads version {FORMAT_VERSION}; re-run `solidsynth analyze`")
     })?;
+    let flags = u32::from_le_bytes(bytes[12..16].try_into().unwrap());
+    let reserved = u32::from_le_bytes(bytes[28..32].try_into().unwrap());
+    check(flags == 0 && reserved == 0, || {
+        format!("unknown header flags {flags:#x} / reserved word {reserved:#x} (damaged, or written by a newer solidsynth)")
+    })?;
     let len = u64::from_le_bytes(bytes[16..24].try_into().unwrap());
     let crc = u32::from_le_bytes(bytes[24..28].try_into().unwrap());
     let payload = &bytes[HEADER_LEN..];
@@ -222,6 +232,8 @@ pub fn parse_payload(payload: &[u8]) -> R<Analysis> {
         max_3d: r.u32()?,
         max_filter_rounds: r.u32()?,
         feature_weight: r.f32()?,
+        balance_rounds: r.u32()?,
+        balance_strength: r.f32()?,
     };
     params
         .validate()
@@ -368,6 +380,7 @@ pub fn parse_payload(payload: &[u8]) -> R<Analysis> {
                     .map(|t| [t[0], t[1], t[2]])
                     .collect();
             }
+            let penalty = r.bytes_padded(n)?;
             let stats = LevelStats {
                 mean_best_cb: r.f64()?,
                 filter_rounds: r.u32()?,
@@ -380,6 +393,7 @@ pub fn parse_payload(payload: &[u8]) -> R<Analysis> {
                 candidates_3d,
                 counts_3d,
                 slab,
+                penalty,
                 stats,
             });
         }

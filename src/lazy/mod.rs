@@ -128,6 +128,9 @@ pub struct Synthesizer {
     last_stats: Option<SynthStats>,
     /// The coarse-level cache once built: level L-1 triples of one period, x fastest.
     cache: Option<Vec<u32>>,
+    /// When counting: per pack (coarsest first), per exemplar, how many stored voxels held each
+    /// exemplar pixel after the level's correction (see [`Self::count_usage`]).
+    usage: Option<Vec<[Vec<u64>; 3]>>,
 }
 
 impl Synthesizer {
@@ -148,7 +151,30 @@ impl Synthesizer {
             times: None,
             last_stats: None,
             cache: None,
+            usage: None,
         })
+    }
+
+    /// From now on, count after each level's correction how often every exemplar pixel is a
+    /// coordinate of a stored voxel (the usage balancing's measurement, on tileable solids,
+    /// whose stored voxels are exactly one period). Reading the counts back resets them.
+    pub fn count_usage(&mut self) {
+        self.usage = Some(
+            self.packs
+                .iter()
+                .map(|p| std::array::from_fn(|_| vec![0; (p.width * p.height) as usize]))
+                .collect(),
+        );
+    }
+
+    /// The counts gathered since [`Self::count_usage`]: per pack (coarsest first), per exemplar
+    /// (x, y, z), one count per exemplar pixel (row-major).
+    pub fn take_usage(&mut self) -> Option<Vec<[Vec<u64>; 3]>> {
+        let taken = self.usage.take();
+        if taken.is_some() {
+            self.count_usage();
+        }
+        taken
     }
 
     /// Colour channels of the volumes produced.
@@ -707,6 +733,17 @@ impl Synthesizer {
                 exec::timed(&mut self.exec, &mut self.times, "correct", |e| {
                     e.correct(pack_index, &p, &mut state, &index)
                 })?;
+            }
+            if let Some(usage) = self.usage.as_mut() {
+                let words = self.exec.read_state(&state)?;
+                let stride = 3 + pack.pixel_words as usize;
+                let counts = &mut usage[pack_index];
+                for voxel in words.chunks_exact(stride) {
+                    for (a, count) in counts.iter_mut().enumerate() {
+                        let (x, y) = crate::analysis::frame::unpack(voxel[a]);
+                        count[(y * pack.width + x) as usize] += 1;
+                    }
+                }
             }
         }
         if group.is_empty() {
