@@ -17,6 +17,10 @@ use crate::exemplar::{self, feature, pyramid, Border, Image};
 use coherence::Grid;
 use frame::{next, rotate_from_shared, NEIGHBOURHOOD_PIXELS, NO_COORD};
 
+/// Bumped whenever the analysis computes something different from the same inputs and
+/// parameters (e.g. the balancing's calibration sizes), so cached analyses are recomputed.
+pub const ALGORITHM_REVISION: u32 = 1;
+
 /// Pyramid levels analysed: synthesis starts three levels above the finest (l_start = L - 3).
 pub const ANALYSED_LEVELS: usize = 4;
 

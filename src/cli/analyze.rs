@@ -196,6 +196,7 @@ fn cache_key(input: &AnalysisInput, params: &AnalysisParams) -> u64 {
         h2.update(b);
     };
     feed(&ssa::FORMAT_VERSION.to_le_bytes());
+    feed(&analysis::ALGORITHM_REVISION.to_le_bytes());
     feed(format!("{params:?}{:?}", input.border).as_bytes());
     for img in input.exemplars.iter().chain(&input.masks) {
         feed(

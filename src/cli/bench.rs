@@ -92,6 +92,10 @@ pub struct BenchAnalyzeArgs {
     /// Runs per size; the median is reported.
     #[arg(long, default_value_t = 3)]
     pub runs: u32,
+    /// Usage-balancing rounds of each analysis (see `analyze --balance-rounds`; 0 times the
+    /// paper's precomputation alone).
+    #[arg(long, default_value_t = solidsynth::analysis::balance::DEFAULT_ROUNDS)]
+    pub balance_rounds: u32,
     /// Print JSON lines instead of a table.
     #[arg(long)]
     pub json: bool,
@@ -355,8 +359,8 @@ fn bench_analyze(args: BenchAnalyzeArgs) -> anyhow::Result<()> {
     let exe = std::env::current_exe()?;
     if !args.json {
         println!(
-            "analysis benchmark: backend {:?}, {} run(s) per size, median reported",
-            args.backend.backend, args.runs
+            "analysis benchmark: backend {:?}, {} run(s) per size, {} balancing round(s), median reported",
+            args.backend.backend, args.runs, args.balance_rounds
         );
         println!(
             "{:>6}  {:>10}  {:>10}  {:>12}  {:>10}",
@@ -378,6 +382,8 @@ fn bench_analyze(args: BenchAnalyzeArgs) -> anyhow::Result<()> {
             let mut cmd = Command::new(&exe);
             cmd.args(["--quiet", "analyze", "--json", "--backend"])
                 .arg(format!("{:?}", args.backend.backend).to_lowercase())
+                .arg("--balance-rounds")
+                .arg(args.balance_rounds.to_string())
                 .arg(&input)
                 .arg("-o")
                 .arg(&output);
