@@ -77,6 +77,7 @@ pub fn balance(
     let finest = &analysis.exemplars[0].levels[0].image;
     let size = calibration_size(finest.pixel_count() as u64);
     // Accumulated usage ratios: [owner][level][pixel].
+    let started = std::time::Instant::now();
     let mut ratios: Vec<Vec<Vec<f64>>> = analysis
         .exemplars
         .iter()
@@ -128,6 +129,10 @@ pub fn balance(
             }
         }
     }
+    tracing::info!(
+        "usage balancing: {rounds} calibration solids of {size}^3 in {:.2} s",
+        started.elapsed().as_secs_f64()
+    );
     progress("done", 1.0);
     Ok(())
 }
