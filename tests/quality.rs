@@ -25,7 +25,7 @@ fn scores_path() -> std::path::PathBuf {
 fn synthesized() -> BTreeMap<String, serde_json::Value> {
     use solidsynth::exemplar::Border;
     use solidsynth::lazy::{Box3, SynthParams, Synthesizer};
-    ["cells32.png", "marble32.png", "cc0_gravel64.png"]
+    ["cells32.png", "marble32.png", "cc0_gravel64.png", "cc0_brick64.png"]
         .iter()
         .map(|name| {
             let ex = common::fixture(name);
