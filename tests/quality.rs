@@ -25,26 +25,31 @@ fn scores_path() -> std::path::PathBuf {
 fn synthesized() -> BTreeMap<String, serde_json::Value> {
     use solidsynth::exemplar::Border;
     use solidsynth::lazy::{Box3, SynthParams, Synthesizer};
-    ["cells32.png", "marble32.png", "cc0_gravel64.png", "cc0_brick64.png"]
-        .iter()
-        .map(|name| {
-            let ex = common::fixture(name);
-            let a = common::analyze(vec![ex.clone()], Border::Wrap);
-            let params = SynthParams {
-                seed: 1,
-                ..Default::default()
-            };
-            let mut s = Synthesizer::new(&a, params, &solidsynth::backend::Compute::Cpu).unwrap();
-            let v = s
-                .synthesize(Box3::new([0; 3], [24; 3]), &|_, _| {})
-                .unwrap();
-            let r = solidsynth::metrics::evaluate(&v, &[ex], &EvalParams::default()).unwrap();
-            (
-                format!("synth/{name}"),
-                serde_json::to_value(r.worst_ratio).unwrap(),
-            )
-        })
-        .collect()
+    [
+        "cells32.png",
+        "marble32.png",
+        "cc0_gravel64.png",
+        "cc0_brick64.png",
+    ]
+    .iter()
+    .map(|name| {
+        let ex = common::fixture(name);
+        let a = common::analyze(vec![ex.clone()], Border::Wrap);
+        let params = SynthParams {
+            seed: 1,
+            ..Default::default()
+        };
+        let mut s = Synthesizer::new(&a, params, &solidsynth::backend::Compute::Cpu).unwrap();
+        let v = s
+            .synthesize(Box3::new([0; 3], [24; 3]), &|_, _| {})
+            .unwrap();
+        let r = solidsynth::metrics::evaluate(&v, &[ex], &EvalParams::default()).unwrap();
+        (
+            format!("synth/{name}"),
+            serde_json::to_value(r.worst_ratio).unwrap(),
+        )
+    })
+    .collect()
 }
 
 #[test]

@@ -8,11 +8,10 @@ use crate::analysis::Analysis;
 /// three exemplars point at the same data and 3D candidate sets are rotations of set 0.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct LevelOffsets {
+    /// Each exemplar's pixels, immediately followed by its usage penalties (one word per pixel,
+    /// see `analysis::balance`): kernels find those at `pixels + width * height * pixel_words`
+    /// without an offset of their own.
     pub pixels: [u32; 3],
-    /// Usage penalties (one word per pixel, see `analysis::balance`). Always right after the
-    /// pixels, so kernels find them at `pixels + width * height * pixel_words` without a
-    /// parameter of their own.
-    pub penalty: [u32; 3],
     pub projected: [u32; 3],
     pub mean: [u32; 3],
     pub weights: [u32; 3],
@@ -65,11 +64,7 @@ impl LevelPack {
                     words.push(u32::from_le_bytes(b));
                 }
             }
-            let o_penalty = at(&words);
-            debug_assert_eq!(
-                o_penalty - o_pixels,
-                l.image.width * l.image.height * pixel_words
-            );
+            // Right after the pixels (see `LevelOffsets::pixels`).
             words.extend(l.penalty.iter().map(|&p| p as u32));
             let o_proj = at(&words);
             words.extend_from_slice(&l.projected);
@@ -90,7 +85,6 @@ impl LevelPack {
             let targets: Vec<usize> = if a.shared { vec![0, 1, 2] } else { vec![e] };
             for t in targets {
                 off.pixels[t] = o_pixels;
-                off.penalty[t] = o_penalty;
                 off.projected[t] = o_proj;
                 off.mean[t] = o_mean;
                 off.weights[t] = o_weights;
