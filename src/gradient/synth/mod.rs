@@ -297,6 +297,7 @@ impl PeriodicSolid {
     /// [`Self::taylor`] at `count` voxels from `q` in steps of `step` voxels along axis `u`,
     /// `channels` values each into `out`: the same values, with the row's fixed axes located
     /// once (every sample of every axis-aligned slice goes through here).
+    #[inline(always)]
     pub fn taylor_row(&self, q: [i64; 3], u: usize, step: i64, count: usize, out: &mut [f32]) {
         let d = SPACING as i64;
         let (m, c) = (self.m as i64, self.channels);

@@ -97,6 +97,7 @@ impl PatchPca {
     /// The KEPT coordinates of `v` (rows beyond the fitted ones, for tiny inputs, stay 0).
     /// Written as sum_j v_j B_j - B mean with B transposed so the inner loop runs over the 16
     /// output lanes (vectorizes; this is the hot loop of the patch search).
+    #[inline(always)]
     pub fn project(&self, v: &[f32]) -> [f32; KEPT] {
         let mut acc = [0f32; KEPT];
         for (x, column) in v.iter().zip(self.basis_t.chunks_exact(KEPT)) {
