@@ -32,7 +32,9 @@ const RIDGE: f64 = 0.5;
 
 /// Most samples one layer's accumulation keeps between its two passes (8 bytes each: 128 MiB
 /// per layer in flight; one layer per thread). Measured at 128^3 (4 M samples per layer at the
-/// finest level): the finest level's update 3.2 -> 2.9 s; 512^3 layers exceed it.
+/// finest level): the finest level's update 3.2 -> 2.9 s. Layers expected to hold more than
+/// half of it (the finest level from 192^3 up: 16 M samples per layer at 256^3) are generated
+/// twice instead.
 const MAX_LISTED_SAMPLES: usize = 16 << 20;
 
 /// One control layer's view of the samples.
@@ -194,14 +196,29 @@ impl Layer<'_> {
         // Pass 1 lists the samples it generates (up to a cap) so that pass 2 reads them
         // instead of generating them again; a larger layer generates them twice. The same
         // integers either way.
+        // A layer receives, on average, every check point's samples of one cell layer: list
+        // them only when that is well under the cap (a list that overflows is wasted work).
+        let n = patches.size as usize;
+        let m = self.solid.m as usize;
+        let expected = m
+            * m
+            * self.ctx.params.check_points as usize
+            * self.ctx.params.matched_slices as usize
+            * n
+            * n;
         let mut listed: Vec<(u32, u32)> = Vec::new();
-        let mut complete = true;
+        let mut complete = expected <= MAX_LISTED_SAMPLES / 2;
+        if complete {
+            listed.reserve(expected + expected / 4);
+        }
         self.for_each_sample(|v, px| {
             counts[v * clusters + patches.cluster(px) as usize] += 1;
-            if listed.len() < MAX_LISTED_SAMPLES {
-                listed.push((v as u32, px as u32));
-            } else {
-                complete = false;
+            if complete {
+                if listed.len() < MAX_LISTED_SAMPLES {
+                    listed.push((v as u32, px as u32));
+                } else {
+                    complete = false;
+                }
             }
         });
         if !complete {
