@@ -10,7 +10,8 @@
 //! samples of every (voxel, colour cluster), pass 2 sums, in 8.8 fixed point, the samples of each
 //! voxel's two dominant clusters. On the CPU backend the samples are streamed straight into the
 //! counts and sums ([`accumulate_streaming`], the same integer arithmetic as
-//! `crate::cpu::bucket_accumulate`, without materializing the sample list); on the GPU the
+//! `crate::cpu::bucket_accumulate`; the kernel's sample list is not built, though a small
+//! layer keeps (bucket, pixel) pairs between its two passes); on the GPU the
 //! layer's samples are listed and dispatched. Both give the same integers.
 
 use super::matching::{Match, MatchContext, UNMATCHED};
@@ -193,11 +194,10 @@ impl Layer<'_> {
         let voxels = self.voxels();
         let per = 1 + channels;
         let mut counts = vec![0u32; voxels * clusters];
-        // Pass 1 lists the samples it generates (up to a cap) so that pass 2 reads them
-        // instead of generating them again; a larger layer generates them twice. The same
-        // integers either way.
-        // A layer receives, on average, every check point's samples of one cell layer: list
-        // them only when that is well under the cap (a list that overflows is wasted work).
+        // Pass 1 lists the samples it generates so that pass 2 reads them instead of
+        // generating them again, when the layer is expected to hold well under the cap (on
+        // average, every check point's samples of one cell layer; a list that overflowed
+        // would be wasted work). Otherwise pass 2 generates them again: the same integers.
         let n = patches.size as usize;
         let m = self.solid.m as usize;
         let expected = m
