@@ -144,6 +144,50 @@ fn analyze_three_exemplars_and_a_feature_mask() {
 }
 
 #[test]
+fn feature_channel_is_automatic_unless_turned_off() {
+    let dir = tempfile::tempdir().unwrap();
+    let cells = fixture_path("cells32.png");
+    let analyse = |extra: &[&str], name: &str| {
+        let out = dir.path().join(name);
+        let mut args = vec!["analyze", "--backend", "cpu", cells.to_str().unwrap()];
+        args.extend_from_slice(extra);
+        args.extend_from_slice(&["-o", out.to_str().unwrap()]);
+        let o = run(&args);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        solidsynth::io::ssa::load(&out).unwrap()
+    };
+    // Default: the Otsu mask's feature channel, weighted 3 (the analysis records the weight).
+    let auto = analyse(&[], "auto.ssa");
+    assert!(auto.has_feature);
+    assert_eq!(auto.exemplar(0).levels[0].image.channels, 4);
+    assert_eq!(auto.params.feature_weight, 3.0);
+    assert!(!analyse(&["--feature-mask", "none"], "none.ssa").has_feature);
+    // A mask image for the y exemplar alone is refused, as are analysis options with an .ssa.
+    let o = run(&[
+        "synth",
+        cells.to_str().unwrap(),
+        "--ey-feature-mask",
+        cells.to_str().unwrap(),
+        "--size",
+        "8",
+        "-o",
+        dir.path().join("v.nrrd").to_str().unwrap(),
+    ]);
+    assert_user_error(&o, "feature masks", dir.path(), &["auto.ssa", "none.ssa"]);
+    let o = run(&[
+        "synth",
+        dir.path().join("auto.ssa").to_str().unwrap(),
+        "--feature-mask",
+        "none",
+        "--size",
+        "8",
+        "-o",
+        dir.path().join("v.nrrd").to_str().unwrap(),
+    ]);
+    assert_user_error(&o, "--feature-mask", dir.path(), &["auto.ssa", "none.ssa"]);
+}
+
+#[test]
 fn bad_inputs_exit_2_naming_the_input_and_leave_nothing() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();

@@ -21,20 +21,40 @@ fn scores_path() -> std::path::PathBuf {
     std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/scores.json")
 }
 
-/// Worst-axis ratios of a 24^3 synthesis of each synthesizable fixture (CPU backend, seed 1).
+/// Worst-axis ratios of a 24^3 synthesis of each synthesizable fixture (CPU backend, seed 1),
+/// without a feature channel ("synth/") and with the automatic one the CLI uses by default
+/// ("synth-auto/").
 fn synthesized() -> BTreeMap<String, serde_json::Value> {
-    use solidsynth::exemplar::Border;
+    use solidsynth::analysis::{self, AnalysisInput, AnalysisParams};
+    use solidsynth::exemplar::{feature, Border};
     use solidsynth::lazy::{Box3, SynthParams, Synthesizer};
-    [
+    let names = [
         "cells32.png",
         "marble32.png",
         "cc0_gravel64.png",
         "cc0_brick64.png",
-    ]
-    .iter()
-    .map(|name| {
+    ];
+    let runs = names.iter().flat_map(|n| [(*n, false), (*n, true)]);
+    runs.map(|(name, auto)| {
         let ex = common::fixture(name);
-        let a = common::analyze(vec![ex.clone()], Border::Wrap);
+        let input = AnalysisInput {
+            exemplars: vec![ex.clone()],
+            masks: if auto {
+                feature::auto_masks(std::slice::from_ref(&ex))
+            } else {
+                vec![]
+            },
+            border: Border::Wrap,
+            names: vec![name.to_string()],
+        };
+        let a = analysis::analyze(
+            &input,
+            &AnalysisParams::default(),
+            &solidsynth::backend::Compute::Cpu,
+            &|_, _| {},
+        )
+        .unwrap();
+        assert_eq!(a.has_feature, auto, "{name}");
         let params = SynthParams {
             seed: 1,
             ..Default::default()
@@ -45,7 +65,7 @@ fn synthesized() -> BTreeMap<String, serde_json::Value> {
             .unwrap();
         let r = solidsynth::metrics::evaluate(&v, &[ex], &EvalParams::default()).unwrap();
         (
-            format!("synth/{name}"),
+            format!("{}/{name}", if auto { "synth-auto" } else { "synth" }),
             serde_json::to_value(r.worst_ratio).unwrap(),
         )
     })

@@ -50,6 +50,12 @@ pub struct AnalysisParams {
     pub balance_strength: f32,
 }
 
+/// Default weight of the feature channel against one colour channel. 3 (with the automatic
+/// masks of [`crate::exemplar::feature::auto_masks`]) was measured in session 10 on eleven
+/// exemplars (BENCHMARKS.md, Quality): it sharpens thin structure most without moving the
+/// colour histogram much; 1 barely changes the search.
+pub const DEFAULT_FEATURE_WEIGHT: f32 = 3.0;
+
 impl Default for AnalysisParams {
     fn default() -> Self {
         AnalysisParams {
@@ -59,7 +65,7 @@ impl Default for AnalysisParams {
             crossbar_keep: 100,
             max_3d: 12,
             max_filter_rounds: 4,
-            feature_weight: 1.0,
+            feature_weight: DEFAULT_FEATURE_WEIGHT,
             balance_rounds: balance::DEFAULT_ROUNDS,
             balance_strength: 1.0,
         }

@@ -21,17 +21,21 @@ pub struct InputArgs {
     /// Exemplar for the plane orthogonal to z.
     #[arg(long, requires = "ey")]
     pub ez: Option<PathBuf>,
-    /// Mask (same size as the exemplar) whose boundary distance becomes a feature channel.
-    #[arg(long)]
-    pub feature_mask: Option<PathBuf>,
-    /// Feature mask of --ey (required with --ey when --feature-mask is given).
+    /// The feature channel's mask: `auto` (each exemplar's luminance split in two by Otsu's
+    /// threshold), `none` (colour only: the paper's plain search), or a mask image the size of
+    /// the exemplar (white inside). The signed distance to the mask's boundary becomes one more
+    /// channel of the neighbourhoods, so matching keeps the shapes it outlines (a path named
+    /// "auto" or "none" is written ./auto).
+    #[arg(long, default_value = "auto", value_parser = parse_feature_mask)]
+    pub feature_mask: FeatureMask,
+    /// Feature mask of --ey (required with --ey when --feature-mask is an image).
     #[arg(long)]
     pub ey_feature_mask: Option<PathBuf>,
     /// Feature mask of --ez.
     #[arg(long)]
     pub ez_feature_mask: Option<PathBuf>,
     /// Weight of the feature channel relative to one colour channel.
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = solidsynth::analysis::DEFAULT_FEATURE_WEIGHT)]
     pub feature_weight: f32,
     /// The exemplars tile (wrap around at the edges). Without it, edges are mirrored so no
     /// neighbourhood straddles the seam of a non-tileable image. The built-in exemplar tiles.
@@ -49,7 +53,35 @@ pub struct InputArgs {
     pub backend: super::BackendArgs,
 }
 
+/// Where the feature channel's masks come from.
+#[derive(Clone, Debug, PartialEq)]
+pub enum FeatureMask {
+    /// [`solidsynth::exemplar::feature::auto_masks`] of the exemplars.
+    Auto,
+    /// No feature channel.
+    None,
+    /// A mask image (with --ey-feature-mask and --ez-feature-mask for three exemplars).
+    File(PathBuf),
+}
+
+fn parse_feature_mask(s: &str) -> Result<FeatureMask, String> {
+    Ok(match s {
+        "auto" => FeatureMask::Auto,
+        "none" => FeatureMask::None,
+        "" => return Err("expected auto, none or a mask image".into()),
+        path => FeatureMask::File(path.into()),
+    })
+}
+
 impl InputArgs {
+    /// Whether a feature-mask option other than the default was given.
+    pub fn feature_mask_given(&self) -> bool {
+        self.feature_mask != FeatureMask::Auto
+            || self.ey_feature_mask.is_some()
+            || self.ez_feature_mask.is_some()
+            || self.feature_weight != solidsynth::analysis::DEFAULT_FEATURE_WEIGHT
+    }
+
     fn is_ssa(&self) -> bool {
         self.input
             .as_ref()
@@ -85,8 +117,12 @@ impl InputArgs {
             exemplars.push(exemplar::load_image(ez, "--ez")?);
             names.push(format!("--ez {}", ez.display()));
         }
+        let file = match &self.feature_mask {
+            FeatureMask::File(p) => Some(p.clone()),
+            _ => None,
+        };
         let flags = [
-            ("--feature-mask", &self.feature_mask),
+            ("--feature-mask", &file),
             ("--ey-feature-mask", &self.ey_feature_mask),
             ("--ez-feature-mask", &self.ez_feature_mask),
         ];
@@ -97,7 +133,7 @@ impl InputArgs {
                 return Err(Error::invalid(
                     "feature masks",
                     if exemplars.len() == 3 {
-                        "give --feature-mask, --ey-feature-mask and --ez-feature-mask together"
+                        "give --feature-mask, --ey-feature-mask and --ez-feature-mask images together"
                     } else {
                         "give --feature-mask only (one exemplar)"
                     },
@@ -106,6 +142,8 @@ impl InputArgs {
             for (flag, path) in flags.iter().take(exemplars.len()) {
                 masks.push(exemplar::load_image(path.as_ref().unwrap(), flag)?);
             }
+        } else if self.feature_mask == FeatureMask::Auto {
+            masks = exemplar::feature::auto_masks(&exemplars);
         }
         let params = AnalysisParams {
             feature_weight: self.feature_weight,
@@ -133,9 +171,9 @@ pub fn load_or_analyze(
     quiet: bool,
 ) -> solidsynth::Result<Analysis> {
     if args.is_ssa() {
-        if args.ey.is_some() || args.feature_mask.is_some() {
+        if args.ey.is_some() || args.feature_mask_given() {
             return Err(Error::invalid(
-                "--ey/--feature-mask",
+                "--ey/--feature-mask/--feature-weight",
                 "are analysis inputs; an .ssa file already holds them",
             ));
         }

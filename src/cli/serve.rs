@@ -71,7 +71,7 @@ pub fn run(args: ServeArgs, quiet: bool) -> anyhow::Result<()> {
             analysis: Arc::new(load_or_analyze(&args.solid.input, &compute, quiet)?),
         },
         None => {
-            if args.solid.input.ey.is_some() || args.solid.input.feature_mask.is_some() {
+            if args.solid.input.ey.is_some() || args.solid.input.feature_mask_given() {
                 return Err(Error::invalid("--ey/--feature-mask", "need an INPUT image").into());
             }
             let b = jobs::builtin("cells").expect("built-in");

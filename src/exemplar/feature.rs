@@ -123,6 +123,82 @@ pub fn feature_channel(
     Ok(out)
 }
 
+/// Integer luminance (BT.601 weights) of a pixel: gray and gray+alpha images use their first
+/// channel, colour images the weighted sum of the first three; alpha is ignored.
+fn luminance(pixel: &[u8]) -> u8 {
+    match pixel.len() {
+        1 | 2 => pixel[0],
+        _ => {
+            ((77 * pixel[0] as u32 + 150 * pixel[1] as u32 + 29 * pixel[2] as u32 + 128) >> 8) as u8
+        }
+    }
+}
+
+/// Otsu's threshold of a 256-bin histogram: the t maximizing the between-class variance of
+/// {< t} and {>= t} (the first such t; `None` when no t leaves both classes non-empty).
+fn otsu_threshold(histogram: &[u64; 256]) -> Option<u8> {
+    let total: u64 = histogram.iter().sum();
+    let weighted: f64 = histogram
+        .iter()
+        .enumerate()
+        .map(|(v, &n)| v as f64 * n as f64)
+        .sum();
+    let (mut below, mut below_weighted) = (0u64, 0f64);
+    let mut best: Option<(f64, u8)> = None;
+    for t in 1..256usize {
+        below += histogram[t - 1];
+        below_weighted += (t - 1) as f64 * histogram[t - 1] as f64;
+        let above = total - below;
+        if below == 0 || above == 0 {
+            continue;
+        }
+        let mean_below = below_weighted / below as f64;
+        let mean_above = (weighted - below_weighted) / above as f64;
+        let spread = below as f64 * above as f64 * (mean_below - mean_above).powi(2);
+        if best.is_none_or(|(b, _)| spread > b) {
+            best = Some((spread, t as u8));
+        }
+    }
+    best.map(|(_, t)| t)
+}
+
+/// The automatic feature mask of an exemplar: its luminance thresholded by Otsu's method
+/// (255 where the luminance is at or above the threshold). Lefebvre and Hoppe 2006 and Kopf et
+/// al. 2007 take the feature distance from a binary mask of the exemplar's structure (mortar
+/// against bricks, gaps against stones); a two-class split of the luminance is the simplest
+/// such mask and needs no user input. `None` for an exemplar with a single luminance value.
+pub fn auto_mask(exemplar: &Image) -> Option<Image> {
+    let channels = exemplar.channels as usize;
+    let mut histogram = [0u64; 256];
+    for pixel in exemplar.pixels.chunks_exact(channels) {
+        histogram[luminance(pixel) as usize] += 1;
+    }
+    let threshold = otsu_threshold(&histogram)?;
+    let mut mask = Image::new(exemplar.width, exemplar.height, 1);
+    for (m, pixel) in mask
+        .pixels
+        .iter_mut()
+        .zip(exemplar.pixels.chunks_exact(channels))
+    {
+        *m = if luminance(pixel) >= threshold {
+            255
+        } else {
+            0
+        };
+    }
+    Some(mask)
+}
+
+/// Automatic feature masks for a set of exemplars ([`auto_mask`] of each), or none at all when
+/// one of them has a single luminance value (the feature channel is all or nothing).
+pub fn auto_masks(exemplars: &[Image]) -> Vec<Image> {
+    exemplars
+        .iter()
+        .map(auto_mask)
+        .collect::<Option<Vec<_>>>()
+        .unwrap_or_default()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -164,5 +240,42 @@ mod tests {
         assert!(f.at(8, 16)[0] >= 128 && f.at(7, 16)[0] < 128);
         let wrong = Image::new(31, 32, 1);
         assert!(feature_channel(&wrong, &ex, "--feature-mask", Border::Mirror).is_err());
+    }
+    #[test]
+    fn otsu_splits_two_clusters_between_them() {
+        let mut h = [0u64; 256];
+        h[40] = 100;
+        h[200] = 50;
+        let t = otsu_threshold(&h).unwrap();
+        assert!((41..=200).contains(&t), "threshold {t}");
+        let mut flat = [0u64; 256];
+        flat[90] = 10;
+        assert_eq!(otsu_threshold(&flat), None);
+    }
+
+    #[test]
+    fn auto_mask_separates_dark_lines_from_bright_blocks() {
+        // Bright 12x12 blocks with a dark 4-pixel joint: the joint is outside, blocks inside.
+        let mut ex = Image::new(32, 32, 3);
+        for y in 0..32u32 {
+            for x in 0..32u32 {
+                let joint = x % 16 < 4 || y % 16 < 4;
+                let v = if joint {
+                    30
+                } else {
+                    180 + ((x * 7 + y * 3) % 20) as u8
+                };
+                let i = ((y * 32 + x) * 3) as usize;
+                ex.pixels[i..i + 3].copy_from_slice(&[v, v / 2, v / 3]);
+            }
+        }
+        let m = auto_mask(&ex).unwrap();
+        assert_eq!(m.at(1, 8)[0], 0);
+        assert_eq!(m.at(8, 8)[0], 255);
+        assert!(feature_channel(&m, &ex, "auto", Border::Wrap).is_ok());
+        let flat = Image::new(8, 8, 3);
+        assert!(auto_mask(&flat).is_none());
+        assert!(auto_masks(&[ex.clone(), flat]).is_empty());
+        assert_eq!(auto_masks(&[ex.clone(), ex]).len(), 2);
     }
 }

@@ -332,9 +332,11 @@ impl State {
                 let analysis = match cached {
                     Some(a) => a,
                     None => {
+                        // The feature channel as the CLI's default (`--feature-mask auto`).
+                        let masks = crate::exemplar::feature::auto_masks(&[image.clone()]);
                         let input = AnalysisInput {
                             exemplars: vec![image],
-                            masks: vec![],
+                            masks,
                             border,
                             names: vec![name.clone()],
                         };
