@@ -78,6 +78,9 @@ pub struct BenchSynthArgs {
     /// Treat the input exemplar as periodic.
     #[arg(long)]
     pub periodic: bool,
+    /// The analysis' feature channel, as `synth --feature-mask` (auto or none).
+    #[arg(long, default_value = "auto", value_parser = ["auto", "none"])]
+    pub feature_mask: String,
 }
 
 #[derive(Args, Debug)]
@@ -96,6 +99,9 @@ pub struct BenchAnalyzeArgs {
     /// paper's precomputation alone).
     #[arg(long, default_value_t = solidsynth::analysis::balance::DEFAULT_ROUNDS)]
     pub balance_rounds: u32,
+    /// The feature channel, as `analyze --feature-mask` (auto or none).
+    #[arg(long, default_value = "auto", value_parser = ["auto", "none"])]
+    pub feature_mask: String,
     /// Print JSON lines instead of a table.
     #[arg(long)]
     pub json: bool,
@@ -272,6 +278,8 @@ fn bench_synth(args: BenchSynthArgs) -> anyhow::Result<()> {
         if args.periodic {
             cmd.arg("--periodic");
         }
+        // (An .ssa input with `none` is refused by synth: the file holds its channel.)
+        cmd.args(["--feature-mask", &args.feature_mask]);
         if profile {
             cmd.arg("--profile");
         }
@@ -384,6 +392,7 @@ fn bench_analyze(args: BenchAnalyzeArgs) -> anyhow::Result<()> {
                 .arg(format!("{:?}", args.backend.backend).to_lowercase())
                 .arg("--balance-rounds")
                 .arg(args.balance_rounds.to_string())
+                .args(["--feature-mask", &args.feature_mask])
                 .arg(&input)
                 .arg("-o")
                 .arg(&output);
