@@ -18,8 +18,9 @@ use coherence::Grid;
 use frame::{next, rotate_from_shared, NEIGHBOURHOOD_PIXELS, NO_COORD};
 
 /// Bumped whenever the analysis computes something different from the same inputs and
-/// parameters (e.g. the balancing's calibration sizes), so cached analyses are recomputed.
-pub const ALGORITHM_REVISION: u32 = 1;
+/// parameters (e.g. the balancing's calibration sizes; 2: PCA weights limited to 16 bits), so
+/// cached analyses are recomputed.
+pub const ALGORITHM_REVISION: u32 = 2;
 
 /// Pyramid levels analysed: synthesis starts three levels above the finest (l_start = L - 3).
 pub const ANALYSED_LEVELS: usize = 4;

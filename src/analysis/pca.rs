@@ -178,7 +178,10 @@ pub fn fit(
     })
 }
 
-/// The largest shift F <= 20 whose fixed-point weights cannot overflow an i32 accumulator.
+/// The largest shift F <= 20 whose fixed-point weights fit 16 bits and cannot overflow an i32
+/// accumulator. 16-bit weights let the CPU backend project with 16-bit multiply-adds (two
+/// products per 32-bit lane, the same exact sums); they still carry 15 bits of precision for
+/// 8-bit projections.
 fn choose_shift(basis: &[f64], dims: usize, keep: usize, scale: f64) -> (u32, Vec<i32>) {
     for shift in (1..=20u32).rev() {
         let f = scale * (1u64 << shift) as f64;
@@ -186,7 +189,10 @@ fn choose_shift(basis: &[f64], dims: usize, keep: usize, scale: f64) -> (u32, Ve
             .iter()
             .map(|&b| (b * f).round().clamp(i32::MIN as f64, i32::MAX as f64) as i32)
             .collect();
-        if max_abs_accumulator(&weights, dims, keep) + (1 << shift) <= i32::MAX as i64 {
+        let fits_16_bits = weights.iter().all(|&w| i16::try_from(w).is_ok());
+        if fits_16_bits
+            && max_abs_accumulator(&weights, dims, keep) + (1 << shift) <= i32::MAX as i64
+        {
             return (shift, weights);
         }
     }

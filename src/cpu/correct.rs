@@ -266,7 +266,39 @@ impl Ctx<'_> {
 
     /// Projection of the plane of exemplar `a` through voxel `pos`.
     #[inline(always)]
-    fn project_plane(&self, r: &impl Neighbours, pos: [i32; 3], a: usize) -> Projection {
+    fn project_plane<const MADD: bool>(
+        &self,
+        r: &impl Neighbours,
+        pos: [i32; 3],
+        a: usize,
+    ) -> Projection {
+        #[cfg(target_arch = "x86_64")]
+        if MADD {
+            if let Some(pairs) = &self.prepared.pair_weights {
+                let (ua, va) = ((a + 1) % 3, (a + 2) % 3);
+                let mut words = [0u32; 25];
+                let mut i = 0;
+                for dv in -2..=2 {
+                    for du in -2..=2 {
+                        let mut n = pos;
+                        n[ua] += du;
+                        n[va] += dv;
+                        words[i] = r.word(n, 0);
+                        i += 1;
+                    }
+                }
+                // SAFETY: MADD is only set on the AVX2 path (`correct_run_avx2`), entered after
+                // detecting AVX2.
+                let acc = unsafe {
+                    if self.p.pca_out as usize <= 8 {
+                        project_plane_madd::<1>(&words, &pairs.weights[a], &pairs.means[a])
+                    } else {
+                        project_plane_madd::<2>(&words, &pairs.weights[a], &pairs.means[a])
+                    }
+                };
+                return self.finish_projection(&acc);
+            }
+        }
         // Accumulate only the kept dimensions (8 at the finest level, 12 above): the unused
         // weights are zero, so the result is the same; the loop is just shorter. With the
         // channel count a constant too, the compiler unrolls the channels and vectorizes the K
@@ -454,12 +486,12 @@ impl Ctx<'_> {
     }
 
     #[inline(always)]
-    fn correct_voxel(&self, r: &impl Neighbours, pos: [i32; 3]) -> [u32; 3] {
+    fn correct_voxel<const MADD: bool>(&self, r: &impl Neighbours, pos: [i32; 3]) -> [u32; 3] {
         let p = self.p;
         let q = [
-            self.project_plane(r, pos, 0),
-            self.project_plane(r, pos, 1),
-            self.project_plane(r, pos, 2),
+            self.project_plane::<MADD>(r, pos, 0),
+            self.project_plane::<MADD>(r, pos, 1),
+            self.project_plane::<MADD>(r, pos, 2),
         ];
         let best2d = [
             self.best_2d(r, pos, 0, &q[0]),
@@ -534,7 +566,13 @@ impl Ctx<'_> {
     /// bricks from entry `i` of its list (consecutive along x), appending (state index, new
     /// triple).
     #[inline(always)]
-    fn correct_run(&self, window: &mut Window, i: u32, n: u32, out: &mut Vec<(u32, [u32; 3])>) {
+    fn correct_run<const MADD: bool>(
+        &self,
+        window: &mut Window,
+        i: u32,
+        n: u32,
+        out: &mut Vec<(u32, [u32; 3])>,
+    ) {
         let p = self.p;
         let first = brick_at(self.bricks, p.list_offset, i);
         // A window costs ~100 index lookups and a few KiB copied per brick; a voxel read through
@@ -559,9 +597,9 @@ impl Ctx<'_> {
                 ];
                 let index = self.state_index(pos).expect("active bricks are stored");
                 let t = if windowed {
-                    self.correct_voxel(window, pos)
+                    self.correct_voxel::<MADD>(window, pos)
                 } else {
-                    self.correct_voxel(self, pos)
+                    self.correct_voxel::<MADD>(self, pos)
                 };
                 out.push((index as u32, t));
             }
@@ -589,7 +627,7 @@ impl Ctx<'_> {
             // SAFETY: the CPU supports AVX2 (checked just above).
             return unsafe { self.correct_run_avx2(window, i, n, out) };
         }
-        self.correct_run(window, i, n, out)
+        self.correct_run::<false>(window, i, n, out)
     }
 
     #[cfg(target_arch = "x86_64")]
@@ -601,8 +639,106 @@ impl Ctx<'_> {
         n: u32,
         out: &mut Vec<(u32, [u32; 3])>,
     ) {
-        self.correct_run(window, i, n, out)
+        self.correct_run::<true>(window, i, n, out)
     }
+}
+
+/// PCA weights laid out for [`project_plane_madd`]: per neighbourhood pixel (25), per channel
+/// pair (0-1, 2-3), per block of 8 outputs (BLOCKS of 2), 16 i16 weights interleaved as
+/// (channel 2q, output j), (channel 2q + 1, output j) for the block's 8 outputs j. Channels past
+/// the exemplar's (3 colours without a feature channel) get zero weights and means.
+struct PairWeights {
+    weights: [Vec<i16>; 3],
+    /// Per pixel, the 4 channels' means.
+    means: [Vec<i16>; 3],
+}
+
+const PAIR_WEIGHTS_PER_PIXEL: usize = 2 * 2 * 16;
+
+impl PairWeights {
+    /// For one state word per voxel (3 or 4 channels), 25-pixel neighbourhoods, at most 16
+    /// outputs, and weights that fit 16 bits (every analysis since revision 2); else None.
+    fn new(p: &CorrectParams, level: &[u32]) -> Option<PairWeights> {
+        let channels = p.channels as usize;
+        let (d, k) = (p.pca_in as usize, p.pca_out as usize);
+        if !(3..=4).contains(&channels) || d != 25 * channels || k > 16 || p.pixel_words != 1 {
+            return None;
+        }
+        let layout = |a: usize| -> Option<(Vec<i16>, Vec<i16>)> {
+            let (w0, m0) = (
+                [p.weights0, p.weights1, p.weights2][a] as usize,
+                [p.mean0, p.mean1, p.mean2][a] as usize,
+            );
+            let mut weights = vec![0i16; 25 * PAIR_WEIGHTS_PER_PIXEL];
+            let mut means = vec![0i16; 25 * 4];
+            for pixel in 0..25 {
+                for ch in 0..channels {
+                    let input = pixel * channels + ch;
+                    means[pixel * 4 + ch] = i16::try_from(level[m0 + input] as i32).ok()?;
+                    let (pair, lane) = (ch / 2, ch % 2);
+                    for j in 0..k {
+                        let w = i16::try_from(level[w0 + j * d + input] as i32).ok()?;
+                        let slot = pixel * PAIR_WEIGHTS_PER_PIXEL + (pair * 2 + j / 8) * 16;
+                        weights[slot + (j % 8) * 2 + lane] = w;
+                    }
+                }
+            }
+            Some((weights, means))
+        };
+        let (w0, m0) = layout(0)?;
+        let (w1, m1) = layout(1)?;
+        let (w2, m2) = layout(2)?;
+        Some(PairWeights {
+            weights: [w0, w1, w2],
+            means: [m0, m1, m2],
+        })
+    }
+}
+
+/// The accumulators of one plane's projection (before [`Ctx::finish_projection`]) from its 25
+/// state words, with 16-bit multiply-adds: each 32-bit lane adds the products of two channels,
+/// so a pixel's 4 channels take 2 (BLOCKS = 1: 8 outputs) or 4 (16 outputs) instructions. The
+/// products are exact (|value - mean| <= 255, |weight| < 2^15) and the i32 sums wrap as the
+/// scalar loop's do, so the results are the same bit for bit.
+///
+/// # Safety
+/// The CPU must support AVX2; `weights` and `means` come from [`PairWeights`].
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+unsafe fn project_plane_madd<const BLOCKS: usize>(
+    words: &[u32; 25],
+    weights: &[i16],
+    means: &[i16],
+) -> [i32; 16] {
+    use std::arch::x86_64::*;
+    assert!(weights.len() >= 25 * PAIR_WEIGHTS_PER_PIXEL && means.len() >= 25 * 4);
+    let mut acc = [_mm256_setzero_si256(); 2];
+    for (pixel, &word) in words.iter().enumerate() {
+        // SAFETY (all loads): in bounds by the assertion above; unaligned loads.
+        let values = _mm_cvtepu8_epi16(_mm_cvtsi32_si128(word as i32));
+        let mean = unsafe { _mm_loadl_epi64(means.as_ptr().add(pixel * 4) as *const __m128i) };
+        let centred = _mm_sub_epi16(values, mean);
+        let pairs = [
+            _mm256_broadcastd_epi32(centred),
+            _mm256_broadcastd_epi32(_mm_srli_si128::<4>(centred)),
+        ];
+        let w = unsafe { weights.as_ptr().add(pixel * PAIR_WEIGHTS_PER_PIXEL) };
+        for (pair, &values) in pairs.iter().enumerate() {
+            for (block, acc) in acc.iter_mut().enumerate().take(BLOCKS) {
+                let row =
+                    unsafe { _mm256_loadu_si256(w.add((pair * 2 + block) * 16) as *const __m256i) };
+                *acc = _mm256_add_epi32(*acc, _mm256_madd_epi16(values, row));
+            }
+        }
+    }
+    let mut out = [0i32; 16];
+    // SAFETY: out holds 16 i32 = two 256-bit stores.
+    unsafe {
+        _mm256_storeu_si256(out.as_mut_ptr() as *mut __m256i, acc[0]);
+        _mm256_storeu_si256(out.as_mut_ptr().add(8) as *mut __m256i, acc[1]);
+    }
+    out
 }
 
 /// Sum of squared differences of the first K projection bytes (|difference| <= 255).
@@ -662,6 +798,8 @@ pub struct Prepared {
     /// order of accumulation, so the results equal the shader's bit for bit.
     weights_t: [Vec<i32>; 3],
     means: [Vec<i32>; 3],
+    /// The same weights for the AVX2 path's 16-bit multiply-adds, when they fit.
+    pair_weights: Option<PairWeights>,
     /// Per exemplar, an index into `candidates_2d` (exemplars sharing their lists share a table),
     /// or None when the projections are too long for [`Candidate2d`] or the tables too large.
     candidates_2d_of: [Option<usize>; 3],
@@ -834,6 +972,7 @@ impl Prepared {
             key: Self::key(p),
             weights_t: [t0, t1, t2],
             means: [m0, m1, m2],
+            pair_weights: PairWeights::new(p, level),
             candidates_2d_of,
             candidates_2d,
             candidates_3d: Self::candidates_3d(p, level),
@@ -926,5 +1065,89 @@ pub fn apply(p: &CorrectParams, level: &[u32], state: &mut [u32], updates: &Upda
             p.pixel_words,
             p.channels,
         );
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The 16-bit multiply-add projection equals the scalar i32 sums, extreme values included.
+    #[test]
+    #[cfg(target_arch = "x86_64")]
+    fn madd_projection_equals_the_scalar_sums() {
+        if !std::arch::is_x86_feature_detected!("avx2") {
+            return;
+        }
+        let mut seed = 0x9E37_79B9u32;
+        let mut next = || {
+            seed ^= seed << 13;
+            seed ^= seed >> 17;
+            seed ^= seed << 5;
+            seed
+        };
+        for (channels, outputs) in [(3usize, 8usize), (4, 8), (3, 12), (4, 12), (4, 16)] {
+            for round in 0..50 {
+                let d = 25 * channels;
+                // Row-major outputs x inputs, as the level data stores them; extremes first.
+                let weights: Vec<i32> = (0..outputs * d)
+                    .map(|i| match (round, i % 3) {
+                        (0, _) => 32767,
+                        (1, _) => -32768,
+                        _ => (next() % 65536) as i32 - 32768,
+                    })
+                    .collect();
+                let means: Vec<i32> = (0..d)
+                    .map(|_| {
+                        if round < 2 {
+                            255
+                        } else {
+                            (next() % 256) as i32
+                        }
+                    })
+                    .collect();
+                let words: [u32; 25] = std::array::from_fn(|_| if round < 2 { 0 } else { next() });
+                let mut level = Vec::new();
+                level.extend(weights.iter().map(|&w| w as u32));
+                level.extend(means.iter().map(|&m| m as u32));
+                let p = CorrectParams {
+                    channels: channels as u32,
+                    pixel_words: 1,
+                    pca_in: d as u32,
+                    pca_out: outputs as u32,
+                    weights0: 0,
+                    weights1: 0,
+                    weights2: 0,
+                    mean0: (outputs * d) as u32,
+                    mean1: (outputs * d) as u32,
+                    mean2: (outputs * d) as u32,
+                    ..Default::default()
+                };
+                let pairs = PairWeights::new(&p, &level).expect("16-bit weights");
+                // SAFETY: AVX2 detected above.
+                let got = unsafe {
+                    if outputs <= 8 {
+                        project_plane_madd::<1>(&words, &pairs.weights[0], &pairs.means[0])
+                    } else {
+                        project_plane_madd::<2>(&words, &pairs.weights[0], &pairs.means[0])
+                    }
+                };
+                for j in 0..outputs {
+                    let mut want = 0i32;
+                    for (pixel, &word) in words.iter().enumerate() {
+                        for ch in 0..channels {
+                            let i = pixel * channels + ch;
+                            let value = ((word >> (ch * 8)) & 0xFF) as i32;
+                            want = want
+                                .wrapping_add((value - means[i]).wrapping_mul(weights[j * d + i]));
+                        }
+                    }
+                    assert_eq!(
+                        got[j], want,
+                        "{channels} channels, {outputs} outputs, round {round}, output {j}"
+                    );
+                }
+            }
+        }
     }
 }
