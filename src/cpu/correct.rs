@@ -1124,6 +1124,13 @@ mod tests {
                     ..Default::default()
                 };
                 let pairs = PairWeights::new(&p, &level).expect("16-bit weights");
+                if round == 2 {
+                    // A weight beyond 16 bits (an analysis older than revision 2) keeps the
+                    // scalar path.
+                    let mut wide = level.clone();
+                    wide[d + 1] = 40_000;
+                    assert!(PairWeights::new(&p, &wide).is_none());
+                }
                 // SAFETY: AVX2 detected above.
                 let got = unsafe {
                     if outputs <= 8 {
