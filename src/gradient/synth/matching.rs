@@ -142,25 +142,17 @@ fn project_slices(
             return [0.0; KEPT]; // a slice left free is never searched
         }
         if frame.is_identity() {
-            // Axis-aligned slices: whole-voxel steps along two axes.
+            // Axis-aligned slices: whole-voxel steps along two axes, projected straight from
+            // the control points their samples are nearest to.
             let (u, v) = ctx.params.slice_axes().of(o);
-            let s = ctx.patches.spacing as i64;
-            let h = (n / 2) as i64;
-            let row = n as usize * c;
-            for b in 0..n as i64 {
-                let mut q = p;
-                q[v] += s * (b - h);
-                q[u] -= s * h;
-                let at = b as usize * row;
-                solid.taylor_row(q, u, s, n as usize, &mut buffer[at..at + row]);
-            }
-        } else {
-            for b in 0..n {
-                for a in 0..n {
-                    let q = ctx.sample_position(p, &frame, o, a, b);
-                    let at = ((b * n + a) as usize) * c;
-                    solid.taylor(q, &mut buffer[at..at + c]);
-                }
+            return ctx.patches.folded().project(solid, p, u, v);
+        }
+        // A direction field: each sample located on its own.
+        for b in 0..n {
+            for a in 0..n {
+                let q = ctx.sample_position(p, &frame, o, a, b);
+                let at = ((b * n + a) as usize) * c;
+                solid.taylor(q, &mut buffer[at..at + c]);
             }
         }
         ctx.patches.pca().project(buffer)

@@ -41,6 +41,7 @@
 
 pub mod buckets;
 pub mod clusters;
+pub mod folded;
 pub mod frame;
 pub mod ivf;
 pub mod matching;
@@ -291,35 +292,6 @@ impl PeriodicSolid {
         for (k, o) in out.iter_mut().enumerate().take(self.channels) {
             let v = &self.data[base + k * 4..base + k * 4 + 4];
             *o = v[0] + v[1] * t[0] + v[2] * t[1] + v[3] * t[2];
-        }
-    }
-
-    /// [`Self::taylor`] at `count` voxels from `q` in steps of `step` voxels along axis `u`,
-    /// `channels` values each into `out`: the same values, with the row's fixed axes located
-    /// once (every sample of every axis-aligned slice goes through here).
-    #[inline(always)]
-    pub fn taylor_row(&self, q: [i64; 3], u: usize, step: i64, count: usize, out: &mut [f32]) {
-        let d = SPACING as i64;
-        let (m, c) = (self.m as i64, self.channels);
-        let (c0, delta0) = Self::nearest_point(q);
-        let t0 = delta0.map(|v| v as f32);
-        // Offset of the row's nearest point with the u coordinate left out, and the stride of u.
-        let stride = [1, self.m as usize, (self.m * self.m) as usize].map(|x| x * c * 4);
-        let fixed: usize = (0..3)
-            .filter(|&a| a != u)
-            .map(|a| wrap(c0[a], m) as usize * stride[a])
-            .sum();
-        let mut qu = q[u];
-        for values in out.chunks_exact_mut(c).take(count) {
-            let cu = (qu + d / 2).div_euclid(d);
-            let mut t = t0;
-            t[u] = (qu - cu * d) as f32;
-            let base = fixed + wrap(cu, m) as usize * stride[u];
-            for (k, o) in values.iter_mut().enumerate() {
-                let v = &self.data[base + k * 4..base + k * 4 + 4];
-                *o = v[0] + v[1] * t[0] + v[2] * t[1] + v[3] * t[2];
-            }
-            qu += step;
         }
     }
 
@@ -691,39 +663,5 @@ mod tests {
         s.taylor([14, 0, 0], &mut out); // nearest point 4 = point 0 wrapped, offset -2
         assert_eq!(out[0], 6.0);
         assert_eq!(PeriodicSolid::nearest_point([6, -2, 2]).1, [-2, -2, -2]);
-    }
-
-    #[test]
-    fn taylor_rows_equal_point_by_point_evaluation() {
-        let (m, channels) = (5u32, 3);
-        let mut rng = crate::util::hash::SeededRng::new(9);
-        let s = PeriodicSolid {
-            m,
-            channels,
-            data: (0..(m * m * m) as usize * channels * 4)
-                .map(|_| rng.below(10_000) as f32 / 37.0 - 100.0)
-                .collect(),
-        };
-        for (q, u, step) in [
-            ([0i64, 0, 0], 0usize, 1i64),
-            ([-13, 7, 41], 1, 2),
-            ([3, -30, -2], 2, 4),
-            ([19, 19, 19], 0, 2),
-        ] {
-            let count = 23;
-            let mut row = vec![0f32; count * channels];
-            s.taylor_row(q, u, step, count, &mut row);
-            for i in 0..count {
-                let mut p = q;
-                p[u] += step * i as i64;
-                let mut one = [0f32; 3];
-                s.taylor(p, &mut one);
-                assert_eq!(
-                    &row[i * channels..(i + 1) * channels],
-                    &one,
-                    "{q:?} axis {u} sample {i}"
-                );
-            }
-        }
     }
 }

@@ -3,6 +3,7 @@
 //! grid), their PCA projections for the nearest-patch search, and what the bucket step reads back: the sample
 //! values and, at the finest level, their colour clusters.
 
+use super::folded::FoldedProjection;
 use super::pca::{PatchPca, KEPT};
 use crate::error::{Error, Result};
 use crate::exemplar::Image;
@@ -62,6 +63,8 @@ pub struct LevelPatches {
     centres: Vec<(u32, u32)>,
     /// Set by `build` (an option only so `vector` can be used while building).
     pca: Option<PatchPca>,
+    /// The axis-aligned slices' projection folded over control points (set by `build`).
+    folded: Option<FoldedProjection>,
     /// The candidates' projections, 8 per block, dimension-major inside a block (padding lanes
     /// hold a huge value): the layout an exhaustive search vectorizes over. Blocks are grouped
     /// by list of the inverted-file partition ([`super::ivf`]), so a search can scan the lists
@@ -191,6 +194,7 @@ impl LevelPatches {
             cluster_regions,
             centres,
             pca: None,
+            folded: None,
             early_blocks: Vec::new(),
             late_blocks: Vec::new(),
             lines: Vec::new(),
@@ -243,6 +247,12 @@ impl LevelPatches {
             })
             .collect();
         level.list_centres = centres;
+        level.folded = Some(FoldedProjection::new(
+            &pca,
+            level.size,
+            level.spacing,
+            level.channels,
+        ));
         level.pca = Some(pca);
         Ok(level)
     }
@@ -254,6 +264,11 @@ impl LevelPatches {
 
     pub fn pca(&self) -> &PatchPca {
         self.pca.as_ref().expect("built")
+    }
+
+    /// The projection of axis-aligned slices, folded over control points.
+    pub fn folded(&self) -> &FoldedProjection {
+        self.folded.as_ref().expect("built")
     }
 
     pub fn candidates(&self) -> usize {

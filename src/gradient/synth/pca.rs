@@ -94,6 +94,11 @@ impl PatchPca {
         }
     }
 
+    /// basis . mean, which [`Self::project`] subtracts.
+    pub fn bias(&self) -> &[f32; KEPT] {
+        &self.bias
+    }
+
     /// The KEPT coordinates of `v` (rows beyond the fitted ones, for tiny inputs, stay 0).
     /// Written as sum_j v_j B_j - B mean with B transposed so the inner loop runs over the 16
     /// output lanes (vectorizes; this is the hot loop of the patch search).
