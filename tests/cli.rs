@@ -185,6 +185,24 @@ fn feature_channel_is_automatic_unless_turned_off() {
         dir.path().join("v.nrrd").to_str().unwrap(),
     ]);
     assert_user_error(&o, "--feature-mask", dir.path(), &["auto.ssa", "none.ssa"]);
+    let o = run(&[
+        "synth",
+        cells.to_str().unwrap(),
+        "--feature-mask",
+        "none",
+        "--feature-weight",
+        "5",
+        "--size",
+        "8",
+        "-o",
+        dir.path().join("v.nrrd").to_str().unwrap(),
+    ]);
+    assert_user_error(
+        &o,
+        "--feature-weight",
+        dir.path(),
+        &["auto.ssa", "none.ssa"],
+    );
 }
 
 #[test]

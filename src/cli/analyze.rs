@@ -117,6 +117,14 @@ impl InputArgs {
             exemplars.push(exemplar::load_image(ez, "--ez")?);
             names.push(format!("--ez {}", ez.display()));
         }
+        if self.feature_mask == FeatureMask::None
+            && self.feature_weight != solidsynth::analysis::DEFAULT_FEATURE_WEIGHT
+        {
+            return Err(Error::invalid(
+                "--feature-weight",
+                "has no effect with --feature-mask none (there is no feature channel)",
+            ));
+        }
         let file = match &self.feature_mask {
             FeatureMask::File(p) => Some(p.clone()),
             _ => None,
