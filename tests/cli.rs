@@ -162,6 +162,13 @@ fn feature_channel_is_automatic_unless_turned_off() {
     assert_eq!(auto.exemplar(0).levels[0].image.channels, 4);
     assert_eq!(auto.params.feature_weight, 3.0);
     assert!(!analyse(&["--feature-mask", "none"], "none.ssa").has_feature);
+    let edges = analyse(&["--feature-mask", "edges"], "edges.ssa");
+    assert!(edges.has_feature);
+    assert_ne!(
+        edges.exemplar(0).levels[0].image.pixels,
+        auto.exemplar(0).levels[0].image.pixels,
+        "the edge mask's channel differs from the luminance mask's"
+    );
     // A mask image for the y exemplar alone is refused, as are analysis options with an .ssa.
     let o = run(&[
         "synth",
@@ -173,7 +180,12 @@ fn feature_channel_is_automatic_unless_turned_off() {
         "-o",
         dir.path().join("v.nrrd").to_str().unwrap(),
     ]);
-    assert_user_error(&o, "feature masks", dir.path(), &["auto.ssa", "none.ssa"]);
+    assert_user_error(
+        &o,
+        "feature masks",
+        dir.path(),
+        &["auto.ssa", "none.ssa", "edges.ssa"],
+    );
     let o = run(&[
         "synth",
         dir.path().join("auto.ssa").to_str().unwrap(),
@@ -184,7 +196,12 @@ fn feature_channel_is_automatic_unless_turned_off() {
         "-o",
         dir.path().join("v.nrrd").to_str().unwrap(),
     ]);
-    assert_user_error(&o, "--feature-mask", dir.path(), &["auto.ssa", "none.ssa"]);
+    assert_user_error(
+        &o,
+        "--feature-mask",
+        dir.path(),
+        &["auto.ssa", "none.ssa", "edges.ssa"],
+    );
     let o = run(&[
         "synth",
         cells.to_str().unwrap(),
@@ -201,7 +218,7 @@ fn feature_channel_is_automatic_unless_turned_off() {
         &o,
         "--feature-weight",
         dir.path(),
-        &["auto.ssa", "none.ssa"],
+        &["auto.ssa", "none.ssa", "edges.ssa"],
     );
 }
 

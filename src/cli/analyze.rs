@@ -22,10 +22,11 @@ pub struct InputArgs {
     #[arg(long, requires = "ey")]
     pub ez: Option<PathBuf>,
     /// The feature channel's mask: `auto` (each exemplar's luminance split in two by Otsu's
-    /// threshold), `none` (colour only: the paper's plain search), or a mask image the size of
-    /// the exemplar (white inside). The signed distance to the mask's boundary becomes one more
-    /// channel of the neighbourhoods, so matching keeps the shapes it outlines (a path named
-    /// "auto" or "none" is written ./auto).
+    /// threshold), `edges` (its strong edges: gradient magnitude above Otsu's threshold; for
+    /// cells, mortar grids, cracks), `none` (colour only: the paper's plain search), or a mask
+    /// image the size of the exemplar (white inside). The signed distance to the mask's
+    /// boundary becomes one more channel of the neighbourhoods, so matching keeps the shapes it
+    /// outlines (a file named like a keyword is written ./auto).
     #[arg(long, default_value = "auto", value_parser = parse_feature_mask)]
     pub feature_mask: FeatureMask,
     /// Feature mask of --ey (required with --ey when --feature-mask is an image).
@@ -58,6 +59,8 @@ pub struct InputArgs {
 pub enum FeatureMask {
     /// [`solidsynth::exemplar::feature::auto_masks`] of the exemplars.
     Auto,
+    /// [`solidsynth::exemplar::feature::edge_masks`] of the exemplars.
+    Edges,
     /// No feature channel.
     None,
     /// A mask image (with --ey-feature-mask and --ez-feature-mask for three exemplars).
@@ -67,8 +70,9 @@ pub enum FeatureMask {
 fn parse_feature_mask(s: &str) -> Result<FeatureMask, String> {
     Ok(match s {
         "auto" => FeatureMask::Auto,
+        "edges" => FeatureMask::Edges,
         "none" => FeatureMask::None,
-        "" => return Err("expected auto, none or a mask image".into()),
+        "" => return Err("expected auto, edges, none or a mask image".into()),
         path => FeatureMask::File(path.into()),
     })
 }
@@ -152,6 +156,8 @@ impl InputArgs {
             }
         } else if self.feature_mask == FeatureMask::Auto {
             masks = exemplar::feature::auto_masks(&exemplars);
+        } else if self.feature_mask == FeatureMask::Edges {
+            masks = exemplar::feature::edge_masks(&exemplars, border);
         }
         let params = AnalysisParams {
             feature_weight: self.feature_weight,

@@ -78,8 +78,8 @@ pub struct BenchSynthArgs {
     /// Treat the input exemplar as periodic.
     #[arg(long)]
     pub periodic: bool,
-    /// The analysis' feature channel, as `synth --feature-mask` (auto or none).
-    #[arg(long, default_value = "auto", value_parser = ["auto", "none"])]
+    /// The analysis' feature channel, as `synth --feature-mask` (auto, edges or none).
+    #[arg(long, default_value = "auto", value_parser = ["auto", "edges", "none"])]
     pub feature_mask: String,
 }
 
@@ -99,8 +99,8 @@ pub struct BenchAnalyzeArgs {
     /// paper's precomputation alone).
     #[arg(long, default_value_t = solidsynth::analysis::balance::DEFAULT_ROUNDS)]
     pub balance_rounds: u32,
-    /// The feature channel, as `analyze --feature-mask` (auto or none).
-    #[arg(long, default_value = "auto", value_parser = ["auto", "none"])]
+    /// The feature channel, as `analyze --feature-mask` (auto, edges or none).
+    #[arg(long, default_value = "auto", value_parser = ["auto", "edges", "none"])]
     pub feature_mask: String,
     /// Print JSON lines instead of a table.
     #[arg(long)]

@@ -162,25 +162,18 @@ fn otsu_threshold(histogram: &[u64; 256]) -> Option<u8> {
     best.map(|(_, t)| t)
 }
 
-/// The automatic feature mask of an exemplar: its luminance thresholded by Otsu's method
-/// (255 where the luminance is at or above the threshold). Lefebvre and Hoppe 2006 and Kopf et
-/// al. 2007 take the feature distance from a binary mask of the exemplar's structure (mortar
-/// against bricks, gaps against stones); a two-class split of the luminance is the simplest
-/// such mask and needs no user input. `None` for an exemplar with a single luminance value.
-pub fn auto_mask(exemplar: &Image) -> Option<Image> {
-    let channels = exemplar.channels as usize;
+/// `values` (one byte per pixel, row-major) split in two by Otsu's threshold: 255 where a value
+/// is at or above it (`inside_above`) or below it (otherwise), else 0. `None` when all values
+/// are equal.
+fn otsu_mask(width: u32, height: u32, values: &[u8], inside_above: bool) -> Option<Image> {
     let mut histogram = [0u64; 256];
-    for pixel in exemplar.pixels.chunks_exact(channels) {
-        histogram[luminance(pixel) as usize] += 1;
+    for &v in values {
+        histogram[v as usize] += 1;
     }
     let threshold = otsu_threshold(&histogram)?;
-    let mut mask = Image::new(exemplar.width, exemplar.height, 1);
-    for (m, pixel) in mask
-        .pixels
-        .iter_mut()
-        .zip(exemplar.pixels.chunks_exact(channels))
-    {
-        *m = if luminance(pixel) >= threshold {
+    let mut mask = Image::new(width, height, 1);
+    for (m, &v) in mask.pixels.iter_mut().zip(values) {
+        *m = if (v >= threshold) == inside_above {
             255
         } else {
             0
@@ -189,14 +182,62 @@ pub fn auto_mask(exemplar: &Image) -> Option<Image> {
     Some(mask)
 }
 
-/// Automatic feature masks for a set of exemplars ([`auto_mask`] of each), or none at all when
-/// one of them has a single luminance value (the feature channel is all or nothing).
-pub fn auto_masks(exemplars: &[Image]) -> Vec<Image> {
+/// The automatic feature mask of an exemplar: its luminance thresholded by Otsu's method
+/// (255 where the luminance is at or above the threshold). Lefebvre and Hoppe 2006 and Kopf et
+/// al. 2007 take the feature distance from a binary mask of the exemplar's structure (mortar
+/// against bricks, gaps against stones); a two-class split of the luminance is the simplest
+/// such mask and needs no user input. `None` for an exemplar with a single luminance value.
+pub fn auto_mask(exemplar: &Image) -> Option<Image> {
+    let channels = exemplar.channels as usize;
+    let values: Vec<u8> = exemplar
+        .pixels
+        .chunks_exact(channels)
+        .map(luminance)
+        .collect();
+    otsu_mask(exemplar.width, exemplar.height, &values, true)
+}
+
+/// The edge feature mask of an exemplar: 0 on its strong edges, 255 elsewhere. The luminance
+/// gradient's magnitude (central differences, `border` past the edges), scaled so its maximum
+/// is 255, is thresholded by Otsu's method. The feature channel is then the distance to the
+/// nearest strong edge: suited to cells, mortar grids and cracks whose regions differ in colour
+/// but not in luminance. `None` for an exemplar without any gradient.
+pub fn edge_mask(exemplar: &Image, border: Border) -> Option<Image> {
+    let (w, h) = (exemplar.width as i32, exemplar.height as i32);
+    let lum = |x: i32, y: i32| luminance(exemplar.at_border(x, y, border)) as i32;
+    let squared: Vec<i32> = (0..h)
+        .flat_map(|y| (0..w).map(move |x| (x, y)))
+        .map(|(x, y)| {
+            (lum(x + 1, y) - lum(x - 1, y)).pow(2) + (lum(x, y + 1) - lum(x, y - 1)).pow(2)
+        })
+        .collect();
+    let magnitude: Vec<u32> = squared.iter().map(|&g| (g as u32).isqrt()).collect();
+    let max = *magnitude.iter().max()?;
+    if max == 0 {
+        return None;
+    }
+    let values: Vec<u8> = magnitude.iter().map(|&g| (g * 255 / max) as u8).collect();
+    otsu_mask(exemplar.width, exemplar.height, &values, false)
+}
+
+/// One feature mask per exemplar from `mask_of`, or none at all when one of them has no mask
+/// (the feature channel is all or nothing).
+fn masks_of(exemplars: &[Image], mask_of: impl Fn(&Image) -> Option<Image>) -> Vec<Image> {
     exemplars
         .iter()
-        .map(auto_mask)
+        .map(mask_of)
         .collect::<Option<Vec<_>>>()
         .unwrap_or_default()
+}
+
+/// [`auto_mask`] of each exemplar (or none, see [`masks_of`]).
+pub fn auto_masks(exemplars: &[Image]) -> Vec<Image> {
+    masks_of(exemplars, auto_mask)
+}
+
+/// [`edge_mask`] of each exemplar (or none, see [`masks_of`]).
+pub fn edge_masks(exemplars: &[Image], border: Border) -> Vec<Image> {
+    masks_of(exemplars, |e| edge_mask(e, border))
 }
 
 #[cfg(test)]
@@ -275,7 +316,17 @@ mod tests {
         assert!(feature_channel(&m, &ex, "auto", Border::Wrap).is_ok());
         let flat = Image::new(8, 8, 3);
         assert!(auto_mask(&flat).is_none());
-        assert!(auto_masks(&[ex.clone(), flat]).is_empty());
-        assert_eq!(auto_masks(&[ex.clone(), ex]).len(), 2);
+        assert!(auto_masks(&[ex.clone(), flat.clone()]).is_empty());
+        assert_eq!(auto_masks(&[ex.clone(), ex.clone()]).len(), 2);
+        // The edge mask: the joint's two sides are edges (0), the joint's and the blocks'
+        // middles are not (the blocks' texture is faint against the joint's step).
+        let e = edge_mask(&ex, Border::Wrap).unwrap();
+        assert_eq!(e.at(4, 8)[0], 0);
+        assert_eq!(e.at(15, 8)[0], 0);
+        assert_eq!(e.at(10, 10)[0], 255);
+        assert_eq!(e.at(1, 1)[0], 255);
+        assert!(edge_mask(&flat, Border::Wrap).is_none());
+        assert!(edge_masks(&[ex.clone(), flat], Border::Wrap).is_empty());
+        assert_eq!(edge_masks(&[ex], Border::Mirror).len(), 1);
     }
 }
