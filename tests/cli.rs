@@ -169,57 +169,33 @@ fn feature_channel_is_automatic_unless_turned_off() {
         auto.exemplar(0).levels[0].image.pixels,
         "the edge mask's channel differs from the luminance mask's"
     );
-    // A mask image for the y exemplar alone is refused, as are analysis options with an .ssa.
-    let o = run(&[
-        "synth",
-        cells.to_str().unwrap(),
-        "--ey-feature-mask",
-        cells.to_str().unwrap(),
-        "--size",
-        "8",
-        "-o",
-        dir.path().join("v.nrrd").to_str().unwrap(),
-    ]);
-    assert_user_error(
-        &o,
-        "feature masks",
-        dir.path(),
-        &["auto.ssa", "none.ssa", "edges.ssa"],
-    );
-    let o = run(&[
-        "synth",
-        dir.path().join("auto.ssa").to_str().unwrap(),
-        "--feature-mask",
-        "none",
-        "--size",
-        "8",
-        "-o",
-        dir.path().join("v.nrrd").to_str().unwrap(),
-    ]);
-    assert_user_error(
-        &o,
-        "--feature-mask",
-        dir.path(),
-        &["auto.ssa", "none.ssa", "edges.ssa"],
-    );
-    let o = run(&[
-        "synth",
-        cells.to_str().unwrap(),
-        "--feature-mask",
-        "none",
-        "--feature-weight",
-        "5",
-        "--size",
-        "8",
-        "-o",
-        dir.path().join("v.nrrd").to_str().unwrap(),
-    ]);
-    assert_user_error(
-        &o,
-        "--feature-weight",
-        dir.path(),
-        &["auto.ssa", "none.ssa", "edges.ssa"],
-    );
+    // Refused (exit 2, nothing written): a mask image for the y exemplar alone, analysis
+    // options with an .ssa, and a feature weight without a feature channel.
+    let (image, ssa) = (cells.to_str().unwrap(), dir.path().join("auto.ssa"));
+    let refused: [(&str, &[&str], &str); 3] = [
+        (image, &["--ey-feature-mask", image], "feature masks"),
+        (
+            ssa.to_str().unwrap(),
+            &["--feature-mask", "none"],
+            "--feature-mask",
+        ),
+        (
+            image,
+            &["--feature-mask", "none", "--feature-weight", "5"],
+            "--feature-weight",
+        ),
+    ];
+    let out = dir.path().join("v.nrrd");
+    for (input, flags, needle) in refused {
+        let mut args = vec!["synth", input, "--size", "8", "-o", out.to_str().unwrap()];
+        args.extend_from_slice(flags);
+        assert_user_error(
+            &run(&args),
+            needle,
+            dir.path(),
+            &["auto.ssa", "none.ssa", "edges.ssa"],
+        );
+    }
 }
 
 #[test]
