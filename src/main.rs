@@ -14,6 +14,12 @@ fn main() {
         std::env::set_var("NODEVICE_SELECT", "1");
     }
     let args = cli::Cli::parse();
+    // An interrupted command leaves no partial output behind: outputs are written to
+    // temporaries (renamed into place when complete), which the handler deletes.
+    let _ = ctrlc::set_handler(|| {
+        solidsynth::io::atomic::discard_pending();
+        std::process::exit(130);
+    });
     let default_level = if args.quiet { "warn" } else { "info" };
     tracing_subscriber::fmt()
         .with_env_filter(

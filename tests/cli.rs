@@ -9,6 +9,8 @@ use std::process::{Command, Output};
 fn bin() -> Command {
     let mut c = Command::new(env!("CARGO_BIN_EXE_solidsynth"));
     c.env("SOLIDSYNTH_LOG", "warn");
+    // The same memory refusals on every machine, whatever it has free.
+    c.env("SOLIDSYNTH_MEMORY_BUDGET_MIB", "4096");
     c
 }
 
@@ -484,6 +486,45 @@ fn synth_writes_nrrd_flipbook_slices_and_sheet_from_an_ssa() {
     }
     // And the whole flipbook reads back as the volume (round trip).
     assert_eq!(solidsynth::io::flipbook::from_image(&f, 12, 3).unwrap(), v);
+}
+
+/// An interrupt (Ctrl-C) while the volume is being streamed to its file deletes the partial file.
+#[test]
+#[cfg(unix)]
+fn an_interrupted_synthesis_leaves_no_partial_output() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let cache = tempfile::tempdir().unwrap();
+    let mut child = bin()
+        .env("SOLIDSYNTH_CACHE_DIR", cache.path())
+        .args(["synth", "--size", "256", "--backend", "cpu", "-q", "-o"])
+        .arg(d.join("v.nrrd"))
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let started = std::time::Instant::now();
+    let partial = loop {
+        let names: Vec<String> = std::fs::read_dir(d)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().to_string())
+            .collect();
+        if let Some(n) = names.iter().find(|n| n.ends_with(".partial")) {
+            break n.clone();
+        }
+        assert!(child.try_wait().unwrap().is_none(), "exited before writing: {names:?}");
+        assert!(started.elapsed().as_secs() < 120, "no partial output appeared");
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    };
+    let killed = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(killed.success());
+    let status = child.wait().unwrap();
+    assert_eq!(status.code(), Some(130), "{status:?}");
+    let left: Vec<_> = std::fs::read_dir(d).unwrap().collect();
+    assert!(left.is_empty(), "{partial} interrupted, left {left:?}");
 }
 
 #[test]

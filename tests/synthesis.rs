@@ -212,6 +212,28 @@ mod determinism {
         }
         // Grouping (seams at multiples of 12 voxels) changes nothing.
         assert_eq!(synth(&a, &params, big, Some(12)), v);
+        // Streamed in slabs of groups (what `synth` writes to its file): the slabs follow each
+        // other along z, span the box in x and y, and together are the volume.
+        let mut s = Synthesizer::new(&a, params.clone(), &Compute::Cpu).unwrap();
+        s.set_max_chunk_side(8);
+        let mut joined = Vec::new();
+        let mut next_z = 0;
+        let mut depths = Vec::new();
+        s.synthesize_slabs(big, &|_, _| {}, false, |slab| {
+            assert_eq!(slab.z0, next_z);
+            assert_eq!([slab.volume.nx, slab.volume.ny], [v.nx, v.ny]);
+            assert!(slab.triples.is_empty());
+            next_z += slab.volume.nz;
+            depths.push(slab.volume.nz);
+            joined.extend_from_slice(&slab.volume.data);
+            Ok(())
+        })
+        .unwrap();
+        assert_eq!(next_z, v.nz);
+        // Groups start at the box's low brick corner (z -9 lies in the brick from -12): the
+        // first slab holds 8 - 3 slices, then 8 each, then the rest.
+        assert_eq!(depths, [5, 8, 7]);
+        assert_eq!(joined, v.data);
         // Scattered voxels (sparse bricks, each with its own dependency set) equal the box's.
         let mut s = Synthesizer::new(&a, params.clone(), &Compute::Cpu).unwrap();
         let mut rng = solidsynth::util::hash::SeededRng::new(3);

@@ -132,12 +132,45 @@ pub struct SolidArgs {
 /// LE), then per voxel (x fastest) three u32: packed coordinates x | y << 16 in Ex, Ey, Ez.
 pub const TRIPLES_MAGIC: &[u8; 8] = b"SSTRIPLE";
 
+/// The `--triples` file, written slab by slab like the volume.
+struct TriplesWriter {
+    file: atomic::PendingFile,
+    words_left: u64,
+}
+
+impl TriplesWriter {
+    fn create(path: &Path, dims: [u32; 3], exemplar: [u32; 2]) -> solidsynth::Result<Self> {
+        let mut file = atomic::PendingFile::create(path)?;
+        let mut header = TRIPLES_MAGIC.to_vec();
+        for v in [1u32, dims[0], dims[1], dims[2], exemplar[0], exemplar[1]] {
+            header.extend_from_slice(&v.to_le_bytes());
+        }
+        file.write_all(&header)?;
+        Ok(TriplesWriter {
+            file,
+            words_left: dims.iter().map(|&d| d as u64).product::<u64>() * 3,
+        })
+    }
+
+    fn write(&mut self, triples: &[u32]) -> solidsynth::Result<()> {
+        self.words_left -= triples.len() as u64;
+        let bytes: Vec<u8> = triples.iter().flat_map(|t| t.to_le_bytes()).collect();
+        self.file.write_all(&bytes)
+    }
+
+    fn finish(self) -> solidsynth::Result<()> {
+        assert_eq!(self.words_left, 0, "triples incomplete");
+        self.file.commit()
+    }
+}
+
 /// Largest --size accepted before the memory estimate is even computed.
 pub const MAX_SIZE: u32 = 2048;
 
-/// MemAvailable from /proc/meminfo (u64::MAX when unknown).
+/// The memory a request may plan to use: MemAvailable from /proc/meminfo (u64::MAX when
+/// unknown), capped by `SOLIDSYNTH_MEMORY_BUDGET_MIB` when that is set.
 pub fn available_memory() -> u64 {
-    std::fs::read_to_string("/proc/meminfo")
+    let available = std::fs::read_to_string("/proc/meminfo")
         .ok()
         .and_then(|s| {
             let line = s
@@ -146,26 +179,48 @@ pub fn available_memory() -> u64 {
                 .to_string();
             line.split_whitespace().nth(1)?.parse::<u64>().ok()
         })
-        .map_or(u64::MAX, |kib| kib * 1024)
+        .map_or(u64::MAX, |kib| kib * 1024);
+    let budget = std::env::var("SOLIDSYNTH_MEMORY_BUDGET_MIB")
+        .ok()
+        .and_then(|v| v.trim().parse::<u64>().ok())
+        .map_or(u64::MAX, |mib| mib.saturating_mul(1 << 20));
+    available.min(budget)
 }
 
-/// Refuse a size before allocating anything for it.
-pub fn check_size(size: u32, channels: u32) -> solidsynth::Result<u64> {
+/// Refuse a size outside what `synth` supports.
+pub fn check_size(size: u32) -> solidsynth::Result<()> {
     if !(8..=MAX_SIZE).contains(&size) {
         return Err(Error::invalid(
             format!("--size {size}"),
             format!("must be 8..={MAX_SIZE}"),
         ));
     }
-    let output = size as u64 * size as u64 * size as u64 * channels as u64;
-    let working = Synthesizer::chunk_bytes(size.min(256));
-    let estimate = output * 2 + working;
+    Ok(())
+}
+
+/// Refuse a box whose synthesis would not fit in memory, before allocating anything for it:
+/// one group's working set, one slab of the output (the volume is streamed to the file), and
+/// the whole volume when an output needs it at once (`what` names the request in the error).
+pub fn check_memory(what: &str, b: Box3, args: &SolidArgs) -> solidsynth::Result<u64> {
+    let size = b.size().map(|d| d as u64);
+    let largest = size.into_iter().max().unwrap_or(0) as u32;
+    let group = args.solid.max_group.unwrap_or(512).min(largest);
+    // Four bytes a voxel covers up to four channels; triples add twelve.
+    let per_voxel = 4 + if args.triples.is_some() { 12 } else { 0 };
+    let slab = size[0] * size[1] * size[2].min(group as u64) * per_voxel;
+    let keeps_volume = args.vti.is_some()
+        || args.flipbook.is_some()
+        || args.sheet.is_some()
+        || args.slices.is_some();
+    let whole = if keeps_volume { b.voxels() * 4 } else { 0 };
+    let estimate = Synthesizer::chunk_bytes(group) + slab + whole;
     let available = available_memory();
     if estimate > available {
         return Err(Error::invalid(
-            format!("--size {size}"),
+            what,
             format!(
-                "needs about {:.1} GiB of memory, {:.1} GiB is available",
+                "needs about {:.1} GiB of memory, {:.1} GiB is available (a smaller \
+                 --max-group bounds the working memory)",
                 estimate as f64 / (1u64 << 30) as f64,
                 available as f64 / (1u64 << 30) as f64
             ),
@@ -210,7 +265,7 @@ fn z_slice(v: &Volume, z: u32) -> image::RgbaImage {
 }
 
 pub fn run(args: SynthArgs, quiet: bool) -> anyhow::Result<()> {
-    check_size(args.size, 4)?;
+    check_size(args.size)?;
     let n = args.size as i32;
     if args.tileable && (args.size < 32 || args.size % 32 != 0) {
         return Err(Error::invalid(
@@ -219,7 +274,9 @@ pub fn run(args: SynthArgs, quiet: bool) -> anyhow::Result<()> {
         )
         .into());
     }
-    run_box(&args.solid, Box3::new([0; 3], [n; 3]), args.tileable, quiet)
+    let region = Box3::new([0; 3], [n; 3]);
+    check_memory(&format!("--size {}", args.size), region, &args.solid)?;
+    run_box(&args.solid, region, args.tileable, quiet)
 }
 
 /// Parse and check `--box X0,Y0,Z0,X1,Y1,Z1`.
@@ -261,22 +318,12 @@ pub fn parse_box(text: &str) -> solidsynth::Result<Box3> {
         [v[0] as i32, v[1] as i32, v[2] as i32],
         [v[3] as i32, v[4] as i32, v[5] as i32],
     );
-    let bytes =
-        b.voxels() * 4 * 2 + Synthesizer::chunk_bytes(b.size().into_iter().max().unwrap().min(256));
-    if bytes > available_memory() {
-        return Err(Error::invalid(
-            &what,
-            format!(
-                "needs about {:.1} GiB of memory, more than is available",
-                bytes as f64 / (1u64 << 30) as f64
-            ),
-        ));
-    }
     Ok(b)
 }
 
 pub fn run_region(args: RegionArgs, quiet: bool) -> anyhow::Result<()> {
     let b = parse_box(&args.region)?;
+    check_memory(&format!("--box {}", args.region), b, &args.solid)?;
     run_box(&args.solid, b, false, quiet)
 }
 
@@ -311,35 +358,50 @@ fn run_box(args: &SolidArgs, region: Box3, tileable: bool, quiet: bool) -> anyho
     if args.profile {
         synth.enable_profiling();
     }
+    // The volume is written as it is synthesized, a slab of z slices at a time (bounded
+    // memory with --max-group); it is kept whole only for the outputs that need all of it.
+    let dims = region.size();
+    let channels = synth.color_channels();
+    let mut nrrd_out = nrrd::SlabWriter::create(&args.output, dims, channels)?;
     // Triples cost memory (and a read-back): only when asked for.
-    let want_triples = args.triples.is_some();
-    let (volume, triples) = if tileable {
-        synth.synthesize_tileable(region.size()[0], &report, want_triples)?
-    } else if want_triples {
-        synth.synthesize_with_triples(region, &report)?
-    } else {
-        (synth.synthesize(region, &report)?, Vec::new())
+    let finest = &analysis.exemplar(0).levels[0].image;
+    let mut triples_out = args
+        .triples
+        .as_deref()
+        .map(|p| TriplesWriter::create(p, dims, [finest.width, finest.height]))
+        .transpose()?;
+    let want_triples = triples_out.is_some();
+    let keep_volume = args.vti.is_some()
+        || args.flipbook.is_some()
+        || args.sheet.is_some()
+        || args.slices.is_some();
+    let mut kept = keep_volume.then(|| Volume::new(dims[0], dims[1], 0, channels));
+    let mut take = |slab: &Volume, triples: &[u32]| -> solidsynth::Result<()> {
+        nrrd_out.write_slab(slab)?;
+        if let Some(t) = &mut triples_out {
+            t.write(triples)?;
+        }
+        if let Some(v) = &mut kept {
+            v.data.extend_from_slice(&slab.data);
+            v.nz += slab.nz;
+        }
+        Ok(())
     };
+    if tileable {
+        let (volume, triples) = synth.synthesize_tileable(dims[0], &report, want_triples)?;
+        take(&volume, &triples)?;
+    } else {
+        synth.synthesize_slabs(region, &report, want_triples, |slab| {
+            take(slab.volume, slab.triples)
+        })?;
+    }
     let synth_s = synth_start.elapsed().as_secs_f64();
     bar.finish_and_clear();
-    nrrd::save(&volume, &args.output)?;
-    if let Some(p) = &args.triples {
-        let finest = &analysis.exemplar(0).levels[0].image;
-        let mut bytes = Vec::with_capacity(32 + triples.len() * 4);
-        bytes.extend_from_slice(TRIPLES_MAGIC);
-        for v in [
-            1u32,
-            volume.nx,
-            volume.ny,
-            volume.nz,
-            finest.width,
-            finest.height,
-        ] {
-            bytes.extend_from_slice(&v.to_le_bytes());
-        }
-        bytes.extend(triples.iter().flat_map(|t| t.to_le_bytes()));
-        atomic::write_file(p, &bytes)?;
+    nrrd_out.finish()?;
+    if let Some(t) = triples_out {
+        t.finish()?;
     }
+    let volume = kept.unwrap_or_else(|| Volume::new(0, 0, 0, channels));
     if let Some(p) = &args.vti {
         solidsynth::io::vti::save(&volume, p)?;
     }

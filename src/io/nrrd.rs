@@ -7,7 +7,7 @@
 
 use crate::error::{Error, Result};
 use crate::volume::Volume;
-use std::io::{Read, Write};
+use std::io::Read;
 use std::path::Path;
 
 /// Largest volume accepted when reading (voxels x channels), to refuse absurd headers before
@@ -16,7 +16,12 @@ pub const MAX_READ_BYTES: u64 = 8 << 30;
 
 /// The header text of a volume.
 pub fn header(v: &Volume) -> String {
-    let kind = match v.channels {
+    header_of(v.dims(), v.channels)
+}
+
+/// The header text of a volume of `dims` voxels with `channels` bytes each.
+pub fn header_of(dims: [u32; 3], channels: u32) -> String {
+    let kind = match channels {
         3 => "RGB-color",
         4 => "RGBA-color",
         _ => "vector",
@@ -24,18 +29,62 @@ pub fn header(v: &Volume) -> String {
     format!(
         "NRRD0004\n# written by solidsynth\ntype: uint8\ndimension: 4\nsizes: {} {} {} {}\n\
          kinds: {kind} domain domain domain\nencoding: raw\n\n",
-        v.channels, v.nx, v.ny, v.nz
+        channels, dims[0], dims[1], dims[2]
     )
 }
 
 /// Write a volume atomically.
 pub fn save(v: &Volume, path: &Path) -> Result<()> {
-    crate::io::atomic::write_with(path, |f| {
-        let mut w = std::io::BufWriter::new(f);
-        w.write_all(header(v).as_bytes())?;
-        w.write_all(&v.data)?;
-        w.flush()
-    })
+    let mut w = SlabWriter::create(path, v.dims(), v.channels)?;
+    w.write_slab(v)?;
+    w.finish()
+}
+
+/// A volume written slab by slab along z (the file's order), so a large synthesis need not
+/// hold it whole. Atomic: nothing appears at the path until [`SlabWriter::finish`], which
+/// checks that every slice arrived; dropped before, the partial file is deleted.
+pub struct SlabWriter {
+    file: crate::io::atomic::PendingFile,
+    dims: [u32; 3],
+    channels: u32,
+    slices_written: u32,
+}
+
+impl SlabWriter {
+    pub fn create(path: &Path, dims: [u32; 3], channels: u32) -> Result<SlabWriter> {
+        let mut file = crate::io::atomic::PendingFile::create(path)?;
+        file.write_all(header_of(dims, channels).as_bytes())?;
+        Ok(SlabWriter {
+            file,
+            dims,
+            channels,
+            slices_written: 0,
+        })
+    }
+
+    /// The next `slab.nz` z slices (x and y extents and channels those of the volume).
+    pub fn write_slab(&mut self, slab: &Volume) -> Result<()> {
+        assert!(
+            slab.nx == self.dims[0]
+                && slab.ny == self.dims[1]
+                && slab.channels == self.channels
+                && self.slices_written + slab.nz <= self.dims[2],
+            "slab {:?} x {} does not continue a volume {:?} x {} at z {}",
+            slab.dims(),
+            slab.channels,
+            self.dims,
+            self.channels,
+            self.slices_written
+        );
+        self.file.write_all(&slab.data)?;
+        self.slices_written += slab.nz;
+        Ok(())
+    }
+
+    pub fn finish(self) -> Result<()> {
+        assert_eq!(self.slices_written, self.dims[2], "volume incomplete");
+        self.file.commit()
+    }
 }
 
 /// Read a volume file.
@@ -173,7 +222,7 @@ mod tests {
         assert_eq!(parse(&bytes).unwrap(), v);
 
         let mut gz = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
-        gz.write_all(&v.data).unwrap();
+        std::io::Write::write_all(&mut gz, &v.data).unwrap();
         let text = header(&v).replace("encoding: raw", "encoding: gzip");
         let mut bytes = text.into_bytes();
         bytes.extend_from_slice(&gz.finish().unwrap());

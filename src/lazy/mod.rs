@@ -111,6 +111,16 @@ impl SynthParams {
     }
 }
 
+/// Consecutive z slices of a synthesized box (see [`Synthesizer::synthesize_slabs`]).
+pub struct Slab<'a> {
+    /// First slice's z, relative to the box.
+    pub z0: u32,
+    /// The slices: the box's x and y extents, `volume.nz` slices.
+    pub volume: &'a Volume,
+    /// Their triples (3 packed coordinates per voxel, x fastest) when asked for, else empty.
+    pub triples: &'a [u32],
+}
+
 /// Progress: (message, fraction of the whole job).
 pub type Progress<'a> = &'a (dyn Fn(&str, f32) + Sync);
 
@@ -212,49 +222,91 @@ impl Synthesizer {
         want_triples: bool,
     ) -> Result<(Volume, Vec<u32>)> {
         let size = out.size();
+        let mut volume = Volume::new(size[0], size[1], 0, self.color_channels());
+        volume.data.reserve(out.voxels() as usize * volume.channels as usize);
+        let mut triples = Vec::with_capacity(if want_triples {
+            out.voxels() as usize * 3
+        } else {
+            0
+        });
+        self.synthesize_slabs(out, progress, want_triples, |slab| {
+            volume.data.extend_from_slice(&slab.volume.data);
+            volume.nz += slab.volume.nz;
+            triples.extend_from_slice(slab.triples);
+            Ok(())
+        })?;
+        Ok((volume, triples))
+    }
+
+    /// Synthesize the box `out` and hand it to `sink` in slabs along z, in order: each slab
+    /// spans the box's full x and y and as many z slices as one group of the synthesis (the
+    /// box whole when it fits one group). Only one slab is held at a time, so with groups
+    /// bounded by [`Self::set_max_chunk_side`] a large box is written out (see
+    /// [`crate::io::nrrd::SlabWriter`]) in bounded memory.
+    pub fn synthesize_slabs(
+        &mut self,
+        out: Box3,
+        progress: Progress,
+        want_triples: bool,
+        mut sink: impl FnMut(Slab) -> Result<()>,
+    ) -> Result<()> {
+        let size = out.size();
         let channels = self.color_channels() as usize;
-        let mut volume = Volume::new(size[0], size[1], size[2], channels as u32);
-        let mut triples = vec![
-            0u32;
-            if want_triples {
-                out.voxels() as usize * 3
-            } else {
-                0
-            }
-        ];
         let mut all = bricks::bricks_of_box(out);
         bricks::normalize(&mut all);
-        // Each group's voxels go straight into the volume: no colour buffer of the whole box.
-        self.for_each_group(
-            &all,
-            progress,
-            want_triples,
-            |group, colors, group_triples| {
-                for (j, &b) in group.iter().enumerate() {
-                    for local in 0..64 {
-                        let p = bricks::voxel_of(b, local);
-                        if !(0..3).all(|i| (out.lo[i]..out.hi[i]).contains(&p[i])) {
-                            continue;
-                        }
-                        let v = [0, 1, 2].map(|i| (p[i] - out.lo[i]) as u32);
-                        let src = j * 64 + local as usize;
-                        let word = colors[src].to_le_bytes();
-                        volume
-                            .at_mut(v[0], v[1], v[2])
-                            .copy_from_slice(&word[..channels]);
-                        if want_triples {
-                            let dst = ((v[2] as usize * size[1] as usize + v[1] as usize)
-                                * size[0] as usize
-                                + v[0] as usize)
-                                * 3;
-                            triples[dst..dst + 3]
-                                .copy_from_slice(&group_triples[src * 3..src * 3 + 3]);
-                        }
+        // The slab being filled: its z range in the box, its voxels and triples.
+        let mut pending: Option<(std::ops::Range<i32>, Volume, Vec<u32>)> = None;
+        let mut flush = |pending: &mut Option<(std::ops::Range<i32>, Volume, Vec<u32>)>| {
+            match pending.take() {
+                Some((z, volume, triples)) => sink(Slab {
+                    z0: (z.start - out.lo[2]) as u32,
+                    volume: &volume,
+                    triples: &triples,
+                }),
+                None => Ok(()),
+            }
+        };
+        // Groups come z-major (see `groups`): a group starting above the slab begins the next.
+        self.for_each_group(&all, progress, want_triples, |group, colors, group_triples| {
+            let bz = group.iter().map(|b| b[2]).fold(i32::MAX, i32::min);
+            let bz_end = group.iter().map(|b| b[2]).fold(i32::MIN, i32::max) + 1;
+            let z = (bz * bricks::BRICK).max(out.lo[2])..(bz_end * bricks::BRICK).min(out.hi[2]);
+            if pending.as_ref().is_some_and(|(range, ..)| z.start >= range.end) {
+                flush(&mut pending)?;
+            }
+            let (range, slab, slab_triples) = pending.get_or_insert_with(|| {
+                let depth = (z.end - z.start) as u32;
+                let voxels = size[0] as usize * size[1] as usize * depth as usize;
+                (
+                    z.clone(),
+                    Volume::new(size[0], size[1], depth, channels as u32),
+                    vec![0; if want_triples { voxels * 3 } else { 0 }],
+                )
+            });
+            debug_assert!(z.start >= range.start && z.end <= range.end);
+            for (j, &b) in group.iter().enumerate() {
+                for local in 0..64 {
+                    let p = bricks::voxel_of(b, local);
+                    if !(0..3).all(|i| (out.lo[i]..out.hi[i]).contains(&p[i])) {
+                        continue;
+                    }
+                    let v = [p[0] - out.lo[0], p[1] - out.lo[1], p[2] - range.start].map(|c| c as u32);
+                    let src = j * 64 + local as usize;
+                    slab.at_mut(v[0], v[1], v[2])
+                        .copy_from_slice(&colors[src].to_le_bytes()[..channels]);
+                    if want_triples {
+                        let dst = ((v[2] as usize * size[1] as usize + v[1] as usize)
+                            * size[0] as usize
+                            + v[0] as usize)
+                            * 3;
+                        slab_triples[dst..dst + 3]
+                            .copy_from_slice(&group_triples[src * 3..src * 3 + 3]);
                     }
                 }
-            },
-        )?;
-        Ok((volume, triples))
+            }
+            Ok(())
+        })?;
+        flush(&mut pending)
     }
 
     /// Synthesize every voxel of the finest-level bricks `requested` (4^3 voxels each, see
@@ -280,6 +332,7 @@ impl Synthesizer {
                         .copy_from_slice(&t[j * 192..(j + 1) * 192]);
                 }
             }
+            Ok(())
         })?;
         Ok(BrickColors {
             bricks: all,
@@ -296,7 +349,7 @@ impl Synthesizer {
         all: &[Brick],
         progress: Progress,
         want_triples: bool,
-        mut sink: impl FnMut(&[Brick], &[u32], &[u32]),
+        mut sink: impl FnMut(&[Brick], &[u32], &[u32]) -> Result<()>,
     ) -> Result<()> {
         let groups = self.groups(all);
         let mut stats = SynthStats {
@@ -313,7 +366,7 @@ impl Synthesizer {
                 want_triples,
                 &mut stats,
             )?;
-            sink(group, &c, &t);
+            sink(group, &c, &t)?;
         }
         progress("done", 1.0);
         self.last_stats = Some(stats);
