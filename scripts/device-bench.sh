@@ -1,0 +1,132 @@
+#!/usr/bin/env bash
+# The GPU measurements of issues 4, 5 and 6 (and the PTM and lapped renders) in one run, for a
+# machine with a hardware GPU but no Rust toolchain (the device tool's lent H100): it runs the
+# carried release binaries and writes each table to $OUT (or ./out).
+#
+# Prepare on the build machine (see BENCHMARKS.md, "Measuring on a lent GPU"):
+#   scripts/device-bench.sh --prepare      # strips the binaries into dist/, copies the bunny
+# then on the GPU machine, from the repository root (dist/ and .gl/ carried):
+#   scripts/device-bench.sh [--quick] [PHASE...]
+# PHASEs (default: all, in this order): kernels synth cuts surface gradient other. One device
+# call may run 10 minutes: split the phases over calls where they would not fit.
+# --quick runs small sizes and few repeats only (a check of the script itself, e.g. on lavapipe).
+set -uo pipefail
+cd "$(dirname "$0")/.."
+
+if [[ "${1:-}" == "--prepare" ]]; then
+    set -e
+    cargo build --release --locked
+    kernels=$(cargo test --release --locked --test kernels --no-run --message-format=json 2>/dev/null |
+        grep -o '"executable":"[^"]*kernels-[^"]*"' | head -1 | cut -d'"' -f4)
+    mkdir -p dist
+    strip -o dist/solidsynth target/release/solidsynth
+    strip -o dist/kernels-test "$kernels"
+    cp ../shared/meshes/bunny.obj dist/bunny.obj
+    ls -la dist
+    exit 0
+fi
+
+quick=0
+if [[ "${1:-}" == "--quick" ]]; then
+    quick=1
+    shift
+fi
+phases=("$@")
+((${#phases[@]})) || phases=(kernels synth cuts surface gradient other)
+wants() { [[ " ${phases[*]} " == *" $1 "* ]]; }
+out=${OUT:-out}
+mkdir -p "$out"
+# Vulkan loader carried as .debs where the image has none (device README).
+if [[ -d .gl ]] && ! ldconfig -p | grep -q libvulkan.so.1; then
+    for f in .gl/*.deb; do dpkg -x "$f" /; done
+    ldconfig
+fi
+nvidia_icd=/usr/local/nvidia/share/vulkan/icd.d/nvidia_icd.json
+if [[ -f $nvidia_icd && -z "${VK_DRIVER_FILES:-}" ]]; then
+    export VK_DRIVER_FILES=$nvidia_icd
+fi
+export SOLIDSYNTH_CACHE_DIR=${SOLIDSYNTH_CACHE_DIR:-/tmp/solidsynth-cache}
+export XDG_RUNTIME_DIR=${XDG_RUNTIME_DIR:-/tmp/xdg}
+mkdir -p "$XDG_RUNTIME_DIR"
+ss=dist/solidsynth
+work=$(mktemp -d)
+
+# Each section's output goes to its own file (the tool returns at most 8).
+section() {
+    local file=$1
+    shift
+    echo "== $*" | tee -a "$out/$file"
+    "$@" 2>&1 | tee -a "$out/$file"
+    echo "   (exit ${PIPESTATUS[0]})" | tee -a "$out/$file"
+}
+
+{
+    date -u
+    nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv 2>&1
+    nproc
+    $ss adapters
+} >"$out/machine.txt" 2>&1
+cat "$out/machine.txt"
+
+if ((quick)); then
+    both_sizes=32
+    gpu_sizes=64
+    cut_sizes="128"
+    repeat=3
+    resolutions="128"
+    render_sizes=64
+    gradient_sizes=32
+    runs=1
+else
+    both_sizes=64,128,256
+    gpu_sizes=512
+    cut_sizes="128 256 512"
+    repeat=20
+    resolutions="256 512 1024 2048"
+    render_sizes=64,128,256
+    gradient_sizes=64,128
+    runs=3
+fi
+
+# Byte-exactness of every kernel against its CPU reference, on this device.
+wants kernels && section kernels.txt dist/kernels-test
+
+# Issue 4: full volumes (targets 256^3 <= 100 ms, 512^3 <= 1 s on an H100); the CPU backend
+# beside it up to 256^3 for the per-kernel ratios.
+if wants synth; then
+    section synth.txt $ss bench synth --sizes $both_sizes --backends gpu,cpu --runs $runs
+    section synth.txt $ss bench synth --sizes $gpu_sizes --backends gpu --runs $runs
+fi
+
+# Issue 5: warm cut latency (target 256^2 <= 2 ms) and the bunny (target <= 1 s at 1024).
+if wants cuts; then
+    for s in $cut_sizes; do
+        for cache in "--coarse-cache 128" ""; do
+            # shellcheck disable=SC2086
+            section cuts.txt $ss cut --backend gpu --origin 32,32,20 --normal 0.3,0.5,0.8 \
+                --size "$s" --repeat $repeat $cache -o "$work/cut$s.png"
+        done
+    done
+fi
+if wants surface; then
+    for r in $resolutions; do
+        section surface.txt $ss surface --backend gpu --mesh dist/bunny.obj --resolution "$r" \
+            --json -o "$work/bunny$r.glb"
+    done
+fi
+
+# Issue 6: tricubic rendering (target 256^3 <= 5 ms) and direct synthesis.
+if wants gradient; then
+    section gradient.txt $ss bench gradient-render --sizes $render_sizes --runs 5
+    section gradient.txt $ss bench gradient-synth --sizes $gradient_sizes --backends gpu,cpu \
+        --runs 1
+fi
+
+# PTM relighting and the lapped render.
+if wants other; then
+    section other.txt $ss bench ptm --runs $runs
+    section other.txt $ss bench lapped --runs $runs --cuts $repeat --render
+fi
+
+rm -rf "$work"
+ls -la "$out"
