@@ -84,7 +84,7 @@ fn synthesis_kernels_bit_exact_on_gpu_and_cpu() {
             seed: 77,
             jitter,
             candidates: mode,
-            passes: 2,
+            passes: solidsynth::lazy::PassSchedule::uniform(2),
             color,
             coarse_cache: None,
         };

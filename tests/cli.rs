@@ -539,6 +539,10 @@ fn synth_bad_inputs_exit_2_and_write_nothing() {
     assert_user_error(&o, "--size 2048", d, &[]);
     let o = run(&["synth", "--size", "16", "--jitter", "nan", "-o", out_s]);
     assert_user_error(&o, "--jitter", d, &[]);
+    for passes in ["2,2", "9", "2,2,9,2"] {
+        let o = run(&["synth", "--size", "16", "--passes", passes, "-o", out_s]);
+        assert_user_error(&o, "--passes", d, &[]);
+    }
     let o = run(&["synth", "--size", "16", "--jitter", "100", "-o", out_s]);
     assert_user_error(&o, "--jitter", d, &[]);
     std::fs::write(d.join("bad.ssa"), b"SOLIDSSA\x01\x00\x00\x00").unwrap();

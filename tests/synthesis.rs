@@ -325,6 +325,39 @@ mod determinism {
             "thread count changed the result"
         );
     }
+
+    /// Per-level pass counts define other solids, each as spatially deterministic: the padding
+    /// each level plans follows its own passes.
+    #[test]
+    fn pass_schedules_are_other_solids_with_the_same_determinism() {
+        use solidsynth::lazy::PassSchedule;
+        let a = common::analyze(vec![common::fixture("marble32.png")], Border::Wrap);
+        let big = Box3::new([-6, -2, -5], [10, 12, 9]);
+        let small = Box3::new([1, 3, -4], [7, 8, 2]);
+        let uniform = SynthParams {
+            seed: 3,
+            ..Default::default()
+        };
+        let v2 = synth(&a, &uniform, big, None);
+        for schedule in [[2, 2, 2, 1], [1, 2, 0, 2]] {
+            let params = SynthParams {
+                passes: PassSchedule(schedule),
+                ..uniform.clone()
+            };
+            let v = synth(&a, &params, big, None);
+            assert_ne!(v, v2, "{schedule:?} is the uniform solid");
+            assert_contained(&v, big, &synth(&a, &params, small, None), small);
+            assert_eq!(synth(&a, &params, big, Some(8)), v, "{schedule:?} grouped");
+        }
+        // A uniform schedule written per level is the same solid.
+        let spelled: PassSchedule = "2,2,2,2".parse().unwrap();
+        assert_eq!(spelled, PassSchedule::uniform(2));
+        assert_eq!(spelled.to_string(), "2");
+        assert_eq!("2,2,2,1".parse::<PassSchedule>().unwrap().to_string(), "2,2,2,1");
+        for bad in ["", "2,2", "2,2,2,2,2", "a", "-1"] {
+            assert!(bad.parse::<PassSchedule>().is_err(), "{bad:?} accepted");
+        }
+    }
 }
 
 /// The triples returned with a volume explain its colours: each voxel is the rounded mean of the

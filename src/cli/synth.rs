@@ -52,9 +52,10 @@ pub struct SolidParams {
     /// Candidates searched by the correction: the paper's 3D candidates, or 2D (ablation).
     #[arg(long, value_enum, default_value = "3d")]
     pub candidates: CandidateMode,
-    /// Correction passes per level.
-    #[arg(long, default_value_t = 2)]
-    pub passes: u32,
+    /// Correction passes per level: one count for every level, or one per level, coarsest
+    /// first (`2,2,2,1`).
+    #[arg(long, default_value = "2", value_name = "N|N,N,N,N")]
+    pub passes: solidsynth::lazy::PassSchedule,
     /// Output colour: the mean of the voxel's three exemplar pixels, or one exemplar's pixel.
     #[arg(long, value_enum, default_value = "average")]
     pub color: ColorSource,

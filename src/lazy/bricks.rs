@@ -374,15 +374,15 @@ impl SparseLevel {
     }
 }
 
-/// Plan the synthesis of the finest-level bricks `output` through `levels` levels; coarsest
-/// level first.
-pub fn plan_sparse(output: &[Brick], levels: usize, passes: usize) -> Vec<SparseLevel> {
-    let one = &plan(Box3::new([0; 3], [BRICK; 3]), 1, passes)[0];
-    let storage_range = offset_range(one.storage).expect("storage holds the brick");
+/// Plan the synthesis of the finest-level bricks `output` through one level per entry of
+/// `passes` (that level's correction passes, coarsest first); coarsest level first.
+pub fn plan_sparse(output: &[Brick], passes: &[usize]) -> Vec<SparseLevel> {
     let mut deliver = output.to_vec();
     normalize(&mut deliver);
     let mut out = Vec::new();
-    for _ in 0..levels {
+    for &level_passes in passes.iter().rev() {
+        let one = &plan(Box3::new([0; 3], [BRICK; 3]), &[level_passes])[0];
+        let storage_range = offset_range(one.storage).expect("storage holds the brick");
         let bricks = dilate(&deliver, storage_range.0, storage_range.1);
         let presence = Presence::new(&deliver);
         let subpasses = one
@@ -405,15 +405,19 @@ pub fn plan_sparse(output: &[Brick], levels: usize, passes: usize) -> Vec<Sparse
     out
 }
 
-/// The plan of a tileable solid of period `n` (finest level): level l stores every brick of its
-/// period box [0, n >> (levels - 1 - l))^3 and every sub-pass computes all of them (reads wrap
-/// around the period, so no padding is needed).
-pub fn plan_periodic(n: u32, levels: usize, passes: usize) -> Vec<SparseLevel> {
-    (0..levels)
-        .map(|l| {
+/// The plan of a tileable solid of period `n` (finest level) through one level per entry of
+/// `passes` (coarsest first): level l stores every brick of its period box [0, n >> (levels -
+/// 1 - l))^3 and every sub-pass computes all of them (reads wrap around the period, so no
+/// padding is needed).
+pub fn plan_periodic(n: u32, passes: &[usize]) -> Vec<SparseLevel> {
+    let levels = passes.len();
+    passes
+        .iter()
+        .enumerate()
+        .map(|(l, &level_passes)| {
             let p = (n >> (levels - 1 - l)) as i32;
             let bricks = bricks_of_box(Box3::new([0; 3], [p; 3]));
-            let subpasses = (0..passes)
+            let subpasses = (0..level_passes)
                 .flat_map(|_| super::SUBPASS_ORDER)
                 .map(|class| SubpassPlan {
                     class,
@@ -492,7 +496,7 @@ mod tests {
     fn sparse_plan_reads_stay_inside_storage() {
         // Every voxel a needed sub-pass voxel reads is stored, at every level.
         let output = vec![[0, 0, 0], [3, 1, -2], [-5, 0, 0]];
-        let levels = plan_sparse(&output, 4, 2);
+        let levels = plan_sparse(&output, &[2; 4]);
         for l in &levels {
             for sp in &l.subpasses {
                 let set = &sp.bricks;

@@ -30,6 +30,55 @@ pub use plan::Box3;
 /// against 19 for the lexicographic order.
 pub const SUBPASS_ORDER: [usize; 8] = [0, 6, 5, 4, 3, 1, 2, 7];
 
+/// Most correction passes a level may run.
+pub const MAX_PASSES: u32 = 8;
+
+/// Correction passes per level, coarsest (l_start) first. The paper runs 2 at every level;
+/// fewer passes at a level also shrink the dependency padding every coarser level must
+/// synthesize, so the finest level's passes weigh most on the time (BENCHMARKS.md, Quality).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+pub struct PassSchedule(pub [u32; ANALYSED_LEVELS]);
+
+impl PassSchedule {
+    pub fn uniform(passes: u32) -> PassSchedule {
+        PassSchedule([passes; ANALYSED_LEVELS])
+    }
+
+    /// The passes of the levels as plan lengths, coarsest first.
+    pub fn levels(&self) -> [usize; ANALYSED_LEVELS] {
+        self.0.map(|p| p as usize)
+    }
+}
+
+/// `2` (every level) or one count per level, coarsest first: `2,2,2,1`.
+impl std::str::FromStr for PassSchedule {
+    type Err = String;
+    fn from_str(text: &str) -> std::result::Result<Self, String> {
+        let counts: Vec<u32> = text
+            .split(',')
+            .map(|t| t.trim().parse::<u32>())
+            .collect::<std::result::Result<_, _>>()
+            .map_err(|_| format!("expected a count or {ANALYSED_LEVELS} comma-separated counts"))?;
+        match counts[..] {
+            [n] => Ok(PassSchedule::uniform(n)),
+            _ => counts
+                .try_into()
+                .map(PassSchedule)
+                .map_err(|_| format!("expected a count or {ANALYSED_LEVELS} comma-separated counts (coarsest level first)")),
+        }
+    }
+}
+
+impl std::fmt::Display for PassSchedule {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        if self.0.iter().all(|&p| p == self.0[0]) {
+            return write!(f, "{}", self.0[0]);
+        }
+        let text: Vec<String> = self.0.iter().map(u32::to_string).collect();
+        write!(f, "{}", text.join(","))
+    }
+}
+
 /// Which candidates the correction searches.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
 pub enum CandidateMode {
@@ -61,8 +110,8 @@ pub struct SynthParams {
     /// Jitter magnitude (0 disables; 1 is the default warp).
     pub jitter: f32,
     pub candidates: CandidateMode,
-    /// Correction passes per level (the paper uses 2).
-    pub passes: u32,
+    /// Correction passes per level (the paper uses 2 at every level).
+    pub passes: PassSchedule,
     /// Output colour rule.
     pub color: ColorSource,
     /// Coarse-level cache (paper 6.2): when set, the levels above the finest come from one
@@ -78,7 +127,7 @@ impl Default for SynthParams {
             seed: 0,
             jitter: 1.0,
             candidates: CandidateMode::ThreeD,
-            passes: 2,
+            passes: PassSchedule::uniform(2),
             color: ColorSource::Average,
             coarse_cache: None,
         }
@@ -101,10 +150,10 @@ impl SynthParams {
                 ));
             }
         }
-        if self.passes > 8 {
+        if self.passes.0.iter().any(|&p| p > MAX_PASSES) {
             return Err(Error::invalid(
                 format!("--passes {}", self.passes),
-                "must be 0..=8 (0 shows the initialization)",
+                format!("each level's passes must be 0..={MAX_PASSES} (0 shows the initialization)"),
             ));
         }
         Ok(())
@@ -459,7 +508,7 @@ impl Synthesizer {
                 ),
             ));
         }
-        let levels = bricks::plan_periodic(n, ANALYSED_LEVELS, self.params.passes as usize);
+        let levels = bricks::plan_periodic(n, &self.params.passes.levels());
         let periods: Vec<u32> = (0..ANALYSED_LEVELS)
             .map(|l| n >> (ANALYSED_LEVELS - 1 - l))
             .collect();
@@ -518,7 +567,7 @@ impl Synthesizer {
         if self.params.coarse_cache.is_some() {
             return self.synthesize_group_cached(group, progress, want_triples, stats);
         }
-        let levels = bricks::plan_sparse(group, ANALYSED_LEVELS, self.params.passes as usize);
+        let levels = bricks::plan_sparse(group, &self.params.passes.levels());
         self.synthesize_group(levels, 0, None, group, None, progress, want_triples, stats)
             .map(|r| (r.colors, r.triples))
     }
@@ -529,7 +578,7 @@ impl Synthesizer {
         if self.cache.is_none() {
             let n = self.params.coarse_cache.expect("cache requested") / 2;
             let levels_above = ANALYSED_LEVELS - 1;
-            let levels = bricks::plan_periodic(n, levels_above, self.params.passes as usize);
+            let levels = bricks::plan_periodic(n, &self.params.passes.levels()[..levels_above]);
             let periods: Vec<u32> = (0..levels_above)
                 .map(|l| n >> (levels_above - 1 - l))
                 .collect();
@@ -572,7 +621,7 @@ impl Synthesizer {
         want_triples: bool,
         stats: &mut SynthStats,
     ) -> Result<(Vec<u32>, Vec<u32>)> {
-        let finest = bricks::plan_sparse(group, 1, self.params.passes as usize)
+        let finest = bricks::plan_sparse(group, &self.params.passes.levels()[ANALYSED_LEVELS - 1..])
             .pop()
             .unwrap();
         let mut parents: Vec<Brick> = finest.bricks.iter().map(|b| b.map(|v| v >> 1)).collect();

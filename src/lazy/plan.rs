@@ -123,16 +123,16 @@ pub struct LevelPlan {
     pub subpasses: Vec<(usize, Box3)>,
 }
 
-/// Plan a synthesis of `output` (finest-level voxels) through `levels` levels with `passes`
-/// correction passes each. Returned coarsest level first.
-pub fn plan(output: Box3, levels: usize, passes: usize) -> Vec<LevelPlan> {
+/// Plan a synthesis of `output` (finest-level voxels) through one level per entry of `passes`,
+/// each with that many correction passes (coarsest level first). Returned coarsest level first.
+pub fn plan(output: Box3, passes: &[usize]) -> Vec<LevelPlan> {
     let ext = extents();
     let mut plans = Vec::new();
     let mut deliver = output;
-    for _ in 0..levels {
+    for &level_passes in passes.iter().rev() {
         let mut need = [deliver; 8];
         let mut subpasses = Vec::new();
-        for _ in 0..passes {
+        for _ in 0..level_passes {
             for &c in SUBPASS_ORDER.iter().rev() {
                 let computed = need[c];
                 subpasses.push((c, computed));
@@ -168,7 +168,7 @@ mod tests {
     #[test]
     fn plan_reads_stay_inside_storage_and_shrink_to_the_output() {
         let out = Box3::new([-3, 5, 0], [20, 9, 16]);
-        let plans = plan(out, 4, 2);
+        let plans = plan(out, &[2; 4]);
         assert_eq!(plans.last().unwrap().deliver, out);
         for (i, p) in plans.iter().enumerate() {
             for (_, b) in &p.subpasses {
