@@ -478,6 +478,26 @@ fn synth_writes_nrrd_flipbook_slices_and_sheet_from_an_ssa() {
     assert_eq!(&t[..8], b"SSTRIPLE");
     assert_eq!(t.len(), 32 + 12 * 12 * 12 * 12);
     assert!(std::fs::read(d.join("v2.nrrd")).unwrap() == std::fs::read(&out).unwrap());
+    // Streamed in slabs of small groups, the volume and its triples are the same bytes.
+    let o = run(&[
+        "synth",
+        ssa.to_str().unwrap(),
+        "--size",
+        "12",
+        "--seed",
+        "3",
+        "--backend",
+        "cpu",
+        "--max-group",
+        "4",
+        "-o",
+        d.join("v3.nrrd").to_str().unwrap(),
+        "--triples",
+        d.join("t3.bin").to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(std::fs::read(d.join("t3.bin")).unwrap() == t);
+    assert!(std::fs::read(d.join("v3.nrrd")).unwrap() == std::fs::read(&out).unwrap());
     // The flipbook tile of slice z = 5 is the NRRD's z = 5 slice.
     let f = f.to_rgba8();
     for (x, y) in [(0u32, 0u32), (7, 3), (11, 11)] {
