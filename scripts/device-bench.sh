@@ -96,6 +96,9 @@ wants kernels && section kernels.txt dist/kernels-test
 if wants synth; then
     section synth.txt $ss bench synth --sizes $both_sizes --backends gpu,cpu --runs $runs
     section synth.txt $ss bench synth --sizes $gpu_sizes --backends gpu --runs $runs
+    # One pass at the finest level (README: --passes), the faster schedule.
+    section synth.txt $ss bench synth --sizes $both_sizes,$gpu_sizes --backends gpu --runs $runs \
+        --passes 2,2,2,1
 fi
 
 # Issue 5: warm cut latency (target 256^2 <= 2 ms) and the bunny (target <= 1 s at 1024).

@@ -81,6 +81,12 @@ pub struct BenchSynthArgs {
     /// The analysis' feature channel, as `synth --feature-mask` (auto, edges or none).
     #[arg(long, default_value = "auto", value_parser = ["auto", "edges", "none"])]
     pub feature_mask: String,
+    /// Correction passes, as `synth --passes` (one count, or one per level, coarsest first).
+    #[arg(long, default_value = "2", value_name = "N|N,N,N,N")]
+    pub passes: solidsynth::lazy::PassSchedule,
+    /// Largest group, as `synth --max-group`.
+    #[arg(long, value_name = "VOXELS")]
+    pub max_group: Option<u32>,
 }
 
 #[derive(Args, Debug)]
@@ -280,6 +286,10 @@ fn bench_synth(args: BenchSynthArgs) -> anyhow::Result<()> {
         }
         // (An .ssa input with `none` is refused by synth: the file holds its channel.)
         cmd.args(["--feature-mask", &args.feature_mask]);
+        cmd.args(["--passes", &args.passes.to_string()]);
+        if let Some(g) = args.max_group {
+            cmd.args(["--max-group", &g.to_string()]);
+        }
         if profile {
             cmd.arg("--profile");
         }
