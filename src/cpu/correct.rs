@@ -36,34 +36,74 @@ type Projection = [i16; MAX_PCA_OUT];
 
 /// A 2D candidate and a copy of its stored projection: a source pixel's k2d candidates are then
 /// scored from one contiguous run instead of k2d scattered reads of the exemplar's projections.
+/// P bytes of projection: the level's kept dimensions (8 at the finest level: 16-byte entries,
+/// so a pixel's k2d = 2 candidates share one cache line; 12 above).
 #[derive(Clone, Copy)]
-struct Candidate2d {
+struct Candidate2d<const P: usize> {
     coord: u32,
     /// 16 + the pixel's usage penalty: its distance's scale.
     factor: u16,
-    projection: [u8; MAX_TABLE_PCA_OUT],
+    projection: [u8; P],
+}
+
+/// A level's [`Candidate2d`] tables, one per distinct (list, projections).
+enum Tables2d {
+    Short(Vec<Vec<Candidate2d<8>>>),
+    Long(Vec<Vec<Candidate2d<12>>>),
+}
+
+/// The first candidate of `run` whose scaled distance to `q` is below `best_d`, and then below
+/// each one kept: (distance, coordinate) of the last kept.
+#[inline(always)]
+fn best_2d_of_run<const P: usize>(
+    run: &[Candidate2d<P>],
+    q: &Projection,
+    mut best_d: u32,
+) -> Option<(u32, u32)> {
+    let mut best = None;
+    for c in run {
+        let d = squared_distance::<P>(q, &c.projection) * c.factor as u32;
+        if d < best_d {
+            best_d = d;
+            best = Some((d, c.coord));
+        }
+    }
+    best
 }
 
 /// A 3D candidate of a pixel of E_a (a triple whose a coordinate is that pixel) with copies of
 /// the stored projections of its two other coordinates, E_{a+1}'s and E_{a+2}'s: what scoring
 /// it needs besides the pixel's own distance, in one contiguous run per pixel.
+/// P bytes per projection: the level's kept dimensions (8 at the finest level, so that its
+/// entries are 32 bytes, two to a cache line; 12 above).
 #[derive(Clone, Copy)]
-struct Candidate3d {
+struct Candidate3d<const P: usize> {
     triple: [u32; 3],
     /// 16 + the usage penalties of its three pixels: its distance's scale.
     factor: u32,
-    next: [u8; MAX_TABLE_PCA_OUT],
-    last: [u8; MAX_TABLE_PCA_OUT],
+    next: [u8; P],
+    last: [u8; P],
+}
+
+/// A level's [`Candidate3d`] tables (see [`Prepared::candidates_3d`]).
+enum Tables3d {
+    Short(Vec<Vec<Candidate3d<8>>>),
+    Long(Vec<Vec<Candidate3d<12>>>),
+}
+
+impl Tables3d {
+    fn has(&self, set: usize) -> bool {
+        match self {
+            Tables3d::Short(t) => set < t.len(),
+            Tables3d::Long(t) => set < t.len(),
+        }
+    }
 }
 
 /// Largest candidate table (bytes) built for one level; beyond it (large exemplars) the
 /// candidates are scored from the level data directly, with the same results. A 256^2 exemplar's
 /// tables fit; three 512^2 exemplars' would add ~270 MB.
 const MAX_TABLE_BYTES: usize = 32 << 20;
-
-/// Longest projection [`Candidate2d`] holds (the analysis keeps 8 or 12); longer ones are read
-/// from the level data directly.
-const MAX_TABLE_PCA_OUT: usize = 12;
 
 /// Where a voxel's correction reads its neighbours: the state through the brick index
 /// ([`Ctx`]), or a [`Window`] copied from it around one brick. Voxels that are not stored read
@@ -436,17 +476,14 @@ impl Ctx<'_> {
                 let pixel = py as u32 * p.ex_width + px as u32;
                 if let Some(table) = self.prepared.candidates_2d_of[a] {
                     let k = p.k2d as usize;
-                    let run = &self.prepared.candidates_2d[table][pixel as usize * k..][..k];
-                    for c in run {
-                        let stored = &c.projection[..p.pca_out as usize];
-                        let d = match stored.len() {
-                            8 => squared_distance::<8>(q, stored),
-                            _ => squared_distance::<12>(q, stored),
-                        } * c.factor as u32;
-                        if d < best_d {
-                            best_d = d;
-                            best = c.coord;
-                        }
+                    let range = pixel as usize * k..(pixel as usize + 1) * k;
+                    let found = match &self.prepared.candidates_2d {
+                        Tables2d::Short(t) => best_2d_of_run(&t[table][range], q, best_d),
+                        Tables2d::Long(t) => best_2d_of_run(&t[table][range], q, best_d),
+                    };
+                    if let Some((d, c)) = found {
+                        best_d = d;
+                        best = c;
                     }
                     continue;
                 }
@@ -513,32 +550,22 @@ impl Ctx<'_> {
             let pixel = y as u32 * p.ex_width + x as u32;
             let count = self.level[([p.counts0, p.counts1, p.counts2][set] + pixel) as usize]
                 .min(p.k3d_used);
-            if let Some(table) = self.prepared.candidates_3d.get(set) {
+            if self.prepared.candidates_3d.has(set) {
                 // The same scores from the table: the triple's coordinates after the own one
                 // (rotated into place for a shared set) are those of `next` and `last`.
                 let used = p.k3d_used as usize;
-                let run = &table[pixel as usize * used..][..count as usize];
-                let k = p.pca_out as usize;
-                for e in run {
-                    let d =
-                        (own + match k {
-                            8 => {
-                                squared_distance::<8>(&q[b], &e.next[..8])
-                                    + squared_distance::<8>(&q[c], &e.last[..8])
-                            }
-                            _ => {
-                                squared_distance::<12>(&q[b], &e.next[..12])
-                                    + squared_distance::<12>(&q[c], &e.last[..12])
-                            }
-                        }) * e.factor;
-                    if d < best_d {
-                        best_d = d;
-                        best = if p.shared_sets != 0 {
-                            rotate_from_shared(e.triple, a)
-                        } else {
-                            e.triple
-                        };
-                    }
+                let range = pixel as usize * used..pixel as usize * used + count as usize;
+                let found = match &self.prepared.candidates_3d {
+                    Tables3d::Short(t) => best_of_run(&t[set][range], &q[b], &q[c], own, best_d),
+                    Tables3d::Long(t) => best_of_run(&t[set][range], &q[b], &q[c], own, best_d),
+                };
+                if let Some((d, t)) = found {
+                    best_d = d;
+                    best = if p.shared_sets != 0 {
+                        rotate_from_shared(t, a)
+                    } else {
+                        t
+                    };
                 }
                 continue;
             }
@@ -741,6 +768,28 @@ unsafe fn project_plane_madd<const BLOCKS: usize>(
     out
 }
 
+/// The first candidate of `run` whose scaled distance (`own` plus its two other planes') is
+/// below `best_d`, and then below each one kept: (distance, triple) of the last kept.
+#[inline(always)]
+fn best_of_run<const P: usize>(
+    run: &[Candidate3d<P>],
+    qb: &Projection,
+    qc: &Projection,
+    own: u32,
+    mut best_d: u32,
+) -> Option<(u32, [u32; 3])> {
+    let mut best = None;
+    for e in run {
+        let d = (own + squared_distance::<P>(qb, &e.next) + squared_distance::<P>(qc, &e.last))
+            * e.factor;
+        if d < best_d {
+            best_d = d;
+            best = Some((d, e.triple));
+        }
+    }
+    best
+}
+
 /// Sum of squared differences of the first K projection bytes (|difference| <= 255).
 #[inline(always)]
 fn squared_distance<const K: usize>(q: &Projection, stored: &[u8]) -> u32 {
@@ -804,11 +853,11 @@ pub struct Prepared {
     /// or None when the projections are too long for [`Candidate2d`] or the tables too large.
     candidates_2d_of: [Option<usize>; 3],
     /// `k2d` [`Candidate2d`] per exemplar pixel, row-major.
-    candidates_2d: Vec<Vec<Candidate2d>>,
+    candidates_2d: Tables2d,
     /// Per candidate set (one when shared), `k3d_used` [`Candidate3d`] per pixel (slots past
     /// the pixel's count unused); empty when the projections are too long, or a shared set's
     /// exemplars do not share their projections.
-    candidates_3d: Vec<Vec<Candidate3d>>,
+    candidates_3d: Tables3d,
 }
 
 impl Prepared {
@@ -848,14 +897,14 @@ impl Prepared {
     }
 
     /// The [`Candidate3d`] tables (see the field).
-    fn candidates_3d(p: &CorrectParams, level: &[u32]) -> Vec<Vec<Candidate3d>> {
+    fn candidates_3d<const P: usize>(p: &CorrectParams, level: &[u32]) -> Vec<Vec<Candidate3d<P>>> {
         let k = p.pca_out as usize;
         let proj = [p.proj0, p.proj1, p.proj2];
         let sets = if p.shared_sets != 0 { 1 } else { 3 };
         let bytes = sets
             * (p.ex_width * p.ex_height * p.k3d_used) as usize
-            * std::mem::size_of::<Candidate3d>();
-        if !matches!(k, 8 | 12)
+            * std::mem::size_of::<Candidate3d<P>>();
+        if k != P
             || bytes > MAX_TABLE_BYTES
             || (p.shared_sets != 0 && (proj[1] != proj[0] || proj[2] != proj[0]))
         {
@@ -865,7 +914,7 @@ impl Prepared {
         let projection = |e: usize, c: u32| {
             let (x, y) = coord(c);
             let base = (proj[e] + (y as u32 * p.ex_width + x as u32) * p.proj_words) as usize * 4;
-            let mut out = [0u8; MAX_TABLE_PCA_OUT];
+            let mut out = [0u8; P];
             out[..k].copy_from_slice(&level_bytes[base..base + k]);
             out
         };
@@ -884,8 +933,8 @@ impl Prepared {
                                 return Candidate3d {
                                     triple: [0; 3],
                                     factor: 0,
-                                    next: [0; MAX_TABLE_PCA_OUT],
-                                    last: [0; MAX_TABLE_PCA_OUT],
+                                    next: [0; P],
+                                    last: [0; P],
                                 };
                             }
                             let e = list + (pixel * p.k3d_stride as usize + j) * 3;
@@ -902,6 +951,55 @@ impl Prepared {
                     .collect()
             })
             .collect()
+    }
+
+    /// The [`Candidate2d`] tables (see the fields), empty when the projections are not P long
+    /// or the tables too large.
+    #[allow(clippy::type_complexity)]
+    fn candidates_2d<const P: usize>(
+        p: &CorrectParams,
+        level: &[u32],
+    ) -> ([Option<usize>; 3], Vec<Vec<Candidate2d<P>>>) {
+        let level_bytes: &[u8] = bytemuck::cast_slice(level);
+        let mut candidates_2d: Vec<Vec<Candidate2d<P>>> = Vec::new();
+        let mut candidates_2d_of = [None; 3];
+        let mut built: Vec<(u32, u32, u32)> = Vec::new();
+        let k = p.pca_out as usize;
+        let table_bytes =
+            (p.ex_width * p.ex_height * p.k2d) as usize * std::mem::size_of::<Candidate2d<P>>();
+        if k == P && 3 * table_bytes <= MAX_TABLE_BYTES {
+            for a in 0..3 {
+                let (list, proj) = (
+                    [p.cand2d0, p.cand2d1, p.cand2d2][a],
+                    [p.proj0, p.proj1, p.proj2][a],
+                );
+                let pixels = [p.pixels0, p.pixels1, p.pixels2][a];
+                if let Some(i) = built.iter().position(|&b| b == (list, proj, pixels)) {
+                    candidates_2d_of[a] = Some(i);
+                    continue;
+                }
+                let n = (p.ex_width * p.ex_height * p.k2d) as usize;
+                let table = level[list as usize..list as usize + n]
+                    .par_iter()
+                    .map(|&c| {
+                        let (x, y) = coord(c);
+                        let base =
+                            (proj + (y as u32 * p.ex_width + x as u32) * p.proj_words) as usize * 4;
+                        let mut projection = [0u8; P];
+                        projection[..k].copy_from_slice(&level_bytes[base..base + k]);
+                        Candidate2d {
+                            coord: c,
+                            factor: (16 + penalty(p, level, a, c)) as u16,
+                            projection,
+                        }
+                    })
+                    .collect();
+                candidates_2d_of[a] = Some(candidates_2d.len());
+                candidates_2d.push(table);
+                built.push((list, proj, pixels));
+            }
+        }
+        (candidates_2d_of, candidates_2d)
     }
 
     pub fn new(p: &CorrectParams, level: &[u32]) -> Prepared {
@@ -928,46 +1026,16 @@ impl Prepared {
         let (t0, m0) = transpose(0);
         let (t1, m1) = transpose(1);
         let (t2, m2) = transpose(2);
-        let level_bytes: &[u8] = bytemuck::cast_slice(level);
-        // Tables of the 2D candidates with their projections, one per distinct (list, projections).
-        let mut candidates_2d: Vec<Vec<Candidate2d>> = Vec::new();
-        let mut candidates_2d_of = [None; 3];
-        let mut built: Vec<(u32, u32, u32)> = Vec::new();
-        let k = p.pca_out as usize;
-        let table_bytes =
-            (p.ex_width * p.ex_height * p.k2d) as usize * std::mem::size_of::<Candidate2d>();
-        if matches!(k, 8 | 12) && 3 * table_bytes <= MAX_TABLE_BYTES {
-            for a in 0..3 {
-                let (list, proj) = (
-                    [p.cand2d0, p.cand2d1, p.cand2d2][a],
-                    [p.proj0, p.proj1, p.proj2][a],
-                );
-                let pixels = [p.pixels0, p.pixels1, p.pixels2][a];
-                if let Some(i) = built.iter().position(|&b| b == (list, proj, pixels)) {
-                    candidates_2d_of[a] = Some(i);
-                    continue;
-                }
-                let n = (p.ex_width * p.ex_height * p.k2d) as usize;
-                let table = level[list as usize..list as usize + n]
-                    .par_iter()
-                    .map(|&c| {
-                        let (x, y) = coord(c);
-                        let base =
-                            (proj + (y as u32 * p.ex_width + x as u32) * p.proj_words) as usize * 4;
-                        let mut projection = [0u8; MAX_TABLE_PCA_OUT];
-                        projection[..k].copy_from_slice(&level_bytes[base..base + k]);
-                        Candidate2d {
-                            coord: c,
-                            factor: (16 + penalty(p, level, a, c)) as u16,
-                            projection,
-                        }
-                    })
-                    .collect();
-                candidates_2d_of[a] = Some(candidates_2d.len());
-                candidates_2d.push(table);
-                built.push((list, proj, pixels));
+        let (candidates_2d_of, candidates_2d) = match p.pca_out {
+            8 => {
+                let (of, t) = Self::candidates_2d::<8>(p, level);
+                (of, Tables2d::Short(t))
             }
-        }
+            _ => {
+                let (of, t) = Self::candidates_2d::<12>(p, level);
+                (of, Tables2d::Long(t))
+            }
+        };
         Prepared {
             key: Self::key(p),
             weights_t: [t0, t1, t2],
@@ -975,7 +1043,10 @@ impl Prepared {
             pair_weights: PairWeights::new(p, level),
             candidates_2d_of,
             candidates_2d,
-            candidates_3d: Self::candidates_3d(p, level),
+            candidates_3d: match p.pca_out {
+                8 => Tables3d::Short(Self::candidates_3d::<8>(p, level)),
+                _ => Tables3d::Long(Self::candidates_3d::<12>(p, level)),
+            },
         }
     }
 
@@ -983,8 +1054,8 @@ impl Prepared {
     /// for exemplars too large for the tables (the same results; tests compare the two).
     pub fn without_tables(mut self) -> Prepared {
         self.candidates_2d_of = [None; 3];
-        self.candidates_2d.clear();
-        self.candidates_3d.clear();
+        self.candidates_2d = Tables2d::Short(Vec::new());
+        self.candidates_3d = Tables3d::Short(Vec::new());
         self
     }
 
