@@ -458,46 +458,34 @@ fn synth_writes_nrrd_flipbook_slices_and_sheet_from_an_ssa() {
     assert_eq!((f.width(), f.height()), (4 * 12, 3 * 12));
     assert_eq!(std::fs::read_dir(&slices).unwrap().count(), 12);
     assert!(image::open(&sheet).is_ok());
-    // Triples of the same run: header (8-byte magic, 6 u32) then 3 u32 per voxel.
-    let o = run(&[
-        "synth",
-        ssa.to_str().unwrap(),
-        "--size",
-        "12",
-        "--seed",
-        "3",
-        "--backend",
-        "cpu",
-        "-o",
-        d.join("v2.nrrd").to_str().unwrap(),
-        "--triples",
-        d.join("t.bin").to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let t = std::fs::read(d.join("t.bin")).unwrap();
+    // Triples of the same run: header (8-byte magic, 6 u32) then 3 u32 per voxel. Streamed in
+    // slabs of small groups, the volume and its triples are the same bytes.
+    let with_triples = |name: &str, max_group: &str| {
+        let o = run(&[
+            "synth",
+            ssa.to_str().unwrap(),
+            "--size",
+            "12",
+            "--seed",
+            "3",
+            "--backend",
+            "cpu",
+            "--max-group",
+            max_group,
+            "-o",
+            d.join(format!("{name}.nrrd")).to_str().unwrap(),
+            "--triples",
+            d.join(format!("{name}.bin")).to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let volume = std::fs::read(d.join(format!("{name}.nrrd"))).unwrap();
+        assert!(volume == std::fs::read(&out).unwrap(), "{name}: another volume");
+        std::fs::read(d.join(format!("{name}.bin"))).unwrap()
+    };
+    let t = with_triples("whole", "512");
     assert_eq!(&t[..8], b"SSTRIPLE");
     assert_eq!(t.len(), 32 + 12 * 12 * 12 * 12);
-    assert!(std::fs::read(d.join("v2.nrrd")).unwrap() == std::fs::read(&out).unwrap());
-    // Streamed in slabs of small groups, the volume and its triples are the same bytes.
-    let o = run(&[
-        "synth",
-        ssa.to_str().unwrap(),
-        "--size",
-        "12",
-        "--seed",
-        "3",
-        "--backend",
-        "cpu",
-        "--max-group",
-        "4",
-        "-o",
-        d.join("v3.nrrd").to_str().unwrap(),
-        "--triples",
-        d.join("t3.bin").to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    assert!(std::fs::read(d.join("t3.bin")).unwrap() == t);
-    assert!(std::fs::read(d.join("v3.nrrd")).unwrap() == std::fs::read(&out).unwrap());
+    assert!(with_triples("grouped", "4") == t);
     // The flipbook tile of slice z = 5 is the NRRD's z = 5 slice.
     let f = f.to_rgba8();
     for (x, y) in [(0u32, 0u32), (7, 3), (11, 11)] {
