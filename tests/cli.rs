@@ -479,7 +479,10 @@ fn synth_writes_nrrd_flipbook_slices_and_sheet_from_an_ssa() {
         ]);
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
         let volume = std::fs::read(d.join(format!("{name}.nrrd"))).unwrap();
-        assert!(volume == std::fs::read(&out).unwrap(), "{name}: another volume");
+        assert!(
+            volume == std::fs::read(&out).unwrap(),
+            "{name}: another volume"
+        );
         std::fs::read(d.join(format!("{name}.bin"))).unwrap()
     };
     let t = with_triples("whole", "512");
@@ -520,8 +523,14 @@ fn an_interrupted_synthesis_leaves_no_partial_output() {
         if let Some(n) = names.iter().find(|n| n.ends_with(".partial")) {
             break n.clone();
         }
-        assert!(child.try_wait().unwrap().is_none(), "exited before writing: {names:?}");
-        assert!(started.elapsed().as_secs() < 120, "no partial output appeared");
+        assert!(
+            child.try_wait().unwrap().is_none(),
+            "exited before writing: {names:?}"
+        );
+        assert!(
+            started.elapsed().as_secs() < 120,
+            "no partial output appeared"
+        );
         std::thread::sleep(std::time::Duration::from_millis(20));
     };
     let killed = Command::new("kill")

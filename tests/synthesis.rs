@@ -353,7 +353,10 @@ mod determinism {
         let spelled: PassSchedule = "2,2,2,2".parse().unwrap();
         assert_eq!(spelled, PassSchedule::uniform(2));
         assert_eq!(spelled.to_string(), "2");
-        assert_eq!("2,2,2,1".parse::<PassSchedule>().unwrap().to_string(), "2,2,2,1");
+        assert_eq!(
+            "2,2,2,1".parse::<PassSchedule>().unwrap().to_string(),
+            "2,2,2,1"
+        );
         for bad in ["", "2,2", "2,2,2,2,2", "a", "-1"] {
             assert!(bad.parse::<PassSchedule>().is_err(), "{bad:?} accepted");
         }

@@ -114,7 +114,9 @@ impl PendingFile {
     pub fn commit(mut self) -> Result<()> {
         let tmp = self.tmp.take().expect("committed once");
         forget_pending(tmp.path());
-        tmp.as_file().sync_all().map_err(|e| Error::io(&self.path, e))?;
+        tmp.as_file()
+            .sync_all()
+            .map_err(|e| Error::io(&self.path, e))?;
         tmp.persist(&self.path)
             .map_err(|e| Error::io(&self.path, e.error))?;
         Ok(())

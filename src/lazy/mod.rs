@@ -153,7 +153,9 @@ impl SynthParams {
         if self.passes.0.iter().any(|&p| p > MAX_PASSES) {
             return Err(Error::invalid(
                 format!("--passes {}", self.passes),
-                format!("each level's passes must be 0..={MAX_PASSES} (0 shows the initialization)"),
+                format!(
+                    "each level's passes must be 0..={MAX_PASSES} (0 shows the initialization)"
+                ),
             ));
         }
         Ok(())
@@ -272,7 +274,9 @@ impl Synthesizer {
     ) -> Result<(Volume, Vec<u32>)> {
         let size = out.size();
         let mut volume = Volume::new(size[0], size[1], 0, self.color_channels());
-        volume.data.reserve(out.voxels() as usize * volume.channels as usize);
+        volume
+            .data
+            .reserve(out.voxels() as usize * volume.channels as usize);
         let mut triples = Vec::with_capacity(if want_triples {
             out.voxels() as usize * 3
         } else {
@@ -305,56 +309,65 @@ impl Synthesizer {
         bricks::normalize(&mut all);
         // The slab being filled: its z range in the box, its voxels and triples.
         let mut pending: Option<(std::ops::Range<i32>, Volume, Vec<u32>)> = None;
-        let mut flush = |pending: &mut Option<(std::ops::Range<i32>, Volume, Vec<u32>)>| {
-            match pending.take() {
+        let mut flush =
+            |pending: &mut Option<(std::ops::Range<i32>, Volume, Vec<u32>)>| match pending.take() {
                 Some((z, volume, triples)) => sink(Slab {
                     z0: (z.start - out.lo[2]) as u32,
                     volume: &volume,
                     triples: &triples,
                 }),
                 None => Ok(()),
-            }
-        };
+            };
         // Groups come z-major (see `groups`): a group starting above the slab begins the next.
-        self.for_each_group(&all, progress, want_triples, |group, colors, group_triples| {
-            let bz = group.iter().map(|b| b[2]).fold(i32::MAX, i32::min);
-            let bz_end = group.iter().map(|b| b[2]).fold(i32::MIN, i32::max) + 1;
-            let z = (bz * bricks::BRICK).max(out.lo[2])..(bz_end * bricks::BRICK).min(out.hi[2]);
-            if pending.as_ref().is_some_and(|(range, ..)| z.start >= range.end) {
-                flush(&mut pending)?;
-            }
-            let (range, slab, slab_triples) = pending.get_or_insert_with(|| {
-                let depth = (z.end - z.start) as u32;
-                let voxels = size[0] as usize * size[1] as usize * depth as usize;
-                (
-                    z.clone(),
-                    Volume::new(size[0], size[1], depth, channels as u32),
-                    vec![0; if want_triples { voxels * 3 } else { 0 }],
-                )
-            });
-            debug_assert!(z.start >= range.start && z.end <= range.end);
-            for (j, &b) in group.iter().enumerate() {
-                for local in 0..64 {
-                    let p = bricks::voxel_of(b, local);
-                    if !(0..3).all(|i| (out.lo[i]..out.hi[i]).contains(&p[i])) {
-                        continue;
-                    }
-                    let v = [p[0] - out.lo[0], p[1] - out.lo[1], p[2] - range.start].map(|c| c as u32);
-                    let src = j * 64 + local as usize;
-                    slab.at_mut(v[0], v[1], v[2])
-                        .copy_from_slice(&colors[src].to_le_bytes()[..channels]);
-                    if want_triples {
-                        let dst = ((v[2] as usize * size[1] as usize + v[1] as usize)
-                            * size[0] as usize
-                            + v[0] as usize)
-                            * 3;
-                        slab_triples[dst..dst + 3]
-                            .copy_from_slice(&group_triples[src * 3..src * 3 + 3]);
+        self.for_each_group(
+            &all,
+            progress,
+            want_triples,
+            |group, colors, group_triples| {
+                let bz = group.iter().map(|b| b[2]).fold(i32::MAX, i32::min);
+                let bz_end = group.iter().map(|b| b[2]).fold(i32::MIN, i32::max) + 1;
+                let z =
+                    (bz * bricks::BRICK).max(out.lo[2])..(bz_end * bricks::BRICK).min(out.hi[2]);
+                if pending
+                    .as_ref()
+                    .is_some_and(|(range, ..)| z.start >= range.end)
+                {
+                    flush(&mut pending)?;
+                }
+                let (range, slab, slab_triples) = pending.get_or_insert_with(|| {
+                    let depth = (z.end - z.start) as u32;
+                    let voxels = size[0] as usize * size[1] as usize * depth as usize;
+                    (
+                        z.clone(),
+                        Volume::new(size[0], size[1], depth, channels as u32),
+                        vec![0; if want_triples { voxels * 3 } else { 0 }],
+                    )
+                });
+                debug_assert!(z.start >= range.start && z.end <= range.end);
+                for (j, &b) in group.iter().enumerate() {
+                    for local in 0..64 {
+                        let p = bricks::voxel_of(b, local);
+                        if !(0..3).all(|i| (out.lo[i]..out.hi[i]).contains(&p[i])) {
+                            continue;
+                        }
+                        let v = [p[0] - out.lo[0], p[1] - out.lo[1], p[2] - range.start]
+                            .map(|c| c as u32);
+                        let src = j * 64 + local as usize;
+                        slab.at_mut(v[0], v[1], v[2])
+                            .copy_from_slice(&colors[src].to_le_bytes()[..channels]);
+                        if want_triples {
+                            let dst = ((v[2] as usize * size[1] as usize + v[1] as usize)
+                                * size[0] as usize
+                                + v[0] as usize)
+                                * 3;
+                            slab_triples[dst..dst + 3]
+                                .copy_from_slice(&group_triples[src * 3..src * 3 + 3]);
+                        }
                     }
                 }
-            }
-            Ok(())
-        })?;
+                Ok(())
+            },
+        )?;
         flush(&mut pending)
     }
 
@@ -621,9 +634,10 @@ impl Synthesizer {
         want_triples: bool,
         stats: &mut SynthStats,
     ) -> Result<(Vec<u32>, Vec<u32>)> {
-        let finest = bricks::plan_sparse(group, &self.params.passes.levels()[ANALYSED_LEVELS - 1..])
-            .pop()
-            .unwrap();
+        let finest =
+            bricks::plan_sparse(group, &self.params.passes.levels()[ANALYSED_LEVELS - 1..])
+                .pop()
+                .unwrap();
         let mut parents: Vec<Brick> = finest.bricks.iter().map(|b| b.map(|v| v >> 1)).collect();
         bricks::normalize(&mut parents);
         let parent = SparseLevel {
