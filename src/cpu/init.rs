@@ -26,6 +26,7 @@ pub fn init(p: &InitParams, table: &[u32], level: &[u32], bricks: &[u32]) -> Vec
                     p.seed_lo,
                     p.seed_hi,
                     p.period,
+                    [p.sig0, p.sig1, p.sig2, p.sig3],
                 )
             });
             for local in 0..64usize {

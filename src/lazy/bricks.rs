@@ -14,6 +14,7 @@
 //! may read absent neighbours (which read as zero), but nothing needed ever reads them.
 
 use super::plan::{plan, Box3};
+use rayon::prelude::*;
 
 /// Brick edge in voxels (a power of two: positions split into brick and local index by shifts).
 pub const BRICK: i32 = 4;
@@ -385,9 +386,10 @@ pub fn plan_sparse(output: &[Brick], passes: &[usize]) -> Vec<SparseLevel> {
         let storage_range = offset_range(one.storage).expect("storage holds the brick");
         let bricks = dilate(&deliver, storage_range.0, storage_range.1);
         let presence = Presence::new(&deliver);
+        // (Independent of each other: planned in parallel.)
         let subpasses = one
             .subpasses
-            .iter()
+            .par_iter()
             .map(|(class, needed)| subpass_plan(*class, *needed, &deliver, &presence))
             .collect();
         let grid = BrickGrid::new(&bricks);

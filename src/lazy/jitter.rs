@@ -71,9 +71,8 @@ pub struct Gaussian {
     dir: usize,
 }
 
-/// Gaussians a voxel of cell `cell` sums, in the kernel's order (cz, cy, cx ascending). Every
-/// voxel of a cell shares them, so the CPU backend computes them once per cell.
-pub fn cell_gaussians(cell: [i32; 3], seed_lo: u32, seed_hi: u32, period: u32) -> Vec<Gaussian> {
+/// All Gaussians a voxel of cell `cell` visits, in the kernel's order (cz, cy, cx ascending).
+fn gaussians_around(cell: [i32; 3], seed_lo: u32, seed_hi: u32, period: u32) -> Vec<Gaussian> {
     let mut out = Vec::with_capacity(((2 * REACH + 1) as usize).pow(3));
     for cz in cell[2] - REACH..=cell[2] + REACH {
         for cy in cell[1] - REACH..=cell[1] + REACH {
@@ -95,6 +94,33 @@ pub fn cell_gaussians(cell: [i32; 3], seed_lo: u32, seed_hi: u32, period: u32) -
     out
 }
 
+/// The Gaussians that reach some voxel of cell `cell` (in the kernel's order). Every voxel of
+/// a cell shares them, so the CPU backend computes them once per cell. The kernel visits all
+/// 125 around the cell; those left out here lie beyond the weight table's 3 sigma (`sig2` as
+/// [`sigma2_fixed`]) from every voxel of the cell and add exactly zero to its integer sum.
+pub fn cell_gaussians(
+    cell: [i32; 3],
+    seed_lo: u32,
+    seed_hi: u32,
+    period: u32,
+    sig2: [i32; 4],
+) -> Vec<Gaussian> {
+    // The cell's voxel centres span [lo, hi] per axis, in 1/256 voxel.
+    let lo = cell.map(|c| c * CELL * 256 + 128);
+    let hi = lo.map(|v| v + (CELL - 1) * 256);
+    let mut out = gaussians_around(cell, seed_lo, seed_hi, period);
+    out.retain(|g| {
+        // Squared distance from the centre to the nearest voxel centre of the cell: a lower
+        // bound of every voxel's r2 in `offset_from`.
+        let nearest: i32 = (0..3)
+            .map(|i| (lo[i] - g.centre[i]).max(g.centre[i] - hi[i]).max(0))
+            .map(|d| d * d)
+            .sum();
+        nearest < WEIGHT_ENTRIES as i32 * sig2[g.shape]
+    });
+    out
+}
+
 /// The cell of l_start voxel `p`.
 pub fn cell_of(p: [i32; 3]) -> [i32; 3] {
     p.map(|v| v.div_euclid(CELL))
@@ -109,7 +135,7 @@ pub fn offset(
     sig2: [i32; 4],
     table: &[u32],
 ) -> [i32; 3] {
-    let gaussians = cell_gaussians(cell_of(p), seed_lo, seed_hi, 0);
+    let gaussians = cell_gaussians(cell_of(p), seed_lo, seed_hi, 0, sig2);
     offset_from(p, &gaussians, amps, sig2, table)
 }
 
@@ -126,8 +152,12 @@ pub fn offset_from(
     for g in gaussians {
         let d = [0, 1, 2].map(|i| pos[i] - g.centre[i]);
         let r2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-        let q = r2 / sig2[g.shape];
-        if q < WEIGHT_ENTRIES as i32 {
+        // Most of the 125 Gaussians lie beyond the table (3 sigma): rejected by a multiply
+        // before the division (for r2, sig2 >= 0, r2 / sig2 < E exactly when r2 < E * sig2),
+        // which cost more than the rest of the sum.
+        let sig2 = sig2[g.shape];
+        if r2 < WEIGHT_ENTRIES as i32 * sig2 {
+            let q = r2 / sig2;
             let t = (amps[g.shape] * table[q as usize] as i32) >> 16;
             for i in 0..3 {
                 disp[i] += t * table[WEIGHT_ENTRIES + g.dir * 3 + i] as i32;
@@ -135,4 +165,36 @@ pub fn offset_from(
         }
     }
     disp.map(|v| (v + 32768) >> 16)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_gaussians_left_out_add_nothing() {
+        let (amps, sig2, table) = (amplitudes(3.0), sigma2_fixed(), table());
+        let (mut kept, mut moved) = (0, 0);
+        for (i, cell) in [[0, 0, 0], [-3, 7, 1], [12, -5, -9], [100, 2, -40]]
+            .into_iter()
+            .enumerate()
+        {
+            let (seed_lo, seed_hi) = (17 + i as u32, 3 * i as u32);
+            let all = gaussians_around(cell, seed_lo, seed_hi, 0);
+            let culled = cell_gaussians(cell, seed_lo, seed_hi, 0, sig2);
+            assert!(culled.len() < all.len());
+            kept += culled.len();
+            for local in 0..64 {
+                let p = [0, 1, 2].map(|a| cell[a] * CELL + ((local >> (2 * a)) & 3));
+                let offset = offset_from(p, &all, amps, sig2, &table);
+                assert_eq!(
+                    offset_from(p, &culled, amps, sig2, &table),
+                    offset,
+                    "cell {cell:?} voxel {p:?}"
+                );
+                moved += (offset != [0; 3]) as usize;
+            }
+        }
+        assert!(kept > 0 && moved > 0, "kept {kept}, moved {moved}");
+    }
 }

@@ -24,6 +24,7 @@ use crate::volume::Volume;
 pub use bricks::{Brick, BrickGrid, SparseLevel};
 use pack::LevelPack;
 pub use plan::Box3;
+use rayon::prelude::*;
 
 /// Order of the parity classes (bit 0 = x, 1 = y, 2 = z) within a pass. Chosen (exhaustively,
 /// over all 8! orders) to minimize the dependency padding: 13 voxels per level for two passes,
@@ -580,7 +581,9 @@ impl Synthesizer {
         if self.params.coarse_cache.is_some() {
             return self.synthesize_group_cached(group, progress, want_triples, stats);
         }
+        let timer = std::time::Instant::now();
         let levels = bricks::plan_sparse(group, &self.params.passes.levels());
+        tracing::debug!("planned {} bricks in {:.1} ms", group.len(), ms(timer));
         self.synthesize_group(levels, 0, None, group, None, progress, want_triples, stats)
             .map(|r| (r.colors, r.triples))
     }
@@ -634,10 +637,12 @@ impl Synthesizer {
         want_triples: bool,
         stats: &mut SynthStats,
     ) -> Result<(Vec<u32>, Vec<u32>)> {
+        let timer = std::time::Instant::now();
         let finest =
             bricks::plan_sparse(group, &self.params.passes.levels()[ANALYSED_LEVELS - 1..])
                 .pop()
                 .unwrap();
+        tracing::debug!("planned {} bricks in {:.1} ms", group.len(), ms(timer));
         let mut parents: Vec<Brick> = finest.bricks.iter().map(|b| b.map(|v| v >> 1)).collect();
         bricks::normalize(&mut parents);
         let parent = SparseLevel {
@@ -657,27 +662,35 @@ impl Synthesizer {
         let shift =
             [0x71u32, 0x72, 0x73].map(|k| (hash32(seed_lo ^ seed_hi ^ k) % n as u32) as i32);
         let cache = self.coarse_cache()?.to_vec();
+        let timer = std::time::Instant::now();
         let mut words = vec![0u32; parent.bricks.len() * 64 * stride];
-        for (slot, b) in parent.bricks.iter().enumerate() {
-            let gaussians = (self.params.jitter > 0.0).then(|| {
-                jitter::cell_gaussians(
-                    jitter::cell_of(b.map(|v| v * bricks::BRICK)),
-                    seed_lo,
-                    seed_hi,
-                    0,
-                )
+        let jitter_on = self.params.jitter > 0.0;
+        // Brick by brick in parallel: every request pays for its parents' warps.
+        words
+            .par_chunks_mut(64 * stride)
+            .zip(&parent.bricks)
+            .for_each(|(brick_words, b)| {
+                let gaussians = jitter_on.then(|| {
+                    jitter::cell_gaussians(
+                        jitter::cell_of(b.map(|v| v * bricks::BRICK)),
+                        seed_lo,
+                        seed_hi,
+                        0,
+                        sig,
+                    )
+                });
+                for l in 0..64 {
+                    let v = bricks::voxel_of(*b, l);
+                    let warp = gaussians
+                        .as_deref()
+                        .map_or([0; 3], |g| jitter::offset_from(v, g, amps, sig, &table));
+                    let q = [0, 1, 2].map(|i| (v[i] + warp[i] + shift[i]).rem_euclid(n) as usize);
+                    let src = ((q[2] * n as usize + q[1]) * n as usize + q[0]) * 3;
+                    let dst = l as usize * stride;
+                    brick_words[dst..dst + 3].copy_from_slice(&cache[src..src + 3]);
+                }
             });
-            for l in 0..64 {
-                let v = bricks::voxel_of(*b, l);
-                let warp = gaussians
-                    .as_deref()
-                    .map_or([0; 3], |g| jitter::offset_from(v, g, amps, sig, &table));
-                let q = [0, 1, 2].map(|i| (v[i] + warp[i] + shift[i]).rem_euclid(n) as usize);
-                let src = ((q[2] * n as usize + q[1]) * n as usize + q[0]) * 3;
-                let dst = (slot * 64 + l as usize) * stride;
-                words[dst..dst + 3].copy_from_slice(&cache[src..src + 3]);
-            }
-        }
+        tracing::debug!("parent level from the cache: {:.1} ms", ms(timer));
         let start = self.exec.upload_state(words)?;
         self.synthesize_group(
             vec![parent, finest],
@@ -714,12 +727,14 @@ impl Synthesizer {
         let mut levels = levels;
         let last = levels.len() - 1;
         let index_of = |exec: &mut exec::Executor, levels: &[SparseLevel], l: usize| {
+            let timer = std::time::Instant::now();
             let mut layout = IndexLayout::new(
                 &levels[l],
                 l.checked_sub(1).map(|p| &levels[p]),
                 (l == last).then_some(group),
             );
             let index = exec.upload_index(std::mem::take(&mut layout.words));
+            tracing::debug!("level {l}: brick index in {:.1} ms", ms(timer));
             (layout, index)
         };
         let mut state_bytes = 0u64;
@@ -927,6 +942,11 @@ struct GroupResult {
     triples: Vec<u32>,
     /// The final state's words, when no colours were asked for.
     state: Vec<u32>,
+}
+
+/// Milliseconds since `timer` started (for debug logs).
+fn ms(timer: std::time::Instant) -> f64 {
+    timer.elapsed().as_secs_f64() * 1e3
 }
 
 /// Threads per row of the 2D dispatch grid for `threads` threads (see `gpu::context`).
