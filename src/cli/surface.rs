@@ -99,8 +99,9 @@ pub fn run(args: SurfaceArgs, quiet: bool) -> anyhow::Result<()> {
     let result = synth.synthesize_bricks(&wanted, &report, false)?;
     drop(wanted);
     let mut colors = vec![0u32; atlas.width as usize * atlas.height as usize];
+    let mut last = None;
     atlas.for_each_texel_voxel(&mesh, &place, |i, p| {
-        colors[i] = result.color(p).expect("requested voxel");
+        colors[i] = result.color_near(p, &mut last).expect("requested voxel");
     });
     drop(result);
     bar.finish_and_clear();

@@ -19,19 +19,18 @@ pub fn init(p: &InitParams, table: &[u32], level: &[u32], bricks: &[u32]) -> Vec
         .enumerate()
         .for_each(|(slot, dst)| {
             let brick = brick_at(bricks, p.list_offset, slot as u32);
-            // A brick is one jitter cell (both 4^3, aligned): its Gaussians are computed once.
-            let gaussians = (p.jitter_on != 0).then(|| {
-                jitter::cell_gaussians(
-                    jitter::cell_of(brick_origin(brick)),
-                    p.seed_lo,
-                    p.seed_hi,
-                    p.period,
-                    [p.sig0, p.sig1, p.sig2, p.sig3],
-                )
+            // A brick is one jitter cell (both 4^3, aligned): its warps are computed together.
+            let warps = (p.jitter_on != 0).then(|| {
+                let cell = jitter::cell_of(brick_origin(brick));
+                let sig2 = [p.sig0, p.sig1, p.sig2, p.sig3];
+                let amps = [p.amp0, p.amp1, p.amp2, p.amp3];
+                let gaussians = jitter::cell_gaussians(cell, p.seed_lo, p.seed_hi, p.period, sig2);
+                jitter::cell_offsets(cell, &gaussians, amps, sig2, table)
             });
             for local in 0..64usize {
                 let pos = voxel_of(brick, local as u32);
-                let t = init_voxel(p, table, level, pos, gaussians.as_deref());
+                let warp = warps.map_or([0; 3], |w| w[local]);
+                let t = init_voxel(p, level, pos, warp);
                 let voxel = &mut dst[local * stride..(local + 1) * stride];
                 write_voxel(
                     voxel,
@@ -53,24 +52,8 @@ fn brick_origin(b: [i32; 3]) -> [i32; 3] {
     b.map(|v| v * crate::lazy::bricks::BRICK)
 }
 
-/// The initial triple of voxel `pos`, given the Gaussians of its jitter cell (None: no jitter).
-fn init_voxel(
-    p: &InitParams,
-    table: &[u32],
-    level: &[u32],
-    pos: [i32; 3],
-    gaussians: Option<&[jitter::Gaussian]>,
-) -> [u32; 3] {
-    let warp = match gaussians {
-        Some(g) => jitter::offset_from(
-            pos,
-            g,
-            [p.amp0, p.amp1, p.amp2, p.amp3],
-            [p.sig0, p.sig1, p.sig2, p.sig3],
-            table,
-        ),
-        None => [0; 3],
-    };
+/// The initial triple of voxel `pos`, warped by `warp` (the jitter field there).
+fn init_voxel(p: &InitParams, level: &[u32], pos: [i32; 3], warp: [i32; 3]) -> [u32; 3] {
     let mut q = [
         pos[0] + warp[0] + p.tile_x as i32,
         pos[1] + warp[1] + p.tile_y as i32,

@@ -167,6 +167,62 @@ pub fn offset_from(
     disp.map(|v| (v + 32768) >> 16)
 }
 
+/// The warp offsets of the 64 voxels of cell `cell` (x fastest), from its Gaussians
+/// ([`cell_gaussians`]): [`offset_from`] of each voxel, computed Gaussian by Gaussian. Each
+/// Gaussian's squared distances are sums of per-axis squares (4 per axis), the voxels outside
+/// its support are skipped by row, and q is divided in f64: exact, since q < 144 there and the
+/// quotient of integers is at least 1 / sig2 from the next integer, far more than the rounding.
+pub fn cell_offsets(
+    cell: [i32; 3],
+    gaussians: &[Gaussian],
+    amps: [i32; 4],
+    sig2: [i32; 4],
+    table: &[u32],
+) -> [[i32; 3]; 64] {
+    let origin = cell.map(|c| c * CELL * 256 + 128);
+    let mut disp = [[0i32; 3]; 64];
+    for g in gaussians {
+        let limit = WEIGHT_ENTRIES as i32 * sig2[g.shape];
+        // Squared distance along each axis of the cell's 4 voxel centres.
+        let sq: [[i32; 4]; 3] = std::array::from_fn(|a| {
+            std::array::from_fn(|i| {
+                let d = origin[a] + 256 * i as i32 - g.centre[a];
+                d * d
+            })
+        });
+        let amp = amps[g.shape];
+        let dir = WEIGHT_ENTRIES + g.dir * 3;
+        let dir = [
+            table[dir] as i32,
+            table[dir + 1] as i32,
+            table[dir + 2] as i32,
+        ];
+        for z in 0..4 {
+            if sq[2][z] >= limit {
+                continue;
+            }
+            for y in 0..4 {
+                let yz = sq[2][z] + sq[1][y];
+                if yz >= limit {
+                    continue;
+                }
+                for x in 0..4 {
+                    let r2 = yz + sq[0][x];
+                    if r2 < limit {
+                        let q = (r2 as f64 / sig2[g.shape] as f64) as usize;
+                        let t = (amp * table[q] as i32) >> 16;
+                        let d = &mut disp[z * 16 + y * 4 + x];
+                        for i in 0..3 {
+                            d[i] += t * dir[i];
+                        }
+                    }
+                }
+            }
+        }
+    }
+    disp.map(|d| d.map(|v| (v + 32768) >> 16))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -193,6 +249,11 @@ mod tests {
                     "cell {cell:?} voxel {p:?}"
                 );
                 moved += (offset != [0; 3]) as usize;
+                assert_eq!(
+                    cell_offsets(cell, &culled, amps, sig2, &table)[local as usize],
+                    offset,
+                    "cell {cell:?} voxel {p:?}"
+                );
             }
         }
         assert!(kept > 0 && moved > 0, "kept {kept}, moved {moved}");

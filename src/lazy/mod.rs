@@ -670,20 +670,14 @@ impl Synthesizer {
             .par_chunks_mut(64 * stride)
             .zip(&parent.bricks)
             .for_each(|(brick_words, b)| {
-                let gaussians = jitter_on.then(|| {
-                    jitter::cell_gaussians(
-                        jitter::cell_of(b.map(|v| v * bricks::BRICK)),
-                        seed_lo,
-                        seed_hi,
-                        0,
-                        sig,
-                    )
+                let cell = jitter::cell_of(b.map(|v| v * bricks::BRICK));
+                let warps = jitter_on.then(|| {
+                    let gaussians = jitter::cell_gaussians(cell, seed_lo, seed_hi, 0, sig);
+                    jitter::cell_offsets(cell, &gaussians, amps, sig, &table)
                 });
                 for l in 0..64 {
                     let v = bricks::voxel_of(*b, l);
-                    let warp = gaussians
-                        .as_deref()
-                        .map_or([0; 3], |g| jitter::offset_from(v, g, amps, sig, &table));
+                    let warp = warps.map_or([0; 3], |w| w[l as usize]);
                     let q = [0, 1, 2].map(|i| (v[i] + warp[i] + shift[i]).rem_euclid(n) as usize);
                     let src = ((q[2] * n as usize + q[1]) * n as usize + q[0]) * 3;
                     let dst = l as usize * stride;
@@ -1093,6 +1087,22 @@ impl BrickColors {
     /// Packed colour of voxel `p`.
     pub fn color(&self, p: [i32; 3]) -> Option<u32> {
         self.index(p).map(|i| self.colors[i])
+    }
+
+    /// [`Self::color`] for voxels visited in a coherent order (an atlas' texels): `last`
+    /// remembers the previous voxel's brick and slot, so a run of voxels in one brick costs
+    /// one search (without a dense table, a search is a binary search over every brick).
+    pub fn color_near(&self, p: [i32; 3], last: &mut Option<(Brick, usize)>) -> Option<u32> {
+        let b = bricks::brick_of(p);
+        let slot = match *last {
+            Some((lb, slot)) if lb == b => slot,
+            _ => {
+                let slot = Self::slot_in(&self.bricks, self.grid.as_ref(), b)?;
+                *last = Some((b, slot));
+                slot
+            }
+        };
+        Some(self.colors[slot * bricks::BRICK_VOXELS as usize + bricks::local_index(p) as usize])
     }
 }
 
