@@ -315,22 +315,56 @@ impl Presence {
 pub struct SubpassPlan {
     /// Parity class (bit 0 x, 1 y, 2 z) of the voxels updated.
     pub class: usize,
-    /// Bricks with at least one needed voxel of the class.
+    /// Bricks with at least one needed voxel of the class (empty when `over_storage`).
     pub bricks: Vec<Brick>,
-    /// Per brick, bit k: whether its class voxel k (offset 2 * (k & 1, k >> 1 & 1, k >> 2)) is
-    /// needed. Voxel-exact, so bricks cost only the voxels the plan needs.
+    /// Per brick of `bricks`, bit k: whether its class voxel k (offset 2 * (k & 1, k >> 1 & 1,
+    /// k >> 2)) is needed. Voxel-exact, so bricks cost only the voxels the plan needs. When
+    /// `over_storage`: one mask per stored brick, in slot order, 0 for the bricks skipped.
     pub masks: Vec<u8>,
+    /// Masks over the level's stored bricks instead of a list (a sub-pass covering most of
+    /// a box: 1 byte per stored brick instead of 13 per listed one).
+    pub over_storage: bool,
+}
+
+impl SubpassPlan {
+    fn listed(class: usize) -> SubpassPlan {
+        SubpassPlan {
+            class,
+            bricks: Vec::new(),
+            masks: Vec::new(),
+            over_storage: false,
+        }
+    }
+
+    /// Whether the sub-pass computes nothing.
+    pub fn is_empty(&self) -> bool {
+        self.masks.is_empty()
+    }
+
+    /// The bricks it computes, with their masks (`stored`: the level's bricks).
+    pub fn active<'a>(&'a self, stored: &'a [Brick]) -> Vec<(Brick, u8)> {
+        if self.over_storage {
+            stored
+                .iter()
+                .zip(&self.masks)
+                .filter(|(_, &m)| m != 0)
+                .map(|(b, &m)| (*b, m))
+                .collect()
+        } else {
+            self.bricks
+                .iter()
+                .copied()
+                .zip(self.masks.iter().copied())
+                .collect()
+        }
+    }
 }
 
 /// The needed class voxels of the bricks near `deliver` for a sub-pass whose per-brick plan box
 /// is `needed` (relative to a brick at the origin): voxel v is needed when some delivered brick
 /// b has v - 4b inside the box.
 fn subpass_plan(class: usize, needed: Box3, deliver: &[Brick], presence: &Presence) -> SubpassPlan {
-    let mut plan = SubpassPlan {
-        class,
-        bricks: Vec::new(),
-        masks: Vec::new(),
-    };
+    let mut plan = SubpassPlan::listed(class);
     let Some((lo, hi)) = offset_range(needed) else {
         return plan;
     };
@@ -380,6 +414,129 @@ impl SparseLevel {
 pub fn plan_sparse(output: &[Brick], passes: &[usize]) -> Vec<SparseLevel> {
     let mut deliver = output.to_vec();
     normalize(&mut deliver);
+    match brick_box(&deliver) {
+        Some((lo, hi)) => plan_box(lo, hi, passes),
+        None => plan_general(deliver, passes),
+    }
+}
+
+/// The inclusive brick range of `sorted` bricks when they fill it exactly (a box request).
+fn brick_box(sorted: &[Brick]) -> Option<(Brick, Brick)> {
+    let (first, last) = (*sorted.first()?, *sorted.last()?);
+    let (mut lo, mut hi) = (first, last);
+    for b in sorted {
+        for i in 0..3 {
+            lo[i] = lo[i].min(b[i]);
+            hi[i] = hi[i].max(b[i]);
+        }
+    }
+    let cells: u64 = (0..3).map(|i| (hi[i] - lo[i] + 1) as u64).product();
+    // Sorted and deduplicated: as many bricks as cells means every cell.
+    (cells == sorted.len() as u64).then_some((lo, hi))
+}
+
+/// [`plan_sparse`] of the full brick box [lo, hi] (inclusive), with every set a box: the same
+/// plan as [`plan_general`]'s, in time proportional to the bricks (a large box spent most of a
+/// second in the general planner's per-voxel presence queries, which a GPU run cannot hide).
+fn plan_box(mut lo: Brick, mut hi: Brick, passes: &[usize]) -> Vec<SparseLevel> {
+    let mut out = Vec::new();
+    for &level_passes in passes.iter().rev() {
+        let one = &plan(Box3::new([0; 3], [BRICK; 3]), &[level_passes])[0];
+        let (slo, shi) = offset_range(one.storage).expect("storage holds the brick");
+        let range = |a: Brick, b: Brick| {
+            bricks_of_box(Box3::new(
+                [0, 1, 2].map(|i| a[i] * BRICK),
+                [0, 1, 2].map(|i| (b[i] + 1) * BRICK),
+            ))
+        };
+        let s0 = [0, 1, 2].map(|i| lo[i] + slo[i]);
+        let s1 = [0, 1, 2].map(|i| hi[i] + shi[i]);
+        let sdims = [0, 1, 2].map(|i| (s1[i] - s0[i] + 1) as usize);
+        let bricks = range(s0, s1);
+        let stored = bricks.len();
+        let subpasses = one
+            .subpasses
+            .par_iter()
+            .map(|&(class, needed)| {
+                let mut sp = SubpassPlan::listed(class);
+                let Some((olo, ohi)) = offset_range(needed) else {
+                    return sp;
+                };
+                // The union of the translates 4b + needed (b in the box) is one voxel box: the
+                // brick plan boxes grow from the brick by dilations, so their sides are at
+                // least 4 long and consecutive translates touch.
+                let vlo = [0, 1, 2].map(|i| lo[i] * BRICK + needed.lo[i]);
+                let vhi = [0, 1, 2].map(|i| hi[i] * BRICK + needed.hi[i]);
+                let c = [0, 1, 2].map(|i| ((class >> i) & 1) as i32);
+                // Per axis and brick coordinate: which of the two class voxels (k = 0, 1) lie
+                // inside, as bits of the 8-voxel mask.
+                let axis_bits = |i: usize, a: i32| -> u8 {
+                    let mut bits = 0u8;
+                    for k in 0..8 {
+                        let v = a * BRICK + c[i] + 2 * ((k >> i) & 1);
+                        if v >= vlo[i] && v < vhi[i] {
+                            bits |= 1 << k;
+                        }
+                    }
+                    bits
+                };
+                let bits: [Vec<(i32, u8)>; 3] = std::array::from_fn(|i| {
+                    (lo[i] + olo[i]..=hi[i] + ohi[i])
+                        .map(|a| (a, axis_bits(i, a)))
+                        .filter(|&(_, m)| m != 0)
+                        .collect()
+                });
+                // (Every combination is nonzero: each axis' bits are the class voxels inside
+                // along it, and the product of the three axes' choices is in the mask.)
+                let count: usize = bits.iter().map(Vec::len).product();
+                if count == 0 {
+                    return sp;
+                }
+                if 2 * count >= stored {
+                    sp.over_storage = true;
+                    sp.masks = vec![0; stored];
+                    for &(z, mz) in &bits[2] {
+                        for &(y, my) in &bits[1] {
+                            let row =
+                                ((z - s0[2]) as usize * sdims[1] + (y - s0[1]) as usize) * sdims[0];
+                            for &(x, mx) in &bits[0] {
+                                sp.masks[row + (x - s0[0]) as usize] = mz & my & mx;
+                            }
+                        }
+                    }
+                    return sp;
+                }
+                sp.bricks.reserve_exact(count);
+                sp.masks.reserve_exact(count);
+                for &(z, mz) in &bits[2] {
+                    for &(y, my) in &bits[1] {
+                        for &(x, mx) in &bits[0] {
+                            sp.bricks.push([x, y, z]);
+                            sp.masks.push(mz & my & mx);
+                        }
+                    }
+                }
+                sp
+            })
+            .collect();
+        let deliver = range(lo, hi);
+        let grid = BrickGrid::new(&bricks);
+        out.push(SparseLevel {
+            bricks,
+            grid,
+            subpasses,
+            deliver,
+        });
+        // The parents of the stored box: a box.
+        lo = [0, 1, 2].map(|i| (lo[i] + slo[i]) >> 1);
+        hi = [0, 1, 2].map(|i| (hi[i] + shi[i]) >> 1);
+    }
+    out.reverse();
+    out
+}
+
+/// [`plan_sparse`] of any set of bricks (`deliver`, normalized).
+fn plan_general(mut deliver: Vec<Brick>, passes: &[usize]) -> Vec<SparseLevel> {
     let mut out = Vec::new();
     for &level_passes in passes.iter().rev() {
         let one = &plan(Box3::new([0; 3], [BRICK; 3]), &[level_passes])[0];
@@ -423,8 +580,9 @@ pub fn plan_periodic(n: u32, passes: &[usize]) -> Vec<SparseLevel> {
                 .flat_map(|_| super::SUBPASS_ORDER)
                 .map(|class| SubpassPlan {
                     class,
-                    bricks: bricks.clone(),
+                    bricks: Vec::new(),
                     masks: vec![0xFF; bricks.len()],
+                    over_storage: true,
                 })
                 .collect();
             SparseLevel {
@@ -492,6 +650,46 @@ mod tests {
         }
         assert_eq!(grid.voxel_index([100, 0, 0]), None);
         assert_eq!(grid.voxel_index([4, 0, 0]), None);
+    }
+
+    fn same_plans(a: &[SparseLevel], b: &[SparseLevel]) {
+        assert_eq!(a.len(), b.len());
+        for (x, y) in a.iter().zip(b) {
+            assert_eq!(x.bricks, y.bricks);
+            assert_eq!(x.grid, y.grid);
+            assert_eq!(x.deliver, y.deliver);
+            assert_eq!(x.subpasses.len(), y.subpasses.len());
+            for (p, q) in x.subpasses.iter().zip(&y.subpasses) {
+                assert_eq!(p.class, q.class);
+                assert_eq!(p.active(&x.bricks), q.active(&y.bricks));
+            }
+        }
+    }
+
+    #[test]
+    fn box_plans_equal_the_general_planner() {
+        for (lo, hi) in [
+            ([0, 0, 0], [0, 0, 0]),
+            ([0, 0, 0], [3, 3, 3]),
+            ([-3, 2, -7], [1, 2, -5]),
+            ([5, -1, 0], [9, 6, 2]),
+        ] {
+            let output = bricks_of_box(Box3::new(
+                lo.map(|v| v * BRICK),
+                hi.map(|v| (v + 1) * BRICK),
+            ));
+            assert_eq!(brick_box(&output), Some((lo, hi)));
+            for passes in [[2, 2, 2, 2], [2, 2, 2, 1], [1, 3, 0, 2]] {
+                same_plans(
+                    &plan_sparse(&output, &passes),
+                    &plan_general(output.clone(), &passes),
+                );
+            }
+        }
+        // Not a box: one brick missing.
+        let mut holed = bricks_of_box(Box3::new([0; 3], [12; 3]));
+        holed.remove(13);
+        assert_eq!(brick_box(&holed), None);
     }
 
     #[test]

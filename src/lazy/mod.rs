@@ -841,7 +841,7 @@ impl Synthesizer {
             }
             .min(pack.k3d_stride);
             for (s, sp) in lv.subpasses.iter().enumerate() {
-                if sp.bricks.is_empty() {
+                if sp.is_empty() {
                     continue;
                 }
                 let mut p = correct_params(
@@ -967,7 +967,8 @@ impl IndexLayout {
     /// over the storage list itself, with a zero mask for the bricks it skips: 1 byte per
     /// stored brick instead of 13 per listed one. Its voxels, and so the results, are the same.
     fn new(level: &SparseLevel, parent: Option<&SparseLevel>, output: Option<&[Brick]>) -> Self {
-        let shares_storage = |sp: &bricks::SubpassPlan| 2 * sp.bricks.len() >= level.bricks.len();
+        let shares_storage =
+            |sp: &bricks::SubpassPlan| sp.over_storage || 2 * sp.bricks.len() >= level.bricks.len();
         // Sized exactly up front: a large box's index is tens of MB, doubling growth would
         // nearly double it.
         let len = level.grid.table.len()
@@ -997,7 +998,11 @@ impl IndexLayout {
                             .fold(0u32, |w, (i, &b)| w | (b as u32) << (8 * i))
                     }));
                 };
-                if shares_storage(sp) {
+                if sp.over_storage {
+                    let at = words.len() as u32;
+                    pack_masks(&mut words, &sp.masks);
+                    (storage_list, level.bricks.len() as u32, at)
+                } else if shares_storage(sp) {
                     let mut masks = vec![0u8; level.bricks.len()];
                     for (b, &m) in sp.bricks.iter().zip(&sp.masks) {
                         let slot = level.grid.slot(*b).expect("sub-pass bricks are stored");
