@@ -248,6 +248,21 @@ impl GpuContext {
             })
     }
 
+    /// A read-write storage buffer of `words` u32 that the kernels fill entirely before anything
+    /// reads it (a synthesis state). Not filled on the host: wgpu zero-initializes it on the
+    /// device, where an [`Self::output_buffer`] would first fill and upload `words` sentinels
+    /// (at 256^3 about a gigabyte of states per synthesis).
+    pub fn device_buffer(&self, label: &str, words: usize) -> wgpu::Buffer {
+        self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(label),
+            size: (words.max(1) * 4) as u64,
+            usage: wgpu::BufferUsages::STORAGE
+                | wgpu::BufferUsages::COPY_SRC
+                | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        })
+    }
+
     /// A read-write storage buffer of `words` u32, pre-filled with `sentinel` so a value the
     /// kernel never wrote is distinguishable from one it wrote.
     pub fn output_buffer(&self, label: &str, words: usize, sentinel: u32) -> wgpu::Buffer {

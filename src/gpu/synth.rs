@@ -10,9 +10,6 @@ use crate::kernel_types::{ColorizeParams, CorrectParams, InitParams, UpsamplePar
 use crate::lazy::pack::LevelPack;
 use std::sync::Arc;
 
-/// Written into fresh state buffers: a triple the kernels never produce.
-pub const SENTINEL: u32 = 0xFFFF_FFFF;
-
 pub struct GpuState {
     current: wgpu::Buffer,
     scratch: Option<wgpu::Buffer>,
@@ -71,8 +68,10 @@ impl GpuSynth {
         self.ctx.max_binding_bytes()
     }
 
+    /// A state: `init` and `upsample` write every word of theirs, a correction's scratch is a
+    /// copy of the state before its kernel runs.
     fn state_buffer(&self, words: u64) -> wgpu::Buffer {
-        self.ctx.output_buffer("triples", words as usize, SENTINEL)
+        self.ctx.device_buffer("triples", words as usize)
     }
 
     #[allow(clippy::type_complexity)]
@@ -256,7 +255,8 @@ impl GpuSynth {
         index: &wgpu::Buffer,
     ) -> Result<Vec<u32>> {
         let n = p.list_count as usize * 64;
-        let out = self.ctx.output_buffer("colours", n, SENTINEL);
+        // (`colorize` writes a colour per listed voxel.)
+        let out = self.ctx.device_buffer("colours", n);
         let uniform = self.ctx.uniform_buffer("colorize params", p);
         self.run(
             "colorize",
