@@ -93,6 +93,17 @@ fn synthesis_kernels_bit_exact_on_gpu_and_cpu() {
             s.synthesize(b, &|_, _| {}).unwrap()
         });
     }
+    // A one-voxel-thick slab (an axis-aligned cut's request), planned voxel-exactly at the
+    // finest level: partial brick masks in every sub-pass.
+    let a = analysis(false, Border::Wrap);
+    let params = SynthParams {
+        seed: 78,
+        ..Default::default()
+    };
+    let thin = Box3::new([-6, 1, 5], [13, 22, 6]);
+    same_on_both("one-voxel-thick slab", &a, &params, &gpu, |s| {
+        s.synthesize(thin, &|_, _| {}).unwrap()
+    });
     // Four channels (RGB + feature: one value word per voxel) and five (RGBA + feature: two
     // words; the CPU correction reads those through the brick index, not a window).
     for rgba in [false, true] {

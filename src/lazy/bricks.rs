@@ -453,70 +453,22 @@ fn plan_box(mut lo: Brick, mut hi: Brick, passes: &[usize]) -> Vec<SparseLevel> 
         let s1 = [0, 1, 2].map(|i| hi[i] + shi[i]);
         let sdims = [0, 1, 2].map(|i| (s1[i] - s0[i] + 1) as usize);
         let bricks = range(s0, s1);
-        let stored = bricks.len();
+        let storage = (s0, sdims);
         let subpasses = one
             .subpasses
             .par_iter()
             .map(|&(class, needed)| {
-                let mut sp = SubpassPlan::listed(class);
-                let Some((olo, ohi)) = offset_range(needed) else {
-                    return sp;
-                };
+                if needed.is_empty() {
+                    return SubpassPlan::listed(class);
+                }
                 // The union of the translates 4b + needed (b in the box) is one voxel box: the
                 // brick plan boxes grow from the brick by dilations, so their sides are at
                 // least 4 long and consecutive translates touch.
-                let vlo = [0, 1, 2].map(|i| lo[i] * BRICK + needed.lo[i]);
-                let vhi = [0, 1, 2].map(|i| hi[i] * BRICK + needed.hi[i]);
-                let c = [0, 1, 2].map(|i| ((class >> i) & 1) as i32);
-                // Per axis and brick coordinate: which of the two class voxels (k = 0, 1) lie
-                // inside, as bits of the 8-voxel mask.
-                let axis_bits = |i: usize, a: i32| -> u8 {
-                    let mut bits = 0u8;
-                    for k in 0..8 {
-                        let v = a * BRICK + c[i] + 2 * ((k >> i) & 1);
-                        if v >= vlo[i] && v < vhi[i] {
-                            bits |= 1 << k;
-                        }
-                    }
-                    bits
-                };
-                let bits: [Vec<(i32, u8)>; 3] = std::array::from_fn(|i| {
-                    (lo[i] + olo[i]..=hi[i] + ohi[i])
-                        .map(|a| (a, axis_bits(i, a)))
-                        .filter(|&(_, m)| m != 0)
-                        .collect()
-                });
-                // (Every combination is nonzero: each axis' bits are the class voxels inside
-                // along it, and the product of the three axes' choices is in the mask.)
-                let count: usize = bits.iter().map(Vec::len).product();
-                if count == 0 {
-                    return sp;
-                }
-                if 2 * count >= stored {
-                    sp.over_storage = true;
-                    sp.masks = vec![0; stored];
-                    for &(z, mz) in &bits[2] {
-                        for &(y, my) in &bits[1] {
-                            let row =
-                                ((z - s0[2]) as usize * sdims[1] + (y - s0[1]) as usize) * sdims[0];
-                            for &(x, mx) in &bits[0] {
-                                sp.masks[row + (x - s0[0]) as usize] = mz & my & mx;
-                            }
-                        }
-                    }
-                    return sp;
-                }
-                sp.bricks.reserve_exact(count);
-                sp.masks.reserve_exact(count);
-                for &(z, mz) in &bits[2] {
-                    for &(y, my) in &bits[1] {
-                        for &(x, mx) in &bits[0] {
-                            sp.bricks.push([x, y, z]);
-                            sp.masks.push(mz & my & mx);
-                        }
-                    }
-                }
-                sp
+                let union = Box3::new(
+                    [0, 1, 2].map(|i| lo[i] * BRICK + needed.lo[i]),
+                    [0, 1, 2].map(|i| hi[i] * BRICK + needed.hi[i]),
+                );
+                subpass_in_box(class, union, storage)
             })
             .collect();
         let deliver = range(lo, hi);
@@ -533,6 +485,100 @@ fn plan_box(mut lo: Brick, mut hi: Brick, passes: &[usize]) -> Vec<SparseLevel> 
     }
     out.reverse();
     out
+}
+
+/// The sub-pass of class `class` computing the class voxels inside the voxel box `needed`, on
+/// a level storing the full brick box at `storage.0` with `storage.1` bricks per axis.
+fn subpass_in_box(class: usize, needed: Box3, storage: (Brick, [usize; 3])) -> SubpassPlan {
+    let (s0, sdims) = storage;
+    let stored: usize = sdims.iter().product();
+    let mut sp = SubpassPlan::listed(class);
+    if needed.is_empty() {
+        return sp;
+    }
+    let c = [0, 1, 2].map(|i| ((class >> i) & 1) as i32);
+    // Per axis and brick coordinate: which of the 8 class voxels of the brick lie inside along
+    // that axis, as mask bits (bricks with none left out).
+    let bits: [Vec<(i32, u8)>; 3] = std::array::from_fn(|i| {
+        (needed.lo[i].div_euclid(BRICK)..=(needed.hi[i] - 1).div_euclid(BRICK))
+            .map(|a| {
+                let mut bits = 0u8;
+                for k in 0..8 {
+                    let v = a * BRICK + c[i] + 2 * ((k >> i) & 1);
+                    if v >= needed.lo[i] && v < needed.hi[i] {
+                        bits |= 1 << k;
+                    }
+                }
+                (a, bits)
+            })
+            .filter(|&(_, m)| m != 0)
+            .collect()
+    });
+    // (Every combination is nonzero: the three axes' bits each hold a choice along their axis,
+    // and their product is a class voxel inside.)
+    let count: usize = bits.iter().map(Vec::len).product();
+    if count == 0 {
+        return sp;
+    }
+    if 2 * count >= stored {
+        sp.over_storage = true;
+        sp.masks = vec![0; stored];
+        for &(z, mz) in &bits[2] {
+            for &(y, my) in &bits[1] {
+                let row = ((z - s0[2]) as usize * sdims[1] + (y - s0[1]) as usize) * sdims[0];
+                for &(x, mx) in &bits[0] {
+                    sp.masks[row + (x - s0[0]) as usize] = mz & my & mx;
+                }
+            }
+        }
+        return sp;
+    }
+    sp.bricks.reserve_exact(count);
+    sp.masks.reserve_exact(count);
+    for &(z, mz) in &bits[2] {
+        for &(y, my) in &bits[1] {
+            for &(x, mx) in &bits[0] {
+                sp.bricks.push([x, y, z]);
+                sp.masks.push(mz & my & mx);
+            }
+        }
+    }
+    sp
+}
+
+/// The synthesis of exactly the voxels of the box `out` (voxel units, not necessarily
+/// aligned to bricks) through one level per entry of `passes` (coarsest first); coarsest level
+/// first. The finest level is voxel-exact: the dense planner's boxes (`plan::plan` of `out`),
+/// stored in the bricks covering them; the coarser levels as for the box of those bricks'
+/// parents. A thin request gains most: a one-voxel slice computes the padding around one
+/// voxel layer instead of around the four of its bricks. Delivers `out`'s voxels (the rest of
+/// the bricks covering it holds values nothing needed, not the solid's).
+pub fn plan_voxel_box(out: Box3, passes: &[usize]) -> Vec<SparseLevel> {
+    let (&finest, coarser) = passes.split_last().expect("at least one level");
+    let dense = &plan(out, &[finest])[0];
+    let s0 = brick_of(dense.storage.lo);
+    let s1 = brick_of(dense.storage.hi.map(|v| v - 1));
+    let sdims = [0, 1, 2].map(|i| (s1[i] - s0[i] + 1) as usize);
+    let bricks = bricks_of_box(Box3::new(
+        s0.map(|v| v * BRICK),
+        s1.map(|v| (v + 1) * BRICK),
+    ));
+    let subpasses = dense
+        .subpasses
+        .par_iter()
+        .map(|&(class, needed)| subpass_in_box(class, needed, (s0, sdims)))
+        .collect();
+    let mut levels = match coarser.is_empty() {
+        true => Vec::new(),
+        false => plan_box(s0.map(|v| v >> 1), s1.map(|v| v >> 1), coarser),
+    };
+    levels.push(SparseLevel {
+        grid: BrickGrid::new(&bricks),
+        bricks,
+        subpasses,
+        deliver: bricks_of_box(out),
+    });
+    levels
 }
 
 /// [`plan_sparse`] of any set of bricks (`deliver`, normalized).
@@ -690,6 +736,39 @@ mod tests {
         let mut holed = bricks_of_box(Box3::new([0; 3], [12; 3]));
         holed.remove(13);
         assert_eq!(brick_box(&holed), None);
+    }
+
+    #[test]
+    fn voxel_exact_boxes_compute_a_subset_of_the_brick_plan() {
+        let bits = |p: &SparseLevel| -> u32 {
+            p.subpasses
+                .iter()
+                .flat_map(|sp| sp.active(&p.bricks))
+                .map(|(_, m)| m.count_ones())
+                .sum()
+        };
+        for (out, thin) in [
+            (Box3::new([-5, 3, 7], [30, 21, 8]), true),
+            (Box3::new([0, 0, 0], [16, 16, 16]), false),
+            (Box3::new([-9, -1, 2], [3, 14, 13]), false),
+        ] {
+            for passes in [[2, 2, 2, 2], [2, 2, 2, 1]] {
+                let exact = plan_voxel_box(out, &passes);
+                let bricks = plan_sparse(&bricks_of_box(out), &passes);
+                let (e, b) = (exact.last().unwrap(), bricks.last().unwrap());
+                assert_eq!(e.deliver, b.deliver);
+                for (se, sb) in e.subpasses.iter().zip(&b.subpasses) {
+                    let wide: std::collections::HashMap<Brick, u8> =
+                        sb.active(&b.bricks).into_iter().collect();
+                    for (brick, m) in se.active(&e.bricks) {
+                        assert_eq!(m & !wide[&brick], 0, "{out:?} {brick:?}");
+                    }
+                }
+                if thin {
+                    assert!(4 * bits(e) < 3 * bits(b), "{} vs {}", bits(e), bits(b));
+                }
+            }
+        }
     }
 
     #[test]

@@ -322,6 +322,7 @@ impl Synthesizer {
         // Groups come z-major (see `groups`): a group starting above the slab begins the next.
         self.for_each_group(
             &all,
+            Some(out),
             progress,
             want_triples,
             |group, colors, group_triples| {
@@ -405,12 +406,24 @@ impl Synthesizer {
         progress: Progress,
         want_triples: bool,
     ) -> Result<BrickColors> {
+        self.synthesize_bricks_of(requested, None, progress, want_triples)
+    }
+
+    /// [`Self::synthesize_bricks`]; `exact`: the request is the voxels of this box (see
+    /// [`Self::for_each_group`]; only they are meaningful in the result).
+    fn synthesize_bricks_of(
+        &mut self,
+        requested: &[Brick],
+        exact: Option<Box3>,
+        progress: Progress,
+        want_triples: bool,
+    ) -> Result<BrickColors> {
         let mut all = requested.to_vec();
         bricks::normalize(&mut all);
         let grid = BrickColors::lookup(&all);
         let mut colors = vec![0u32; all.len() * 64];
         let mut triples = vec![0u32; if want_triples { all.len() * 64 * 3 } else { 0 }];
-        self.for_each_group(&all, progress, want_triples, |group, c, t| {
+        self.for_each_group(&all, exact, progress, want_triples, |group, c, t| {
             for (j, b) in group.iter().enumerate() {
                 let slot = BrickColors::slot_in(&all, grid.as_ref(), *b).expect("requested brick");
                 colors[slot * 64..(slot + 1) * 64].copy_from_slice(&c[j * 64..(j + 1) * 64]);
@@ -431,9 +444,14 @@ impl Synthesizer {
 
     /// Synthesize the sorted bricks `all` group by group, handing each group's bricks, their
     /// colours (64 per brick, x fastest) and, when asked, their triples to `sink`.
+    ///
+    /// `exact`: the request is exactly the voxels of this box (`all` the bricks covering it):
+    /// each group is then planned voxel-exactly at the finest level
+    /// ([`bricks::plan_voxel_box`]), and only its voxels inside the box are meaningful.
     fn for_each_group(
         &mut self,
         all: &[Brick],
+        exact: Option<Box3>,
         progress: Progress,
         want_triples: bool,
         mut sink: impl FnMut(&[Brick], &[u32], &[u32]) -> Result<()>,
@@ -447,8 +465,24 @@ impl Synthesizer {
         for (g, group) in groups.iter().enumerate() {
             let base = g as f32 / groups.len() as f32;
             let scale = 1.0 / groups.len() as f32;
+            // The part of the exact box this group's bricks cover.
+            let exact = exact.map(|b| {
+                let mut lo = group[0];
+                let mut hi = group[0];
+                for brick in group {
+                    for i in 0..3 {
+                        lo[i] = lo[i].min(brick[i]);
+                        hi[i] = hi[i].max(brick[i]);
+                    }
+                }
+                Box3::new(
+                    [0, 1, 2].map(|i| b.lo[i].max(lo[i] * bricks::BRICK)),
+                    [0, 1, 2].map(|i| b.hi[i].min((hi[i] + 1) * bricks::BRICK)),
+                )
+            });
             let (c, t) = self.synthesize_group_of(
                 group,
+                exact,
                 &|m, f| progress(m, base + scale * f),
                 want_triples,
                 &mut stats,
@@ -464,7 +498,10 @@ impl Synthesizer {
     /// holding them are synthesized.
     pub fn sample(&mut self, voxels: &[[i32; 3]], progress: Progress) -> Result<Vec<u32>> {
         let wanted = bricks::bricks_of_voxels(voxels);
-        let result = self.synthesize_bricks(&wanted, progress, false)?;
+        // An axis-aligned cut at unit spacing asks for a box of voxels (one voxel thick):
+        // planned voxel-exactly, its dependency padding surrounds one layer, not four.
+        let exact = voxel_box(voxels);
+        let result = self.synthesize_bricks_of(&wanted, exact, progress, false)?;
         Ok(voxels
             .iter()
             .map(|p| result.color(*p).expect("requested voxel"))
@@ -595,18 +632,20 @@ impl Synthesizer {
     }
 
     /// Colours (64 per brick, `group` order) and, when asked, triples of one group of bricks.
+    /// `exact`: see [`Self::for_each_group`].
     fn synthesize_group_of(
         &mut self,
         group: &[Brick],
+        exact: Option<Box3>,
         progress: Progress,
         want_triples: bool,
         stats: &mut SynthStats,
     ) -> Result<(Vec<u32>, Vec<u32>)> {
         if self.params.coarse_cache.is_some() {
-            return self.synthesize_group_cached(group, progress, want_triples, stats);
+            return self.synthesize_group_cached(group, exact, progress, want_triples, stats);
         }
         let timer = std::time::Instant::now();
-        let levels = bricks::plan_sparse(group, &self.params.passes.levels());
+        let levels = plan_group(group, exact, &self.params.passes.levels());
         tracing::debug!("planned {} bricks in {:.1} ms", group.len(), ms(timer));
         self.synthesize_group(levels, 0, None, group, None, progress, want_triples, stats)
             .map(|r| (r.colors, r.triples))
@@ -657,15 +696,19 @@ impl Synthesizer {
     fn synthesize_group_cached(
         &mut self,
         group: &[Brick],
+        exact: Option<Box3>,
         progress: Progress,
         want_triples: bool,
         stats: &mut SynthStats,
     ) -> Result<(Vec<u32>, Vec<u32>)> {
         let timer = std::time::Instant::now();
-        let finest =
-            bricks::plan_sparse(group, &self.params.passes.levels()[ANALYSED_LEVELS - 1..])
-                .pop()
-                .unwrap();
+        let finest = plan_group(
+            group,
+            exact,
+            &self.params.passes.levels()[ANALYSED_LEVELS - 1..],
+        )
+        .pop()
+        .unwrap();
         tracing::debug!("planned {} bricks in {:.1} ms", group.len(), ms(timer));
         let mut parents: Vec<Brick> = finest.bricks.iter().map(|b| b.map(|v| v >> 1)).collect();
         bricks::normalize(&mut parents);
@@ -960,6 +1003,39 @@ struct GroupResult {
     triples: Vec<u32>,
     /// The final state's words, when no colours were asked for.
     state: Vec<u32>,
+}
+
+/// The plan of a group of bricks: voxel-exact at the finest level when the request is the
+/// box `exact` (see [`Synthesizer::for_each_group`]).
+fn plan_group(group: &[Brick], exact: Option<Box3>, passes: &[usize]) -> Vec<SparseLevel> {
+    match exact {
+        Some(b) => bricks::plan_voxel_box(b, passes),
+        None => bricks::plan_sparse(group, passes),
+    }
+}
+
+/// The box `voxels` fill exactly (each of its voxels once, in any order), if they do.
+fn voxel_box(voxels: &[[i32; 3]]) -> Option<Box3> {
+    let first = *voxels.first()?;
+    let (mut lo, mut hi) = (first, first);
+    for p in voxels {
+        for i in 0..3 {
+            lo[i] = lo[i].min(p[i]);
+            hi[i] = hi[i].max(p[i]);
+        }
+    }
+    let b = Box3::new(lo, hi.map(|v| v + 1));
+    if b.voxels() != voxels.len() as u64 {
+        return None;
+    }
+    let mut seen = vec![false; voxels.len()];
+    for p in voxels {
+        let i = b.index(*p);
+        if std::mem::replace(&mut seen[i], true) {
+            return None;
+        }
+    }
+    Some(b)
 }
 
 /// Milliseconds since `timer` started (for debug logs).
