@@ -74,6 +74,7 @@ if ((quick)); then
     cut_sizes="128"
     repeat=3
     resolutions="128"
+    fast_resolution=128
     render_sizes=64
     gradient_sizes=32
     runs=1
@@ -83,6 +84,7 @@ else
     cut_sizes="128 256 512"
     repeat=20
     resolutions="256 512 1024 2048"
+    fast_resolution=1024
     render_sizes=64,128,256
     gradient_sizes=64,128
     runs=3
@@ -105,10 +107,16 @@ fi
 if wants cuts; then
     for s in $cut_sizes; do
         for cache in "--coarse-cache 128" ""; do
-            # shellcheck disable=SC2086
-            section cuts.txt $ss cut --backend gpu --origin 32,32,20 --normal 0.3,0.5,0.8 \
-                --size "$s" --repeat $repeat $cache -o "$work/cut$s.png"
+            # An oblique plane (brick-level plan) and an axis-aligned slice (voxel-exact plan).
+            for normal in 0.3,0.5,0.8 0,0,1; do
+                # shellcheck disable=SC2086
+                section cuts.txt $ss cut --backend gpu --origin 32,32,20 --normal $normal \
+                    --size "$s" --repeat $repeat $cache -o "$work/cut$s.png"
+            done
         done
+        # One finest pass, the faster schedule.
+        section cuts.txt $ss cut --backend gpu --origin 32,32,20 --normal 0,0,1 --size "$s" \
+            --repeat $repeat --coarse-cache 128 --passes 2,2,2,1 -o "$work/cut$s.png"
     done
 fi
 if wants surface; then
@@ -116,6 +124,10 @@ if wants surface; then
         section surface.txt $ss surface --backend gpu --mesh dist/bunny.obj --resolution "$r" \
             --json -o "$work/bunny$r.glb"
     done
+    # The issue's resolution with one finest pass and the coarse cache.
+    section surface.txt $ss surface --backend gpu --mesh dist/bunny.obj \
+        --resolution "$fast_resolution" --coarse-cache 128 --max-group 128 --passes 2,2,2,1 \
+        --json -o "$work/bunny-fast.glb"
 fi
 
 # Issue 6: tricubic rendering (target 256^3 <= 5 ms) and direct synthesis.

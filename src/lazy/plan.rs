@@ -56,6 +56,17 @@ impl Box3 {
             hi: [0, 1, 2].map(|i| self.hi[i] + hi[i]),
         }
     }
+    /// The smallest box holding every voxel of parity class `class` (bit i: parity along axis
+    /// i) inside this one (empty when there is none, e.g. a one-voxel-thick box of the other
+    /// parity).
+    pub fn snapped_to_class(&self, class: usize) -> Box3 {
+        let c = [0, 1, 2].map(|i| ((class >> i) & 1) as i32);
+        Box3 {
+            // First voxel >= lo, and one past the last voxel < hi, of parity c.
+            lo: [0, 1, 2].map(|i| self.lo[i] + (self.lo[i] - c[i]).rem_euclid(2)),
+            hi: [0, 1, 2].map(|i| self.hi[i] - (self.hi[i] - 1 - c[i]).rem_euclid(2)),
+        }
+    }
     /// The coarser-level box whose children cover this one.
     pub fn parent(&self) -> Box3 {
         Box3 {
@@ -134,7 +145,9 @@ pub fn plan(output: Box3, passes: &[usize]) -> Vec<LevelPlan> {
         let mut subpasses = Vec::new();
         for _ in 0..level_passes {
             for &c in SUBPASS_ORDER.iter().rev() {
-                let computed = need[c];
+                // Only the class's own voxels are computed: reads are dilated from their hull
+                // (a thin box may hold none of a class).
+                let computed = need[c].snapped_to_class(c);
                 subpasses.push((c, computed));
                 if computed.is_empty() {
                     continue;
@@ -164,6 +177,38 @@ pub fn plan(output: Box3, passes: &[usize]) -> Vec<LevelPlan> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn snapping_keeps_exactly_the_class_voxels() {
+        for b in [
+            Box3::new([0, 0, 0], [4, 4, 4]),
+            Box3::new([-3, 2, 5], [4, 3, 6]),
+            Box3::new([1, -1, 0], [2, 5, 7]),
+        ] {
+            for class in 0..8 {
+                let s = b.snapped_to_class(class);
+                let c = [0, 1, 2].map(|i| ((class >> i) & 1) as i32);
+                let mut inside = Vec::new();
+                for z in b.lo[2]..b.hi[2] {
+                    for y in b.lo[1]..b.hi[1] {
+                        for x in b.lo[0]..b.hi[0] {
+                            let p = [x, y, z];
+                            if (0..3).all(|i| p[i].rem_euclid(2) == c[i]) {
+                                inside.push(p);
+                                assert!(s.contains(p), "{b:?} {class} {p:?}");
+                            }
+                        }
+                    }
+                }
+                assert_eq!(s.is_empty(), inside.is_empty(), "{b:?} {class}");
+                if !s.is_empty() {
+                    // Tight: its corners are class voxels of the box.
+                    assert!(inside.contains(&s.lo));
+                    assert!(inside.contains(&s.hi.map(|v| v - 1)));
+                }
+            }
+        }
+    }
 
     #[test]
     fn plan_reads_stay_inside_storage_and_shrink_to_the_output() {
