@@ -30,6 +30,17 @@ pub fn brick_of(p: [i32; 3]) -> Brick {
     p.map(|v| v >> 2)
 }
 
+/// The inclusive per-axis bounds of points (bricks or voxels); None when there are none.
+pub fn bounds(points: &[[i32; 3]]) -> Option<([i32; 3], [i32; 3])> {
+    let first = *points.first()?;
+    Some(points.iter().fold((first, first), |(lo, hi), p| {
+        (
+            [0, 1, 2].map(|i| lo[i].min(p[i])),
+            [0, 1, 2].map(|i| hi[i].max(p[i])),
+        )
+    }))
+}
+
 /// Index of a voxel inside its brick: x fastest.
 pub fn local_index(p: [i32; 3]) -> u32 {
     (((p[2] & 3) * 16 + (p[1] & 3) * 4) + (p[0] & 3)) as u32
@@ -107,21 +118,13 @@ pub struct BrickGrid {
 
 impl BrickGrid {
     pub fn new(bricks: &[Brick]) -> BrickGrid {
-        if bricks.is_empty() {
+        let Some((lo, hi)) = bounds(bricks) else {
             return BrickGrid {
                 lo: [0; 3],
                 dims: [1; 3],
                 table: vec![ABSENT],
             };
-        }
-        let mut lo = bricks[0];
-        let mut hi = bricks[0];
-        for b in bricks {
-            for i in 0..3 {
-                lo[i] = lo[i].min(b[i]);
-                hi[i] = hi[i].max(b[i]);
-            }
-        }
+        };
         let dims = [0, 1, 2].map(|i| (hi[i] - lo[i] + 1) as u32);
         let mut table = vec![ABSENT; dims.iter().map(|&d| d as usize).product()];
         let mut grid = BrickGrid {
@@ -170,16 +173,11 @@ pub fn push_list(words: &mut Vec<u32>, list: &[Brick]) -> u32 {
 /// Minkowski sum of a brick set with the brick offsets [lo, hi] (inclusive) per axis, through a
 /// dense occupancy grid and separable running sums.
 pub fn dilate(set: &[Brick], lo: [i32; 3], hi: [i32; 3]) -> Vec<Brick> {
-    if set.is_empty() || (0..3).any(|i| hi[i] < lo[i]) {
+    let Some((bmin, bmax)) = bounds(set) else {
         return Vec::new();
-    }
-    let mut bmin = set[0];
-    let mut bmax = set[0];
-    for b in set {
-        for i in 0..3 {
-            bmin[i] = bmin[i].min(b[i]);
-            bmax[i] = bmax[i].max(b[i]);
-        }
+    };
+    if (0..3).any(|i| hi[i] < lo[i]) {
+        return Vec::new();
     }
     // The grid covers the set and its image.
     let glo = [0, 1, 2].map(|i| bmin[i] + lo[i].min(0));
@@ -422,14 +420,7 @@ pub fn plan_sparse(output: &[Brick], passes: &[usize]) -> Vec<SparseLevel> {
 
 /// The inclusive brick range of `sorted` bricks when they fill it exactly (a box request).
 fn brick_box(sorted: &[Brick]) -> Option<(Brick, Brick)> {
-    let (first, last) = (*sorted.first()?, *sorted.last()?);
-    let (mut lo, mut hi) = (first, last);
-    for b in sorted {
-        for i in 0..3 {
-            lo[i] = lo[i].min(b[i]);
-            hi[i] = hi[i].max(b[i]);
-        }
-    }
+    let (lo, hi) = bounds(sorted)?;
     let cells: u64 = (0..3).map(|i| (hi[i] - lo[i] + 1) as u64).product();
     // Sorted and deduplicated: as many bricks as cells means every cell.
     (cells == sorted.len() as u64).then_some((lo, hi))

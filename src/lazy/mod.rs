@@ -468,14 +468,7 @@ impl Synthesizer {
             let scale = 1.0 / groups.len() as f32;
             // The part of the exact box this group's bricks cover.
             let exact = exact.map(|b| {
-                let mut lo = group[0];
-                let mut hi = group[0];
-                for brick in group {
-                    for i in 0..3 {
-                        lo[i] = lo[i].min(brick[i]);
-                        hi[i] = hi[i].max(brick[i]);
-                    }
-                }
+                let (lo, hi) = bricks::bounds(group).expect("groups hold bricks");
                 Box3::new(
                     [0, 1, 2].map(|i| b.lo[i].max(lo[i] * bricks::BRICK)),
                     [0, 1, 2].map(|i| b.hi[i].min((hi[i] + 1) * bricks::BRICK)),
@@ -540,12 +533,7 @@ impl Synthesizer {
         let cube = (side as i32 / bricks::BRICK).max(1);
         // Cubes start at the request's low corner, so a request that fits in one cube is one
         // group wherever it lies.
-        let mut origin = all.first().copied().unwrap_or_default();
-        for b in all {
-            for i in 0..3 {
-                origin[i] = origin[i].min(b[i]);
-            }
-        }
+        let origin = bricks::bounds(all).map_or([0; 3], |(lo, _)| lo);
         let mut map: std::collections::BTreeMap<[i32; 3], Vec<Brick>> = Default::default();
         for b in all {
             let key = [0, 1, 2].map(|i| (b[i] - origin[i]).div_euclid(cube));
@@ -1017,14 +1005,7 @@ fn plan_group(group: &[Brick], exact: Option<Box3>, passes: &[usize]) -> Vec<Spa
 
 /// The box `voxels` fill exactly (each of its voxels once, in any order), if they do.
 fn voxel_box(voxels: &[[i32; 3]]) -> Option<Box3> {
-    let first = *voxels.first()?;
-    let (mut lo, mut hi) = (first, first);
-    for p in voxels {
-        for i in 0..3 {
-            lo[i] = lo[i].min(p[i]);
-            hi[i] = hi[i].max(p[i]);
-        }
-    }
+    let (lo, hi) = bricks::bounds(voxels)?;
     let b = Box3::new(lo, hi.map(|v| v + 1));
     if b.voxels() != voxels.len() as u64 {
         return None;
@@ -1162,14 +1143,7 @@ pub struct BrickColors {
 impl BrickColors {
     /// The dense table for `sorted` bricks, when it holds at most 8 cells per brick.
     fn lookup(sorted: &[Brick]) -> Option<BrickGrid> {
-        let mut lo = sorted.first().copied().unwrap_or_default();
-        let mut hi = lo;
-        for b in sorted {
-            for i in 0..3 {
-                lo[i] = lo[i].min(b[i]);
-                hi[i] = hi[i].max(b[i]);
-            }
-        }
+        let (lo, hi) = bricks::bounds(sorted).unwrap_or_default();
         let cells: u64 = (0..3).map(|i| (hi[i] - lo[i] + 1) as u64).product();
         (cells <= 8 * sorted.len().max(1) as u64).then(|| BrickGrid::new(sorted))
     }
