@@ -81,10 +81,17 @@ fn project_plane(pos: vec3<i32>, a: u32) -> array<i32, MAX_PCA_OUT> {
         for (var du = -2; du <= 2; du++) {
             // One brick lookup per neighbour; absent voxels read as zero.
             let s = state_index(pos + du * eu + dv * ev);
+            // The neighbour's first value word, read once for its (up to 4) channels.
+            var word = 0u;
+            if (s != ABSENT) {
+                word = state[s * stride() + 3u];
+            }
             for (var ch = 0u; ch < CHANNELS; ch++) {
                 var byte = 0u;
-                if (s != ABSENT) {
+                if (ch >= 4u && s != ABSENT) {
                     byte = (state[s * stride() + 3u + ch / 4u] >> ((ch % 4u) * 8u)) & 0xFFu;
+                } else if (ch < 4u) {
+                    byte = (word >> (ch * 8u)) & 0xFFu;
                 }
                 let centred = i32(byte) - bitcast<i32>(level[mean + i]);
                 for (var j = 0u; j < PCA_OUT; j++) {
