@@ -1006,18 +1006,39 @@ fn plan_group(group: &[Brick], exact: Option<Box3>, passes: &[usize]) -> Vec<Spa
 /// The box `voxels` fill exactly (each of its voxels once, in any order), if they do.
 fn voxel_box(voxels: &[[i32; 3]]) -> Option<Box3> {
     let (lo, hi) = bricks::bounds(voxels)?;
-    let b = Box3::new(lo, hi.map(|v| v + 1));
+    let b = Box3::new(lo, hi.map(|v| v.saturating_add(1)));
     if b.voxels() != voxels.len() as u64 {
         return None;
     }
     let mut seen = vec![false; voxels.len()];
     for p in voxels {
-        let i = b.index(*p);
-        if std::mem::replace(&mut seen[i], true) {
+        // (Outside only at the edge of i32, where the box saturated.)
+        if !b.contains(*p) || std::mem::replace(&mut seen[b.index(*p)], true) {
             return None;
         }
     }
     Some(b)
+}
+
+#[cfg(test)]
+mod voxel_box_tests {
+    use super::*;
+
+    #[test]
+    fn voxel_box_recognizes_exactly_the_boxes() {
+        let mut slice: Vec<[i32; 3]> = (0..6)
+            .flat_map(|y| (0..5).map(move |x| [x - 2, y, 7]))
+            .collect();
+        slice.reverse();
+        assert_eq!(voxel_box(&slice), Some(Box3::new([-2, 0, 7], [3, 6, 8])));
+        // A repeat in place of a voxel: as many voxels as the box, not the box.
+        let mut repeated = slice.clone();
+        repeated[3] = repeated[4];
+        assert_eq!(voxel_box(&repeated), None);
+        assert_eq!(voxel_box(&slice[1..]), None);
+        assert_eq!(voxel_box(&[]), None);
+        assert_eq!(voxel_box(&[[i32::MAX, 0, 0]]), None);
+    }
 }
 
 /// Milliseconds since `timer` started (for debug logs).
