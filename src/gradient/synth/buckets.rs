@@ -1,10 +1,12 @@
 //! Representation update (paper 4.2.2): the matched patches' samples are scattered into
 //! per-voxel buckets and each control point is refitted to the buckets nearest to it (eq. 2).
 //!
-//! Bucket reuse: buckets exist for one control layer at a time (the voxels z in [4K - 2, 4K + 2)
-//! whose nearest control points are in layer K), so memory is O(P^2) per layer being processed
-//! instead of O(P^3). Only check points whose slices can reach the layer are visited. Layers are
-//! independent (they read the previous solid and the matches) and run in parallel.
+//! Bucket reuse: buckets exist for one tile at a time (the voxels whose nearest control points
+//! are in layer K and rows R0..R1: z in [4K - 2, 4K + 2), y in [4 R0 - 2, 4 R1 - 2)), so memory
+//! is O(P^2) at most per tile being processed instead of O(P^3), and on the CPU a tile's
+//! buckets fit a core's L2 cache. Only check points whose slices can reach the tile are
+//! visited. Tiles are independent (they read the previous solid and the matches) and run in
+//! parallel.
 //!
 //! Accumulation is kernel `bucket_accumulate` (wgsl/bucket_accumulate.wgsl): pass 1 counts the
 //! samples of every (voxel, colour cluster), pass 2 sums, in 8.8 fixed point, the samples of each
@@ -31,56 +33,119 @@ const LAYER: i64 = SPACING as i64;
 /// coplanar) at zero gradient instead of singular.
 const RIDGE: f64 = 0.5;
 
-/// Most samples one layer's accumulation keeps between its two passes (8 bytes each: 128 MiB
-/// per layer in flight; one layer per thread). Measured at 128^3 (4 M samples per layer at the
-/// finest level): the finest level's update 3.2 -> 2.9 s. Layers expected to hold more than
-/// half of it (the finest level from 192^3 up: 16 M samples per layer at 256^3) are generated
-/// twice instead.
-const MAX_LISTED_SAMPLES: usize = 16 << 20;
+/// Voxels per tile the CPU backend aims at: its per-cluster counts and sums (192 bytes a voxel
+/// with 12 clusters and 3 channels) then stay in a core's L2 cache (1.5 MB).
+const TILE_VOXELS: i64 = 8 << 10;
 
-/// One control layer's view of the samples.
-struct Layer<'a> {
+/// The samples t in 0..n of a slice axis whose coordinates `c0 + s t`, wrapped, lie in the
+/// band [lo, lo + len) of a period `p`: for each, its share of the bucket index (`stride` per
+/// voxel from the band start) and of the exemplar pixel (`pixel_step` per sample), pushed to
+/// `out`.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn indices_in_band(
+    c0: i64,
+    s: i64,
+    n: usize,
+    lo: i64,
+    len: i64,
+    p: i64,
+    pixel_step: usize,
+    stride: usize,
+    out: &mut Vec<(usize, usize)>,
+) {
+    out.clear();
+    // Offsets from the band start, wrapped into [0, p); s < p, so one subtraction wraps.
+    let mut r = wrap(c0 - lo, p);
+    for t in 0..n {
+        if r < len {
+            out.push((r as usize * stride, t * pixel_step));
+        }
+        r += s;
+        if r >= p {
+            r -= p;
+        }
+    }
+}
+
+/// One tile's view of the samples: the buckets of control layer `k` (voxels z in
+/// [4k - 2, 4k + 2)) and control rows `rows` (voxels y in [4 rows.start - 2, 4 rows.end - 2)),
+/// the whole period along x: exactly the buckets the tile's control points are fitted to.
+struct Tile<'a> {
     solid: &'a PeriodicSolid,
     matches: &'a [Match],
     ctx: &'a MatchContext<'a>,
     /// Control layer index K.
     k: u32,
+    /// Control rows (y) of the tile.
+    rows: std::ops::Range<u32>,
+    /// The level's cluster count (clusters 0..clusters; 1: plain averaging).
+    clusters: usize,
 }
 
-impl Layer<'_> {
+impl Tile<'_> {
     fn period(&self) -> i64 {
         self.solid.period()
     }
-    /// First voxel z of the layer's buckets.
+    /// First voxel z of the tile's buckets.
     fn z0(&self) -> i64 {
         self.k as i64 * SPACING as i64 - LAYER / 2
     }
+    /// First voxel y of the tile's buckets, and their rows.
+    fn y0(&self) -> i64 {
+        self.rows.start as i64 * SPACING as i64 - SPACING as i64 / 2
+    }
+    fn height(&self) -> i64 {
+        self.rows.len() as i64 * SPACING as i64
+    }
     fn voxels(&self) -> usize {
-        (self.period() * self.period() * LAYER) as usize
+        (self.period() * self.height() * LAYER) as usize
     }
 
-    /// Calls `visit(bucket, exemplar_pixel)` for every sample landing in this layer.
+    /// The bucket of voxel `q` (which must lie in the tile).
+    #[inline(always)]
+    fn bucket(&self, q: [i64; 3]) -> usize {
+        let p_len = self.period();
+        ((wrap(q[2] - self.z0(), p_len) * self.height() + wrap(q[1] - self.y0(), p_len)) * p_len
+            + wrap(q[0], p_len)) as usize
+    }
+
+    /// Calls `visit(bucket, exemplar_pixel)` for every sample landing in this tile.
     fn for_each_sample(&self, mut visit: impl FnMut(usize, usize)) {
         let ctx = self.ctx;
         let (m, p_len) = (self.solid.m as i64, self.period());
         let nc = ctx.params.check_points as usize;
         let n = ctx.patches.size;
         let h = ctx.patches.half_extent() as i64;
-        // Farthest a slice sample lies from its check point along z: h for axis-aligned slices,
-        // up to h sqrt 2 (+ rounding) for turned ones.
+        // Farthest a slice sample lies from its check point along an axis: h for axis-aligned
+        // slices, up to h sqrt 2 (+ rounding) for turned ones.
         let reach = if ctx.params.field == super::Field::None {
             h
         } else {
             (h as f64 * std::f64::consts::SQRT_2).ceil() as i64 + 1
         };
         let d = SPACING as i64;
-        let (zlo, zhi) = (self.z0() - reach, self.z0() + LAYER - 1 + reach);
-        let first = zlo.div_euclid(d);
-        let layers = (zhi.div_euclid(d) - first + 1).min(m);
-        let in_layer = |z: i64| wrap(z - self.z0(), p_len) < LAYER;
-        for cz in first..first + layers {
+        // The cubes whose check points' slices can reach the tile, per axis.
+        let cubes = |lo: i64, len: i64| {
+            let first = (lo - reach).div_euclid(d);
+            (
+                first,
+                ((lo + len - 1 + reach).div_euclid(d) - first + 1).min(m),
+            )
+        };
+        let (first_z, layers) = cubes(self.z0(), LAYER);
+        let (first_y, rows) = cubes(self.y0(), self.height());
+        let in_tile = |q: [i64; 3]| {
+            wrap(q[2] - self.z0(), p_len) < LAYER && wrap(q[1] - self.y0(), p_len) < self.height()
+        };
+        let mut scratch: [Vec<(usize, usize)>; 2] = [
+            Vec::with_capacity(n as usize),
+            Vec::with_capacity(n as usize),
+        ];
+        for cz in first_z..first_z + layers {
             let cz = cz.rem_euclid(m) as u32;
-            for cy in 0..m as u32 {
+            for cy in first_y..first_y + rows {
+                let cy = cy.rem_euclid(m) as u32;
                 for cx in 0..m as u32 {
                     let cube = [cx, cy, cz];
                     let cube_index =
@@ -94,31 +159,40 @@ impl Layer<'_> {
                                 continue;
                             }
                             if frame.is_identity() {
-                                self.axis_aligned_samples(p, o, candidate, &mut visit);
+                                self.axis_aligned_samples(
+                                    p,
+                                    o,
+                                    candidate,
+                                    &mut scratch,
+                                    &mut visit,
+                                );
                                 continue;
                             }
                             for b in 0..n {
-                                // z is monotone along a row: its two ends bound it.
-                                let (za, zb) = (
-                                    ctx.sample_position(p, &frame, o, 0, b)[2],
-                                    ctx.sample_position(p, &frame, o, n - 1, b)[2],
-                                );
-                                let (lo, span) = (za.min(zb), (za - zb).abs());
-                                let dz = wrap(lo - self.z0(), p_len);
-                                if dz >= LAYER && dz + span < p_len {
+                                // Coordinates are monotone along a row: its two ends bound
+                                // them, and a row outside the tile's z or y band is skipped.
+                                let ends = [
+                                    ctx.sample_position(p, &frame, o, 0, b),
+                                    ctx.sample_position(p, &frame, o, n - 1, b),
+                                ];
+                                let misses = |axis: usize, lo: i64, len: i64| {
+                                    let (e0, e1) = (ends[0][axis], ends[1][axis]);
+                                    let offset = wrap(e0.min(e1) - lo, p_len);
+                                    offset >= len && offset + (e0 - e1).abs() < p_len
+                                };
+                                if misses(2, self.z0(), LAYER)
+                                    || misses(1, self.y0(), self.height())
+                                {
                                     continue;
                                 }
                                 for a in 0..n {
                                     let q = ctx.sample_position(p, &frame, o, a, b);
-                                    if !in_layer(q[2]) {
-                                        continue;
+                                    if in_tile(q) {
+                                        visit(
+                                            self.bucket(q),
+                                            ctx.patches.pixel_index(candidate, a, b),
+                                        );
                                     }
-                                    let bucket = ((wrap(q[2] - self.z0(), p_len) * p_len
-                                        + wrap(q[1], p_len))
-                                        * p_len
-                                        + wrap(q[0], p_len))
-                                        as usize;
-                                    visit(bucket, ctx.patches.pixel_index(candidate, a, b));
                                 }
                             }
                         }
@@ -129,125 +203,106 @@ impl Layer<'_> {
     }
 
     /// [`Self::for_each_sample`] for one axis-aligned slice (no direction field): the samples
-    /// step by whole voxels along the slice's two axes, so a row whose z is constant is tested
-    /// against the layer once, and positions and exemplar pixels advance incrementally (the
-    /// same samples as [`MatchContext::sample_position`] gives, in the same order).
+    /// step by whole voxels along the slice's two axes, so the indices a (along U) and b (along
+    /// V) inside the tile are found once per axis, each with its share of the bucket index and
+    /// of the exemplar pixel (both are sums of one term per axis), and only those samples are
+    /// visited (the same samples as [`MatchContext::sample_position`] gives). The inner loop
+    /// runs along x where the slice has it (neighbouring buckets in memory).
     fn axis_aligned_samples(
         &self,
         p: [i64; 3],
         o: usize,
         candidate: u32,
+        scratch: &mut [Vec<(usize, usize)>; 2],
         visit: &mut impl FnMut(usize, usize),
     ) {
         let ctx = self.ctx;
         let patches = ctx.patches;
         let p_len = self.period();
-        let (n, s) = (patches.size, patches.spacing as i64);
+        let (n, s) = (patches.size as usize, patches.spacing as i64);
         let h = (n / 2) as i64;
         let (u, v) = ctx.params.slice_axes().of(o);
-        let z0 = self.z0();
-        let in_layer = |z: i64| wrap(z - z0, p_len) < LAYER;
-        let bucket = |q: [i64; 3]| {
-            ((wrap(q[2] - z0, p_len) * p_len + wrap(q[1], p_len)) * p_len + wrap(q[0], p_len))
-                as usize
+        let w = 3 - u - v;
+        // Per axis: the tile's band (z the layer, y the rows, x everything) and the bucket
+        // index stride of one voxel.
+        let band = |axis: usize| match axis {
+            2 => (self.z0(), LAYER, (self.height() * p_len) as usize),
+            1 => (self.y0(), self.height(), p_len as usize),
+            _ => (0, p_len, 1),
         };
-        let mut start = p;
-        start[u] -= s * h;
-        start[v] -= s * h;
-        if u == 2 {
-            // The slice's rows run along z. Walk it column by column instead (along v, not z:
-            // neighbouring buckets in memory), and only through the z positions inside the
-            // layer (a slice is visited by every layer its z extent reaches).
-            for a in 0..n {
-                let mut q = start;
-                q[2] += s * a as i64;
-                if !in_layer(q[2]) {
-                    continue;
-                }
-                for b in 0..n {
-                    visit(bucket(q), patches.pixel_index(candidate, a, b));
-                    q[v] += s;
-                }
-            }
+        let (wlo, wlen, wstride) = band(w);
+        let w_offset = wrap(p[w] - wlo, p_len);
+        if w_offset >= wlen {
             return;
         }
-        for b in 0..n {
-            let mut q = start;
-            q[v] += s * b as i64;
-            // Along a row only q[u] changes, and u is not z: the row is in the layer or not.
-            if !in_layer(q[2]) {
-                continue;
-            }
-            let first_pixel = patches.pixel_index(candidate, 0, b);
-            for a in 0..n as usize {
-                visit(bucket(q), first_pixel + a * patches.spacing as usize);
-                q[u] += s;
+        let first_pixel = patches.pixel_index(candidate, 0, 0);
+        let pixel_step = [
+            patches.pixel_index(candidate, 1, 0) - first_pixel,
+            patches.pixel_index(candidate, 0, 1) - first_pixel,
+        ];
+        let [along_u, along_v] = scratch;
+        for (axis, step, out) in [
+            (u, pixel_step[0], &mut *along_u),
+            (v, pixel_step[1], &mut *along_v),
+        ] {
+            let (lo, len, stride) = band(axis);
+            indices_in_band(p[axis] - s * h, s, n, lo, len, p_len, step, stride, out);
+        }
+        if along_u.is_empty() || along_v.is_empty() {
+            return;
+        }
+        let origin = (w_offset as usize * wstride, first_pixel);
+        let (outer, inner) = if v == 0 {
+            // x runs along the slice's columns: walk those innermost.
+            (&*along_u, &*along_v)
+        } else {
+            (&*along_v, &*along_u)
+        };
+        for &(bucket_o, pixel_o) in outer {
+            let (bucket_o, pixel_o) = (origin.0 + bucket_o, origin.1 + pixel_o);
+            for &(bucket_i, pixel_i) in inner {
+                visit(bucket_o + bucket_i, pixel_o + pixel_i);
             }
         }
     }
 
-    /// Both passes of the bucket accumulation, streamed (CPU backend).
+    /// Both passes of the bucket accumulation in one (CPU backend): every sample adds to its
+    /// (voxel, cluster) count and channel sums, then each voxel keeps the sums of its two
+    /// dominant clusters. The same integers as the kernel's two passes (a dominant cluster's
+    /// sums are the sums of its samples), without listing or generating the samples twice;
+    /// the tile's per-cluster sums stay in the core's L2 cache.
     fn accumulate_streaming(&self) -> Buckets {
         let patches = self.ctx.patches;
-        let clusters = patches.cluster_count() as usize;
+        let clusters = self.clusters;
         let channels = self.solid.channels;
         let voxels = self.voxels();
         let per = 1 + channels;
-        let mut counts = vec![0u32; voxels * clusters];
-        // Pass 1 lists the samples it generates so that pass 2 reads them instead of
-        // generating them again, when the layer is expected to hold well under the cap (on
-        // average, every check point's samples of one cell layer; a list that overflowed
-        // would be wasted work). Otherwise pass 2 generates them again: the same integers.
-        let n = patches.size as usize;
-        let m = self.solid.m as usize;
-        let expected = m
-            * m
-            * self.ctx.params.check_points as usize
-            * self.ctx.params.matched_slices as usize
-            * n
-            * n;
-        let mut listed: Vec<(u32, u32)> = Vec::new();
-        let mut complete = expected <= MAX_LISTED_SAMPLES / 2;
-        if complete {
-            listed.reserve(expected + expected / 4);
-        }
-        self.for_each_sample(|v, px| {
-            counts[v * clusters + patches.cluster(px) as usize] += 1;
-            if complete {
-                if listed.len() < MAX_LISTED_SAMPLES {
-                    listed.push((v as u32, px as u32));
-                } else {
-                    complete = false;
-                }
-            }
-        });
-        if !complete {
-            listed = Vec::new();
-        }
-        let dominant: Vec<[u32; 2]> = counts.chunks_exact(clusters).map(dominant).collect();
-        let mut sums = vec![0u32; voxels * 2 * per];
-        let mut add = |v: usize, px: usize| {
-            let cluster = patches.cluster(px);
-            let Some(slot) = dominant[v].iter().position(|&c| c == cluster) else {
-                return;
-            };
-            let base = (v * 2 + slot) * per;
-            sums[base] += 1;
-            for (c, &value) in patches.value(px).iter().enumerate() {
-                sums[base + 1 + c] += (value as u32) << 8;
+        // Per voxel and cluster: count, then the channel sums in 8.8 fixed point.
+        let mut acc = vec![0u32; voxels * clusters * per];
+        let mut sample = |v: usize, px: usize| {
+            let base = (v * clusters + patches.cluster(px) as usize) * per;
+            let slot = &mut acc[base..base + per];
+            slot[0] += 1;
+            for (sum, &value) in slot[1..].iter_mut().zip(patches.value(px)) {
+                *sum += (value as u32) << 8;
             }
         };
-        if complete {
-            for &(v, px) in &listed {
-                add(v as usize, px as usize);
+        self.for_each_sample(&mut sample);
+        let counts: Vec<u32> = acc.iter().step_by(per).copied().collect();
+        let mut sums = vec![0u32; voxels * 2 * per];
+        for (v, out) in sums.chunks_exact_mut(2 * per).enumerate() {
+            let ids = dominant(&counts[v * clusters..(v + 1) * clusters]);
+            for (slot, &id) in ids.iter().enumerate() {
+                if id != u32::MAX {
+                    let from = (v * clusters + id as usize) * per;
+                    out[slot * per..(slot + 1) * per].copy_from_slice(&acc[from..from + per]);
+                }
             }
-        } else {
-            self.for_each_sample(add);
         }
         Buckets { counts, sums }
     }
 
-    /// The layer's samples as the kernel's list: bucket, cluster, channel values.
+    /// The tile's samples as the kernel's list: bucket, cluster, channel values.
     fn sample_list(&self) -> Vec<u32> {
         let patches = self.ctx.patches;
         let mut list = Vec::new();
@@ -266,14 +321,14 @@ impl Layer<'_> {
                 gpu,
                 &self.sample_list(),
                 self.voxels(),
-                self.ctx.patches.cluster_count(),
+                self.clusters as u32,
                 self.solid.channels as u32,
             ),
         }
     }
 
-    /// The average of every bucket of the layer (per voxel, per channel; NaN when empty), z
-    /// from the layer's first voxel. With a mask (region-pure clusters), only the samples of
+    /// The average of every bucket of the tile (per voxel, per channel; NaN when empty), in
+    /// the tile's bucket order. With a mask (region-pure clusters), only the samples of
     /// one region are averaged: that of the dominant slot holding more samples (ties: the first
     /// slot's), so a voxel's colour and distance come from one side of the boundary (the
     /// samples of the final region separation, paper 4.3).
@@ -282,7 +337,7 @@ impl Layer<'_> {
         let per = 1 + c;
         let patches = self.ctx.patches;
         let regions = patches.cluster_regions();
-        let clusters = patches.cluster_count() as usize;
+        let clusters = self.clusters;
         (0..self.voxels())
             .flat_map(|v| {
                 let slots = [v * 2 * per, (v * 2 + 1) * per];
@@ -317,18 +372,19 @@ impl Layer<'_> {
             .collect()
     }
 
-    /// Eq. 2 for every control point of the layer: f + grad f . (x - p) ~ bucket value, over
+    /// Eq. 2 for every control point of the tile: f + grad f . (x - p) ~ bucket value, over
     /// the non-empty buckets whose nearest point it is. Points without samples keep their
-    /// values. Returns the layer's new values and how many points were refitted.
+    /// values. Returns the tile's new values (row after row) and how many points were refitted.
     fn fit(&self, buckets: &Buckets) -> (Vec<f32>, usize) {
         let solid = self.solid;
         let (m, c) = (solid.m as i64, solid.channels);
         let p_len = self.period();
         let per = 1 + c;
         let d = SPACING as i64;
-        let mut out = Vec::with_capacity((m * m) as usize * c * 4);
+        let height = self.height();
+        let mut out = Vec::with_capacity(self.rows.len() * m as usize * c * 4);
         let mut refitted = 0;
-        for y in 0..m {
+        for y in self.rows.clone().map(i64::from) {
             for x in 0..m {
                 let old = solid.offset([x, y, self.k as i64]);
                 let mut ata = Matrix4::<f64>::zeros();
@@ -338,9 +394,10 @@ impl Layer<'_> {
                     for dy in -d / 2..d / 2 {
                         for dx in -d / 2..d / 2 {
                             let bz = dz + LAYER / 2;
-                            let by = (y * d + dy).rem_euclid(p_len);
+                            let by = y * d + dy - self.y0();
+                            debug_assert!((0..height).contains(&by));
                             let bx = (x * d + dx).rem_euclid(p_len);
-                            let v = ((bz * p_len + by) * p_len + bx) as usize;
+                            let v = ((bz * height + by) * p_len + bx) as usize;
                             let (s0, s1) = (v * 2 * per, (v * 2 + 1) * per);
                             let count = buckets.sums[s0] + buckets.sums[s1];
                             if count == 0 {
@@ -376,8 +433,18 @@ impl Layer<'_> {
     }
 }
 
+/// Control rows per tile for a period of `p_len` voxels: about [`TILE_VOXELS`] buckets.
+fn tile_rows(m: u32, p_len: i64) -> u32 {
+    let per_row = p_len * LAYER * SPACING as i64;
+    ((TILE_VOXELS / per_row).max(1) as u32).min(m)
+}
+
 /// One representation update: the new solid and the fraction of points refitted. With
 /// `targets`, also every bucket's average (the samples of eq. 3).
+///
+/// The CPU backend works tile by tile (a control layer's rows in bands of [`tile_rows`]), in
+/// parallel; the GPU backend a whole layer per dispatch, one after another (one queue). A
+/// bucket's samples are the same whichever tile holds it, so both give the same integers.
 pub fn update(
     solid: &PeriodicSolid,
     matches: &[Match],
@@ -386,44 +453,60 @@ pub fn update(
     targets: Option<&mut Targets>,
 ) -> Result<(PeriodicSolid, f64)> {
     let want_values = targets.is_some();
-    let layer = |k: u32| -> Result<(Vec<f32>, usize, Vec<f32>)> {
-        let layer = Layer {
+    let m = solid.m;
+    let clusters = ctx.patches.cluster_count() as usize;
+    let rows_per_tile = match compute {
+        Compute::Cpu => tile_rows(m, solid.period()),
+        Compute::Gpu(_) => m,
+    };
+    let tiles: Vec<(u32, std::ops::Range<u32>)> = (0..m)
+        .flat_map(|k| {
+            (0..m)
+                .step_by(rows_per_tile as usize)
+                .map(move |r| (k, r..(r + rows_per_tile).min(m)))
+        })
+        .collect();
+    let tile = |(k, rows): &(u32, std::ops::Range<u32>)| -> Result<(Vec<f32>, usize, Vec<f32>)> {
+        let tile = Tile {
             solid,
             matches,
             ctx,
-            k,
+            k: *k,
+            rows: rows.clone(),
+            clusters,
         };
-        let buckets = layer.accumulate(compute)?;
-        let (values, refitted) = layer.fit(&buckets);
+        let buckets = tile.accumulate(compute)?;
+        let (values, refitted) = tile.fit(&buckets);
         let averages = if want_values {
-            layer.bucket_values(&buckets)
+            tile.bucket_values(&buckets)
         } else {
             Vec::new()
         };
         Ok((values, refitted, averages))
     };
-    // The GPU path runs its layers one after another (one queue); the CPU path in parallel.
-    let mut layers: Vec<(Vec<f32>, usize, Vec<f32>)> = match compute {
-        Compute::Cpu => (0..solid.m)
-            .into_par_iter()
-            .map(layer)
-            .collect::<Result<_>>()?,
-        Compute::Gpu(_) => (0..solid.m).map(layer).collect::<Result<_>>()?,
+    let mut results: Vec<(Vec<f32>, usize, Vec<f32>)> = match compute {
+        Compute::Cpu => tiles.par_iter().map(tile).collect::<Result<_>>()?,
+        Compute::Gpu(_) => tiles.iter().map(tile).collect::<Result<_>>()?,
     };
     if let Some(t) = targets {
-        let (p_len, c) = (solid.period() as usize, solid.channels);
-        let plane = p_len * p_len * c;
-        for (k, layer) in layers.iter_mut().enumerate() {
-            let averages = std::mem::take(&mut layer.2);
-            for (bz, slab) in averages.chunks_exact(plane).enumerate() {
-                let z = (k as i64 * SPACING as i64 - LAYER / 2 + bz as i64).rem_euclid(p_len as i64)
-                    as usize;
-                t.values[z * plane..(z + 1) * plane].copy_from_slice(slab);
+        let (p_len, c) = (solid.period(), solid.channels);
+        let row = p_len as usize * c;
+        for ((k, rows), result) in tiles.iter().zip(&mut results) {
+            let averages = std::mem::take(&mut result.2);
+            let height = rows.len() * SPACING as usize;
+            for (i, voxel_row) in averages.chunks_exact(row).enumerate() {
+                let (bz, by) = ((i / height) as i64, (i % height) as i64);
+                let z = (*k as i64 * SPACING as i64 - LAYER / 2 + bz).rem_euclid(p_len) as usize;
+                let y = (rows.start as i64 * SPACING as i64 - SPACING as i64 / 2 + by)
+                    .rem_euclid(p_len) as usize;
+                let at = (z * p_len as usize + y) * row;
+                t.values[at..at + row].copy_from_slice(voxel_row);
             }
         }
     }
-    let refitted: usize = layers.iter().map(|l| l.1).sum();
-    let data = layers.into_iter().flat_map(|l| l.0).collect();
+    let refitted: usize = results.iter().map(|r| r.1).sum();
+    // Tiles are in point order (layer, then rows), each row after row.
+    let data = results.into_iter().flat_map(|r| r.0).collect();
     Ok((
         PeriodicSolid {
             m: solid.m,

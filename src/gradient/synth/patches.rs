@@ -37,6 +37,84 @@ fn any_at_most(acc: &[f32; LANES], limit: f32) -> bool {
     any
 }
 
+/// Moves the `p` smallest pairs of `order` to its front, in ascending order (the rest after
+/// them, in no particular order): one pass with an insertion into the sorted front.
+fn nearest_first(order: &mut [(u32, u32)], p: usize) {
+    if p == 0 {
+        return;
+    }
+    order[..p].sort_unstable();
+    for i in p..order.len() {
+        let item = order[i];
+        if item < order[p - 1] {
+            // Insert into the front run; its largest goes to position i.
+            let at = order[..p].partition_point(|&x| x < item);
+            order[i] = order[p - 1];
+            order[at..p].rotate_right(1);
+            order[at] = item;
+        }
+    }
+}
+
+/// The k smallest (distance bits, candidate) pairs offered, kept as an unsorted buffer that
+/// is cut back to its k smallest whenever it reaches 2k (amortized constant work per offer;
+/// a binary heap's sift per replacement cost a third of the search). Distances are squared
+/// sums, never negative or NaN, so their bit patterns order like the values; the pairs are
+/// distinct, so the k smallest are one set whatever the order of the offers.
+struct KBest {
+    k: usize,
+    items: Vec<(u32, u32)>,
+    /// The k-th smallest distance at the last cut (infinite before k were kept): anything
+    /// larger can never enter.
+    worst: f32,
+}
+
+impl KBest {
+    fn new(k: usize) -> KBest {
+        KBest {
+            k,
+            items: Vec::with_capacity(2 * k),
+            worst: f32::INFINITY,
+        }
+    }
+
+    #[inline(always)]
+    fn worst(&self) -> f32 {
+        self.worst
+    }
+
+    #[inline(always)]
+    fn offer(&mut self, item: (u32, u32)) {
+        self.items.push(item);
+        if self.items.len() == 2 * self.k {
+            self.cut();
+        }
+    }
+
+    /// Keeps the k smallest pairs.
+    fn cut(&mut self) {
+        let k = self.k;
+        if self.items.len() > k {
+            self.items.select_nth_unstable(k - 1);
+            self.items.truncate(k);
+        }
+        if self.items.len() == k {
+            let kth = self.items.iter().max().expect("k >= 1").0;
+            self.worst = f32::from_bits(kth);
+        }
+    }
+
+    /// The k smallest pairs (fewer if fewer were offered), nearest first.
+    fn finish(mut self) -> Vec<(f32, u32)> {
+        self.cut();
+        self.items.sort_unstable();
+        self.items
+            .into_iter()
+            .map(|(d, i)| (f32::from_bits(d), i))
+            .collect()
+    }
+}
+
 /// Which line of a patch a crossbar compares (paper Fig. 3).
 #[derive(Clone, Copy, Debug)]
 pub enum Line {
@@ -397,13 +475,12 @@ impl LevelPatches {
                 }
             }
         }
-        // The approximate search needs only its nearest `p` lists in order (sorting all of them
-        // cost about as much as scanning those); the rest is sorted only if they hold fewer
-        // than k candidates.
+        // The approximate search needs only its nearest `p` lists in order: an insertion into
+        // a short sorted run (sorting all of them, or a selection, cost about as much as
+        // scanning those). The rest is sorted only if those hold fewer than k candidates.
         let sorted = match probes {
             Some(p) if p < order.len() => {
-                order.select_nth_unstable(p);
-                order[..p].sort_unstable();
+                nearest_first(&mut order, p);
                 p
             }
             _ => {
@@ -411,11 +488,7 @@ impl LevelPatches {
                 order.len()
             }
         };
-        // The k smallest (distance, index) pairs so far, as a max-heap: distances are squared
-        // sums, never negative or NaN, so their bit patterns order like the values. Keeping the
-        // k smallest pairs makes the result independent of the visiting order.
-        let mut best: std::collections::BinaryHeap<(u32, u32)> =
-            std::collections::BinaryHeap::with_capacity(k + 1);
+        let mut best = KBest::new(k);
         let mut scanned = 0;
         for probed in 0..order.len() {
             if probes.is_some_and(|p| probed >= p && scanned >= k) {
@@ -425,35 +498,19 @@ impl LevelPatches {
                 order[sorted..].sort_unstable();
             }
             for bi in self.lists[order[probed].1 as usize].clone() {
-                scanned += self.scan_block(bi, query, k, &mut best);
+                scanned += self.scan_block(bi, query, &mut best);
             }
         }
-        // (The pairs are distinct: an unstable sort gives the same order.)
-        let mut best = best.into_vec();
-        best.sort_unstable();
-        best.into_iter()
-            .map(|(d, i)| (f32::from_bits(d), i))
-            .collect()
+        best.finish()
     }
 
-    /// Scores block `bi` against the query and keeps its candidates that beat the k-th best
-    /// in `best`; returns how many candidates the block holds.
+    /// Scores block `bi` against the query and offers its candidates within the worst kept
+    /// distance to `best`; returns how many candidates the block holds.
     #[inline(always)]
-    fn scan_block(
-        &self,
-        bi: usize,
-        query: &[f32; KEPT],
-        k: usize,
-        best: &mut std::collections::BinaryHeap<(u32, u32)>,
-    ) -> usize {
+    fn scan_block(&self, bi: usize, query: &[f32; KEPT], best: &mut KBest) -> usize {
         let candidates = &self.lane_candidates[bi];
         let held = candidates.iter().filter(|&&c| c != NO_CANDIDATE).count();
-        // Worst kept distance (infinite until k are kept).
-        let worst = if best.len() == k {
-            f32::from_bits(best.peek().expect("k >= 1").0)
-        } else {
-            f32::INFINITY
-        };
+        let worst = best.worst();
         let mut acc = [0f32; LANES];
         accumulate(&mut acc, &self.early_blocks[bi], &query[..EARLY]);
         // (Partial sums only grow: a block whose lanes all exceed the worst kept distance
@@ -467,17 +524,16 @@ impl LevelPatches {
             return held;
         }
         accumulate(&mut acc, &late[MIDDLE - EARLY..], &query[MIDDLE..]);
-        for (&d, &index) in acc.iter().zip(candidates) {
-            if index == NO_CANDIDATE {
-                continue;
-            }
-            let item = (d.to_bits(), index);
-            if best.len() < k {
-                best.push(item);
-            } else if let Some(mut top) = best.peek_mut().filter(|top| item < **top) {
-                // Replace the worst kept pair in place (one sift-down).
-                *top = item;
-            }
+        // Only the lanes within the worst kept distance can enter (a lane-wise compare; most
+        // fully scored blocks hold one or two such lanes), padding lanes never.
+        let mut entering = 0u32;
+        for (l, (&d, &index)) in acc.iter().zip(candidates).enumerate() {
+            entering |= ((d <= worst && index != NO_CANDIDATE) as u32) << l;
+        }
+        while entering != 0 {
+            let l = entering.trailing_zeros() as usize;
+            entering &= entering - 1;
+            best.offer((acc[l].to_bits(), candidates[l]));
         }
         held
     }
@@ -525,6 +581,40 @@ impl LevelPatches {
 mod tests {
     use super::*;
     use crate::util::hash::SeededRng;
+
+    #[test]
+    fn selection_helpers_equal_a_full_sort() {
+        let mut rng = SeededRng::new(7);
+        for round in 0..200 {
+            let n = 1 + rng.below(300) as usize;
+            // Few distinct distances: many ties, broken by the index.
+            let pairs: Vec<(u32, u32)> = (0..n)
+                .map(|i| (rng.below(1 + round % 20) as u32, i as u32))
+                .collect();
+            let mut sorted = pairs.clone();
+            sorted.sort_unstable();
+            let p = 1 + rng.below(n as u64) as usize;
+            let mut order = pairs.clone();
+            nearest_first(&mut order, p);
+            assert_eq!(order[..p], sorted[..p]);
+            let mut rest = order[p..].to_vec();
+            rest.sort_unstable();
+            assert_eq!(rest, sorted[p..]);
+            let k = 1 + rng.below(60) as usize;
+            let mut best = KBest::new(k);
+            for &(d, i) in &pairs {
+                if f32::from_bits(d) <= best.worst() {
+                    best.offer((d, i));
+                }
+            }
+            let kept: Vec<(u32, u32)> = best
+                .finish()
+                .iter()
+                .map(|&(d, i)| (d.to_bits(), i))
+                .collect();
+            assert_eq!(kept, sorted[..k.min(n)]);
+        }
+    }
 
     /// Candidates of a 64x64 crop of the built-in exemplar (3,600 patches of 5x5 samples).
     fn level() -> LevelPatches {
