@@ -2,9 +2,9 @@
 //! per-voxel buckets and each control point is refitted to the buckets nearest to it (eq. 2).
 //!
 //! Bucket reuse: buckets exist for one tile at a time (the voxels whose nearest control points
-//! are in layer K and rows R0..R1: z in [4K - 2, 4K + 2), y in [4 R0 - 2, 4 R1 - 2)), so memory
-//! is O(P^2) at most per tile being processed instead of O(P^3), and on the CPU a tile's
-//! buckets fit a core's L2 cache. Only check points whose slices can reach the tile are
+//! are in layer K, rows R0..R1 and columns C0..C1: z in [4K - 2, 4K + 2), y in [4 R0 - 2,
+//! 4 R1 - 2), x in [4 C0 - 2, 4 C1 - 2)), so memory is O(P^2) at most per tile being processed
+//! instead of O(P^3), and on the CPU a tile's buckets fit a core's L2 cache. Only check points whose slices can reach the tile are
 //! visited. Tiles are independent (they read the previous solid and the matches) and run in
 //! parallel.
 //!
@@ -69,16 +69,18 @@ fn indices_in_band(
 }
 
 /// One tile's view of the samples: the buckets of control layer `k` (voxels z in
-/// [4k - 2, 4k + 2)) and control rows `rows` (voxels y in [4 rows.start - 2, 4 rows.end - 2)),
-/// the whole period along x: exactly the buckets the tile's control points are fitted to.
+/// [4k - 2, 4k + 2)), control rows `rows` (voxels y in [4 rows.start - 2, 4 rows.end - 2))
+/// and control columns `cols` (likewise along x): exactly the buckets the tile's control
+/// points are fitted to.
 struct Tile<'a> {
     solid: &'a PeriodicSolid,
     matches: &'a [Match],
     ctx: &'a MatchContext<'a>,
     /// Control layer index K.
     k: u32,
-    /// Control rows (y) of the tile.
+    /// Control rows (y) and columns (x) of the tile.
     rows: std::ops::Range<u32>,
+    cols: std::ops::Range<u32>,
     /// The level's cluster count (clusters 0..clusters; 1: plain averaging).
     clusters: usize,
 }
@@ -98,16 +100,33 @@ impl Tile<'_> {
     fn height(&self) -> i64 {
         self.rows.len() as i64 * SPACING as i64
     }
+    /// First voxel x of the tile's buckets, and their columns.
+    fn x0(&self) -> i64 {
+        self.cols.start as i64 * SPACING as i64 - SPACING as i64 / 2
+    }
+    fn width(&self) -> i64 {
+        self.cols.len() as i64 * SPACING as i64
+    }
     fn voxels(&self) -> usize {
-        (self.period() * self.height() * LAYER) as usize
+        (self.width() * self.height() * LAYER) as usize
+    }
+    /// Per axis: the tile's band of voxels (first, length) and the bucket index stride of one
+    /// voxel.
+    fn band(&self, axis: usize) -> (i64, i64, usize) {
+        match axis {
+            2 => (self.z0(), LAYER, (self.height() * self.width()) as usize),
+            1 => (self.y0(), self.height(), self.width() as usize),
+            _ => (self.x0(), self.width(), 1),
+        }
     }
 
     /// The bucket of voxel `q` (which must lie in the tile).
     #[inline(always)]
     fn bucket(&self, q: [i64; 3]) -> usize {
         let p_len = self.period();
-        ((wrap(q[2] - self.z0(), p_len) * self.height() + wrap(q[1] - self.y0(), p_len)) * p_len
-            + wrap(q[0], p_len)) as usize
+        ((wrap(q[2] - self.z0(), p_len) * self.height() + wrap(q[1] - self.y0(), p_len))
+            * self.width()
+            + wrap(q[0] - self.x0(), p_len)) as usize
     }
 
     /// Calls `visit(bucket, exemplar_pixel)` for every sample landing in this tile.
@@ -135,8 +154,12 @@ impl Tile<'_> {
         };
         let (first_z, layers) = cubes(self.z0(), LAYER);
         let (first_y, rows) = cubes(self.y0(), self.height());
+        let (first_x, cols) = cubes(self.x0(), self.width());
         let in_tile = |q: [i64; 3]| {
-            wrap(q[2] - self.z0(), p_len) < LAYER && wrap(q[1] - self.y0(), p_len) < self.height()
+            (0..3).all(|axis| {
+                let (lo, len, _) = self.band(axis);
+                wrap(q[axis] - lo, p_len) < len
+            })
         };
         let mut scratch: [Vec<(usize, usize)>; 2] = [
             Vec::with_capacity(n as usize),
@@ -146,7 +169,8 @@ impl Tile<'_> {
             let cz = cz.rem_euclid(m) as u32;
             for cy in first_y..first_y + rows {
                 let cy = cy.rem_euclid(m) as u32;
-                for cx in 0..m as u32 {
+                for cx in first_x..first_x + cols {
+                    let cx = cx.rem_euclid(m) as u32;
                     let cube = [cx, cy, cz];
                     let cube_index =
                         ((cz as usize * m as usize) + cy as usize) * m as usize + cx as usize;
@@ -180,9 +204,10 @@ impl Tile<'_> {
                                     let offset = wrap(e0.min(e1) - lo, p_len);
                                     offset >= len && offset + (e0 - e1).abs() < p_len
                                 };
-                                if misses(2, self.z0(), LAYER)
-                                    || misses(1, self.y0(), self.height())
-                                {
+                                if (0..3).any(|axis| {
+                                    let (lo, len, _) = self.band(axis);
+                                    misses(axis, lo, len)
+                                }) {
                                     continue;
                                 }
                                 for a in 0..n {
@@ -223,13 +248,7 @@ impl Tile<'_> {
         let h = (n / 2) as i64;
         let (u, v) = ctx.params.slice_axes().of(o);
         let w = 3 - u - v;
-        // Per axis: the tile's band (z the layer, y the rows, x everything) and the bucket
-        // index stride of one voxel.
-        let band = |axis: usize| match axis {
-            2 => (self.z0(), LAYER, (self.height() * p_len) as usize),
-            1 => (self.y0(), self.height(), p_len as usize),
-            _ => (0, p_len, 1),
-        };
+        let band = |axis: usize| self.band(axis);
         let (wlo, wlen, wstride) = band(w);
         let w_offset = wrap(p[w] - wlo, p_len);
         if w_offset >= wlen {
@@ -377,15 +396,14 @@ impl Tile<'_> {
     /// values. Returns the tile's new values (row after row) and how many points were refitted.
     fn fit(&self, buckets: &Buckets) -> (Vec<f32>, usize) {
         let solid = self.solid;
-        let (m, c) = (solid.m as i64, solid.channels);
-        let p_len = self.period();
+        let c = solid.channels;
         let per = 1 + c;
         let d = SPACING as i64;
-        let height = self.height();
-        let mut out = Vec::with_capacity(self.rows.len() * m as usize * c * 4);
+        let (height, width) = (self.height(), self.width());
+        let mut out = Vec::with_capacity(self.rows.len() * self.cols.len() * c * 4);
         let mut refitted = 0;
         for y in self.rows.clone().map(i64::from) {
-            for x in 0..m {
+            for x in self.cols.clone().map(i64::from) {
                 let old = solid.offset([x, y, self.k as i64]);
                 let mut ata = Matrix4::<f64>::zeros();
                 let mut atb = vec![Vector4::<f64>::zeros(); c];
@@ -396,8 +414,9 @@ impl Tile<'_> {
                             let bz = dz + LAYER / 2;
                             let by = y * d + dy - self.y0();
                             debug_assert!((0..height).contains(&by));
-                            let bx = (x * d + dx).rem_euclid(p_len);
-                            let v = ((bz * height + by) * p_len + bx) as usize;
+                            let bx = x * d + dx - self.x0();
+                            debug_assert!((0..width).contains(&bx));
+                            let v = ((bz * height + by) * width + bx) as usize;
                             let (s0, s1) = (v * 2 * per, (v * 2 + 1) * per);
                             let count = buckets.sums[s0] + buckets.sums[s1];
                             if count == 0 {
@@ -433,18 +452,27 @@ impl Tile<'_> {
     }
 }
 
-/// Control rows per tile for a period of `p_len` voxels: about [`TILE_VOXELS`] buckets.
-fn tile_rows(m: u32, p_len: i64) -> u32 {
-    let per_row = p_len * LAYER * SPACING as i64;
-    ((TILE_VOXELS / per_row).max(1) as u32).min(m)
+/// The bands of control rows (or columns) of the CPU backend's tiles: about
+/// sqrt([`TILE_VOXELS`] / 64) points each, so that a tile holds about [`TILE_VOXELS`] buckets.
+/// Square tiles keep the check points visited per tile (those whose slices reach it: the
+/// tile grown by a slice's reach on each side) few for their buckets.
+fn tile_bands(m: u32) -> Vec<std::ops::Range<u32>> {
+    let side = ((TILE_VOXELS / (LAYER * SPACING as i64 * SPACING as i64)) as f64).sqrt() as u32;
+    let bands = m.div_ceil(side.max(1));
+    let size = m.div_ceil(bands);
+    (0..m)
+        .step_by(size as usize)
+        .map(|r| r..(r + size).min(m))
+        .collect()
 }
 
 /// One representation update: the new solid and the fraction of points refitted. With
 /// `targets`, also every bucket's average (the samples of eq. 3).
 ///
-/// The CPU backend works tile by tile (a control layer's rows in bands of [`tile_rows`]), in
-/// parallel; the GPU backend a whole layer per dispatch, one after another (one queue). A
-/// bucket's samples are the same whichever tile holds it, so both give the same integers.
+/// The CPU backend works tile by tile (a control layer in square bands of rows and columns,
+/// [`tile_bands`]), in parallel; the GPU backend a whole layer per dispatch, one after another
+/// (one queue). A bucket's samples are the same whichever tile holds it, so both give the
+/// same integers.
 pub fn update(
     solid: &PeriodicSolid,
     matches: &[Match],
@@ -452,27 +480,32 @@ pub fn update(
     compute: &Compute,
     targets: Option<&mut Targets>,
 ) -> Result<(PeriodicSolid, f64)> {
+    type Band = std::ops::Range<u32>;
     let want_values = targets.is_some();
     let m = solid.m;
     let clusters = ctx.patches.cluster_count() as usize;
-    let rows_per_tile = match compute {
-        Compute::Cpu => tile_rows(m, solid.period()),
-        Compute::Gpu(_) => m,
+    let bands = match compute {
+        Compute::Cpu => tile_bands(m),
+        Compute::Gpu(_) => vec![0..m],
     };
-    let tiles: Vec<(u32, std::ops::Range<u32>)> = (0..m)
+    let tiles: Vec<(u32, Band, Band)> = (0..m)
         .flat_map(|k| {
-            (0..m)
-                .step_by(rows_per_tile as usize)
-                .map(move |r| (k, r..(r + rows_per_tile).min(m)))
+            let bands = &bands;
+            bands.iter().flat_map(move |rows| {
+                bands
+                    .iter()
+                    .map(move |cols| (k, rows.clone(), cols.clone()))
+            })
         })
         .collect();
-    let tile = |(k, rows): &(u32, std::ops::Range<u32>)| -> Result<(Vec<f32>, usize, Vec<f32>)> {
+    let tile = |(k, rows, cols): &(u32, Band, Band)| -> Result<(Vec<f32>, usize, Vec<f32>)> {
         let tile = Tile {
             solid,
             matches,
             ctx,
             k: *k,
             rows: rows.clone(),
+            cols: cols.clone(),
             clusters,
         };
         let buckets = tile.accumulate(compute)?;
@@ -484,29 +517,36 @@ pub fn update(
         };
         Ok((values, refitted, averages))
     };
-    let mut results: Vec<(Vec<f32>, usize, Vec<f32>)> = match compute {
+    let results: Vec<(Vec<f32>, usize, Vec<f32>)> = match compute {
         Compute::Cpu => tiles.par_iter().map(tile).collect::<Result<_>>()?,
         Compute::Gpu(_) => tiles.iter().map(tile).collect::<Result<_>>()?,
     };
+    let (p_len, c) = (solid.period(), solid.channels);
+    let d = SPACING as i64;
     if let Some(t) = targets {
-        let (p_len, c) = (solid.period(), solid.channels);
-        let row = p_len as usize * c;
-        for ((k, rows), result) in tiles.iter().zip(&mut results) {
-            let averages = std::mem::take(&mut result.2);
-            let height = rows.len() * SPACING as usize;
-            for (i, voxel_row) in averages.chunks_exact(row).enumerate() {
-                let (bz, by) = ((i / height) as i64, (i % height) as i64);
-                let z = (*k as i64 * SPACING as i64 - LAYER / 2 + bz).rem_euclid(p_len) as usize;
-                let y = (rows.start as i64 * SPACING as i64 - SPACING as i64 / 2 + by)
-                    .rem_euclid(p_len) as usize;
-                let at = (z * p_len as usize + y) * row;
-                t.values[at..at + row].copy_from_slice(voxel_row);
+        // Each tile's averages, voxel by voxel (its bands may wrap around the period).
+        for ((k, rows, cols), result) in tiles.iter().zip(&results) {
+            let (height, width) = (rows.len() as i64 * d, cols.len() as i64 * d);
+            for (i, voxel) in result.2.chunks_exact(c).enumerate() {
+                let i = i as i64;
+                let (bz, by, bx) = (i / (height * width), (i / width) % height, i % width);
+                let at = |first: u32, b: i64| (first as i64 * d - d / 2 + b).rem_euclid(p_len);
+                let (z, y, x) = (at(*k, bz), at(rows.start, by), at(cols.start, bx));
+                let at = ((z * p_len + y) * p_len + x) as usize * c;
+                t.values[at..at + c].copy_from_slice(voxel);
             }
         }
     }
     let refitted: usize = results.iter().map(|r| r.1).sum();
-    // Tiles are in point order (layer, then rows), each row after row.
-    let data = results.into_iter().flat_map(|r| r.0).collect();
+    // Each tile's points, row after row, to their places in the solid.
+    let per = c * 4;
+    let mut data = vec![0f32; solid.data.len()];
+    for ((k, rows, cols), result) in tiles.iter().zip(&results) {
+        for (y, values) in rows.clone().zip(result.0.chunks_exact(cols.len() * per)) {
+            let at = solid.offset([cols.start as i64, y as i64, *k as i64]);
+            data[at..at + values.len()].copy_from_slice(values);
+        }
+    }
     Ok((
         PeriodicSolid {
             m: solid.m,

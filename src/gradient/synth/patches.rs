@@ -37,33 +37,46 @@ fn any_at_most(acc: &[f32; LANES], limit: f32) -> bool {
     any
 }
 
-/// Moves the `p` smallest pairs of `order` to its front, in ascending order (the rest after
+/// A (distance, index) pair as one integer that orders like the pair: distances are squared
+/// sums, never negative or NaN, so their bit patterns order like the values. One compare
+/// instead of two in the selections below.
+#[inline(always)]
+fn key(distance: f32, index: u32) -> u64 {
+    ((distance.to_bits() as u64) << 32) | index as u64
+}
+
+/// Moves the `p` smallest keys of `order` to its front, in ascending order (the rest after
 /// them, in no particular order): one pass with an insertion into the sorted front.
-fn nearest_first(order: &mut [(u32, u32)], p: usize) {
+fn nearest_first(order: &mut [u64], p: usize) {
     if p == 0 {
         return;
     }
     order[..p].sort_unstable();
+    let mut last = order[p - 1];
     for i in p..order.len() {
         let item = order[i];
-        if item < order[p - 1] {
-            // Insert into the front run; its largest goes to position i.
-            let at = order[..p].partition_point(|&x| x < item);
-            order[i] = order[p - 1];
-            order[at..p].rotate_right(1);
-            order[at] = item;
+        if item < last {
+            // Insert into the front run (shifting its larger keys up); its largest goes to
+            // position i.
+            order[i] = last;
+            let mut j = p - 1;
+            while j > 0 && order[j - 1] > item {
+                order[j] = order[j - 1];
+                j -= 1;
+            }
+            order[j] = item;
+            last = order[p - 1];
         }
     }
 }
 
-/// The k smallest (distance bits, candidate) pairs offered, kept as an unsorted buffer that
+/// The k smallest (distance, candidate) [`key`]s offered, kept as an unsorted buffer that
 /// is cut back to its k smallest whenever it reaches 2k (amortized constant work per offer;
-/// a binary heap's sift per replacement cost a third of the search). Distances are squared
-/// sums, never negative or NaN, so their bit patterns order like the values; the pairs are
-/// distinct, so the k smallest are one set whatever the order of the offers.
+/// a binary heap's sift per replacement cost a third of the search). The keys are distinct,
+/// so the k smallest are one set whatever the order of the offers.
 struct KBest {
     k: usize,
-    items: Vec<(u32, u32)>,
+    items: Vec<u64>,
     /// The k-th smallest distance at the last cut (infinite before k were kept): anything
     /// larger can never enter.
     worst: f32,
@@ -84,7 +97,7 @@ impl KBest {
     }
 
     #[inline(always)]
-    fn offer(&mut self, item: (u32, u32)) {
+    fn offer(&mut self, item: u64) {
         self.items.push(item);
         if self.items.len() == 2 * self.k {
             self.cut();
@@ -99,8 +112,8 @@ impl KBest {
             self.items.truncate(k);
         }
         if self.items.len() == k {
-            let kth = self.items.iter().max().expect("k >= 1").0;
-            self.worst = f32::from_bits(kth);
+            let kth = self.items.iter().max().expect("k >= 1");
+            self.worst = f32::from_bits((kth >> 32) as u32);
         }
     }
 
@@ -110,7 +123,7 @@ impl KBest {
         self.items.sort_unstable();
         self.items
             .into_iter()
-            .map(|(d, i)| (f32::from_bits(d), i))
+            .map(|item| (f32::from_bits((item >> 32) as u32), item as u32))
             .collect()
     }
 }
@@ -464,14 +477,14 @@ impl LevelPatches {
         let k = k.clamp(1, self.centres.len());
         // Lists by the distance of their centre to the query (ties by list index), the centres
         // scored 8 at a time like the candidates.
-        let mut order: Vec<(u32, u32)> = Vec::with_capacity(self.list_centres.len());
+        let mut order: Vec<u64> = Vec::with_capacity(self.list_centres.len());
         for (bi, block) in self.centre_blocks.iter().enumerate() {
             let mut acc = [0f32; LANES];
             accumulate(&mut acc, block, query);
             for (l, d) in acc.iter().enumerate() {
                 let list = bi * LANES + l;
                 if list < self.list_centres.len() {
-                    order.push((d.to_bits(), list as u32));
+                    order.push(key(*d, list as u32));
                 }
             }
         }
@@ -497,7 +510,7 @@ impl LevelPatches {
             if probed == sorted {
                 order[sorted..].sort_unstable();
             }
-            for bi in self.lists[order[probed].1 as usize].clone() {
+            for bi in self.lists[order[probed] as u32 as usize].clone() {
                 scanned += self.scan_block(bi, query, &mut best);
             }
         }
@@ -533,7 +546,7 @@ impl LevelPatches {
         while entering != 0 {
             let l = entering.trailing_zeros() as usize;
             entering &= entering - 1;
-            best.offer((acc[l].to_bits(), candidates[l]));
+            best.offer(key(acc[l], candidates[l]));
         }
         held
     }
@@ -594,8 +607,15 @@ mod tests {
             let mut sorted = pairs.clone();
             sorted.sort_unstable();
             let p = 1 + rng.below(n as u64) as usize;
-            let mut order = pairs.clone();
+            let mut order: Vec<u64> = pairs
+                .iter()
+                .map(|&(d, i)| key(f32::from_bits(d), i))
+                .collect();
             nearest_first(&mut order, p);
+            let order: Vec<(u32, u32)> = order
+                .iter()
+                .map(|&k| ((k >> 32) as u32, k as u32))
+                .collect();
             assert_eq!(order[..p], sorted[..p]);
             let mut rest = order[p..].to_vec();
             rest.sort_unstable();
@@ -604,7 +624,7 @@ mod tests {
             let mut best = KBest::new(k);
             for &(d, i) in &pairs {
                 if f32::from_bits(d) <= best.worst() {
-                    best.offer((d, i));
+                    best.offer(key(f32::from_bits(d), i));
                 }
             }
             let kept: Vec<(u32, u32)> = best
@@ -659,7 +679,7 @@ mod tests {
         all.sort_unstable();
         all.truncate(k);
         all.into_iter()
-            .map(|(d, i)| (f32::from_bits(d), i))
+            .map(|item| (f32::from_bits((item >> 32) as u32), item as u32))
             .collect()
     }
 
