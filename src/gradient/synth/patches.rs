@@ -170,6 +170,8 @@ pub struct LevelPatches {
     lane_candidates: Vec<[u32; LANES]>,
     /// Blocks of each list, and the list centres.
     lists: Vec<std::ops::Range<usize>>,
+    /// Candidates of each list.
+    list_sizes: Vec<usize>,
     list_centres: Vec<[f32; KEPT]>,
     /// The list centres, 8 per block, dimension-major (the candidates' layout).
     centre_blocks: Vec<[[f32; LANES]; KEPT]>,
@@ -291,6 +293,7 @@ impl LevelPatches {
             lines: Vec::new(),
             lane_candidates: Vec::new(),
             lists: Vec::new(),
+            list_sizes: Vec::new(),
             list_centres: Vec::new(),
             centre_blocks: Vec::new(),
         };
@@ -328,6 +331,7 @@ impl LevelPatches {
                 }));
             }
             level.lists.push(start..level.early_blocks.len());
+            level.list_sizes.push(list.len());
         }
         level.centre_blocks = centres
             .chunks(LANES)
@@ -448,16 +452,20 @@ impl LevelPatches {
     /// rejection never changes the result.
     pub fn nearest(&self, query: &[f32; KEPT], k: usize, probes: Option<usize>) -> Vec<(f32, u32)> {
         #[cfg(target_arch = "x86_64")]
-        if std::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU supports AVX2 (checked above). Only the vector width changes: the
-            // same IEEE operations in the same order (no FMA contraction), so the same result.
+        if std::is_x86_feature_detected!("avx2")
+            && std::is_x86_feature_detected!("popcnt")
+            && std::is_x86_feature_detected!("bmi1")
+        {
+            // SAFETY: the CPU supports AVX2, POPCNT and BMI1 (checked above). Only the vector
+            // width and the bit instructions change: the same IEEE operations in the same
+            // order (no FMA contraction), so the same result.
             return unsafe { self.nearest_avx2(query, k, probes) };
         }
         self.nearest_portable(query, k, probes)
     }
 
     #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
+    #[target_feature(enable = "avx2,popcnt,bmi1")]
     unsafe fn nearest_avx2(
         &self,
         query: &[f32; KEPT],
@@ -510,31 +518,32 @@ impl LevelPatches {
             if probed == sorted {
                 order[sorted..].sort_unstable();
             }
-            for bi in self.lists[order[probed] as u32 as usize].clone() {
-                scanned += self.scan_block(bi, query, &mut best);
+            let list = order[probed] as u32 as usize;
+            for bi in self.lists[list].clone() {
+                self.scan_block(bi, query, &mut best);
             }
+            scanned += self.list_sizes[list];
         }
         best.finish()
     }
 
     /// Scores block `bi` against the query and offers its candidates within the worst kept
-    /// distance to `best`; returns how many candidates the block holds.
+    /// distance to `best`.
     #[inline(always)]
-    fn scan_block(&self, bi: usize, query: &[f32; KEPT], best: &mut KBest) -> usize {
+    fn scan_block(&self, bi: usize, query: &[f32; KEPT], best: &mut KBest) {
         let candidates = &self.lane_candidates[bi];
-        let held = candidates.iter().filter(|&&c| c != NO_CANDIDATE).count();
         let worst = best.worst();
         let mut acc = [0f32; LANES];
         accumulate(&mut acc, &self.early_blocks[bi], &query[..EARLY]);
         // (Partial sums only grow: a block whose lanes all exceed the worst kept distance
         // holds no better candidate; a tie may still win on its index, so <= keeps it.)
         if !any_at_most(&acc, worst) {
-            return held;
+            return;
         }
         let late = &self.late_blocks[bi];
         accumulate(&mut acc, &late[..MIDDLE - EARLY], &query[EARLY..MIDDLE]);
         if !any_at_most(&acc, worst) {
-            return held;
+            return;
         }
         accumulate(&mut acc, &late[MIDDLE - EARLY..], &query[MIDDLE..]);
         // Only the lanes within the worst kept distance can enter (a lane-wise compare; most
@@ -548,7 +557,6 @@ impl LevelPatches {
             entering &= entering - 1;
             best.offer(key(acc[l], candidates[l]));
         }
-        held
     }
 
     /// Sum of squared differences between `line_a` of candidate `a` and `line_b` of `b`
@@ -679,7 +687,7 @@ mod tests {
         all.sort_unstable();
         all.truncate(k);
         all.into_iter()
-            .map(|item| (f32::from_bits((item >> 32) as u32), item as u32))
+            .map(|(d, i)| (f32::from_bits(d), i))
             .collect()
     }
 
