@@ -16,6 +16,7 @@
 //! layer keeps (bucket, pixel) pairs between its two passes); on the GPU the
 //! layer's samples are listed and dispatched. Both give the same integers.
 
+use super::frame::Frame;
 use super::matching::{Match, MatchContext, UNMATCHED};
 use super::refine::Targets;
 use super::{wrap, PeriodicSolid};
@@ -75,6 +76,8 @@ fn indices_in_band(
 struct Tile<'a> {
     solid: &'a PeriodicSolid,
     matches: &'a [Match],
+    /// Every check point's voxel, in the order of `matches` ([`check_points`]).
+    points: &'a [[u16; 3]],
     ctx: &'a MatchContext<'a>,
     /// Control layer index K.
     k: u32,
@@ -138,7 +141,8 @@ impl Tile<'_> {
         let h = ctx.patches.half_extent() as i64;
         // Farthest a slice sample lies from its check point along an axis: h for axis-aligned
         // slices, up to h sqrt 2 (+ rounding) for turned ones.
-        let reach = if ctx.params.field == super::Field::None {
+        let axis_aligned = ctx.params.field == super::Field::None;
+        let reach = if axis_aligned {
             h
         } else {
             (h as f64 * std::f64::consts::SQRT_2).ceil() as i64 + 1
@@ -171,12 +175,22 @@ impl Tile<'_> {
                 let cy = cy.rem_euclid(m) as u32;
                 for cx in first_x..first_x + cols {
                     let cx = cx.rem_euclid(m) as u32;
-                    let cube = [cx, cy, cz];
                     let cube_index =
                         ((cz as usize * m as usize) + cy as usize) * m as usize + cx as usize;
                     for k in 0..nc {
-                        let p = ctx.check_point(cube, k as u32);
-                        let frame = ctx.frame(p, p_len);
+                        let p = self.points[cube_index * nc + k].map(i64::from);
+                        // Beyond the slices' reach of the tile along an axis: nothing lands.
+                        if (0..3).any(|axis| {
+                            let (lo, len, _) = self.band(axis);
+                            wrap(p[axis] - lo + reach, p_len) >= len + 2 * reach
+                        }) {
+                            continue;
+                        }
+                        let frame = if axis_aligned {
+                            Frame::IDENTITY
+                        } else {
+                            ctx.frame(p, p_len)
+                        };
                         let matched = &self.matches[cube_index * nc + k];
                         for (o, &candidate) in matched.iter().enumerate() {
                             if candidate == UNMATCHED {
@@ -466,6 +480,22 @@ fn tile_bands(m: u32) -> Vec<std::ops::Range<u32>> {
         .collect()
 }
 
+/// Every check point's voxel (cube index, then k: the order of the matches), computed once
+/// per update instead of once per tile that visits it (the seeded hash of
+/// [`MatchContext::check_point`]). Coordinates lie in [0, P), P <= 4096.
+fn check_points(m: u32, ctx: &MatchContext) -> Vec<[u16; 3]> {
+    let m = m as usize;
+    let nc = ctx.params.check_points as usize;
+    (0..m * m * m * nc)
+        .into_par_iter()
+        .map(|i| {
+            let cube = i / nc;
+            let cube = [cube % m, (cube / m) % m, cube / (m * m)].map(|c| c as u32);
+            ctx.check_point(cube, (i % nc) as u32).map(|v| v as u16)
+        })
+        .collect()
+}
+
 /// One representation update: the new solid and the fraction of points refitted. With
 /// `targets`, also every bucket's average (the samples of eq. 3).
 ///
@@ -484,6 +514,7 @@ pub fn update(
     let want_values = targets.is_some();
     let m = solid.m;
     let clusters = ctx.patches.cluster_count() as usize;
+    let points = check_points(solid.m, ctx);
     let bands = match compute {
         Compute::Cpu => tile_bands(m),
         Compute::Gpu(_) => vec![0..m],
@@ -502,6 +533,7 @@ pub fn update(
         let tile = Tile {
             solid,
             matches,
+            points: &points,
             ctx,
             k: *k,
             rows: rows.clone(),
