@@ -76,7 +76,7 @@ fn indices_in_band(
 struct Tile<'a> {
     solid: &'a PeriodicSolid,
     matches: &'a [Match],
-    /// Every check point's voxel, in the order of `matches` ([`check_points`]).
+    /// Every check point's voxel, in the order of `matches` ([`super::matching::check_points`]).
     points: &'a [[u16; 3]],
     ctx: &'a MatchContext<'a>,
     /// Control layer index K.
@@ -262,8 +262,7 @@ impl Tile<'_> {
         let h = (n / 2) as i64;
         let (u, v) = ctx.params.slice_axes().of(o);
         let w = 3 - u - v;
-        let band = |axis: usize| self.band(axis);
-        let (wlo, wlen, wstride) = band(w);
+        let (wlo, wlen, wstride) = self.band(w);
         let w_offset = wrap(p[w] - wlo, p_len);
         if w_offset >= wlen {
             return;
@@ -278,7 +277,7 @@ impl Tile<'_> {
             (u, pixel_step[0], &mut *along_u),
             (v, pixel_step[1], &mut *along_v),
         ] {
-            let (lo, len, stride) = band(axis);
+            let (lo, len, stride) = self.band(axis);
             indices_in_band(p[axis] - s * h, s, n, lo, len, p_len, step, stride, out);
         }
         if along_u.is_empty() || along_v.is_empty() {
@@ -480,22 +479,6 @@ fn tile_bands(m: u32) -> Vec<std::ops::Range<u32>> {
         .collect()
 }
 
-/// Every check point's voxel (cube index, then k: the order of the matches), computed once
-/// per update instead of once per tile that visits it (the seeded hash of
-/// [`MatchContext::check_point`]). Coordinates lie in [0, P), P <= 4096.
-fn check_points(m: u32, ctx: &MatchContext) -> Vec<[u16; 3]> {
-    let m = m as usize;
-    let nc = ctx.params.check_points as usize;
-    (0..m * m * m * nc)
-        .into_par_iter()
-        .map(|i| {
-            let cube = i / nc;
-            let cube = [cube % m, (cube / m) % m, cube / (m * m)].map(|c| c as u32);
-            ctx.check_point(cube, (i % nc) as u32).map(|v| v as u16)
-        })
-        .collect()
-}
-
 /// One representation update: the new solid and the fraction of points refitted. With
 /// `targets`, also every bucket's average (the samples of eq. 3).
 ///
@@ -505,6 +488,7 @@ fn check_points(m: u32, ctx: &MatchContext) -> Vec<[u16; 3]> {
 /// same integers.
 pub fn update(
     solid: &PeriodicSolid,
+    points: &[[u16; 3]],
     matches: &[Match],
     ctx: &MatchContext,
     compute: &Compute,
@@ -514,7 +498,6 @@ pub fn update(
     let want_values = targets.is_some();
     let m = solid.m;
     let clusters = ctx.patches.cluster_count() as usize;
-    let points = check_points(solid.m, ctx);
     let bands = match compute {
         Compute::Cpu => tile_bands(m),
         Compute::Gpu(_) => vec![0..m],
@@ -533,7 +516,7 @@ pub fn update(
         let tile = Tile {
             solid,
             matches,
-            points: &points,
+            points,
             ctx,
             k: *k,
             rows: rows.clone(),

@@ -77,24 +77,28 @@ pub type Match = [u32; 3];
 
 pub const UNMATCHED: u32 = u32::MAX;
 
-/// All check points of all cubes, in order (cube index, then k): their matches.
-pub fn match_all(solid: &PeriodicSolid, ctx: &MatchContext) -> Vec<Match> {
-    let m = solid.m as usize;
+/// Every check point's voxel, in order (cube index, then k): computed once per iteration, for
+/// the matching and for every bucket tile that visits it. Coordinates lie in [0, P), P <= 4096.
+pub fn check_points(m: u32, ctx: &MatchContext) -> Vec<[u16; 3]> {
+    let m = m as usize;
     let nc = ctx.params.check_points as usize;
     (0..m * m * m * nc)
         .into_par_iter()
+        .map(|i| {
+            let cube = i / nc;
+            let cube = [cube % m, (cube / m) % m, cube / (m * m)].map(|c| c as u32);
+            ctx.check_point(cube, (i % nc) as u32).map(|v| v as u16)
+        })
+        .collect()
+}
+
+/// The matches of `points` ([`check_points`]), in their order.
+pub fn match_all(solid: &PeriodicSolid, ctx: &MatchContext, points: &[[u16; 3]]) -> Vec<Match> {
+    points
+        .par_iter()
         .map_init(
             || vec![0f32; ctx.patches.dims()],
-            |buffer, i| {
-                let cube = i / nc;
-                let cube = [
-                    (cube % m) as u32,
-                    ((cube / m) % m) as u32,
-                    (cube / (m * m)) as u32,
-                ];
-                let p = ctx.check_point(cube, (i % nc) as u32);
-                match_check_point_dispatch(solid, ctx, p, buffer)
-            },
+            |buffer, p| match_check_point_dispatch(solid, ctx, p.map(i64::from), buffer),
         )
         .collect()
 }

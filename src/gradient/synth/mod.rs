@@ -588,13 +588,14 @@ fn iterate(
                 iteration: it,
                 patches: &patches,
             };
-            let matches = matching::match_all(&solid, &ctx);
+            let points = matching::check_points(solid.m, &ctx);
+            let matches = matching::match_all(&solid, &ctx, &points);
             let t2 = Instant::now();
             let last = li == finest && it + 1 == params.iterations;
             let mut targets = (last && (masked || params.optimize_iterations > 0))
                 .then(|| refine::Targets::empty(solid.period() as usize, solid.channels));
             let (next, refitted) =
-                buckets::update(&solid, &matches, &ctx, compute, targets.as_mut())?;
+                buckets::update(&solid, &points, &matches, &ctx, compute, targets.as_mut())?;
             solid = next;
             if params.histogram_matching {
                 solid.match_histogram(&patches.filtered_values());
