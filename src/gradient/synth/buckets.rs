@@ -500,7 +500,7 @@ pub fn update(
     let clusters = ctx.patches.cluster_count() as usize;
     let bands = match compute {
         Compute::Cpu => tile_bands(m),
-        Compute::Gpu(_) => vec![0..m],
+        Compute::Gpu(_) => std::iter::once(0..m).collect(),
     };
     let tiles: Vec<(u32, Band, Band)> = (0..m)
         .flat_map(|k| {
