@@ -346,9 +346,66 @@ impl Tile<'_> {
         list
     }
 
+    /// [`Self::accumulate_streaming`] with the count and channel sums of each (voxel, cluster)
+    /// as the 16-bit lanes of one u64 (`packed`: per pixel, its cluster and its sample packed
+    /// alike): one addition per sample, and half the memory, so the tile's sums sit well
+    /// inside the L2 cache. A channel lane could overflow past 257 samples of 255, so a slot
+    /// whose count reaches 256 is moved to a list of spilled sums and restarts at zero: the
+    /// integers are exactly those of the unpacked sums.
+    fn accumulate_packed(&self, packed: &[(u32, u64)]) -> Buckets {
+        const SPILL_AT: u16 = 256;
+        let clusters = self.clusters;
+        let per = 1 + self.solid.channels;
+        let voxels = self.voxels();
+        let mut acc = vec![0u64; voxels * clusters];
+        let mut spills: Vec<(usize, u64)> = Vec::new();
+        self.for_each_sample(|v, px| {
+            let (cluster, word) = packed[px];
+            let i = v * clusters + cluster as usize;
+            let sum = acc[i] + word;
+            if sum as u16 == SPILL_AT {
+                spills.push((i, sum));
+                acc[i] = 0;
+            } else {
+                acc[i] = sum;
+            }
+        });
+        let lane = |word: u64, l: usize| ((word >> (16 * l)) & 0xFFFF) as u32;
+        // Slot -> its unpacked lanes, for the few slots that spilled.
+        let mut spilled: std::collections::BTreeMap<usize, [u32; 4]> = Default::default();
+        for (i, word) in spills {
+            let lanes = spilled.entry(i).or_default();
+            for (l, lane_sum) in lanes.iter_mut().enumerate() {
+                *lane_sum += lane(word, l);
+            }
+        }
+        let unpacked = |i: usize, l: usize| {
+            lane(acc[i], l) + spilled.get(&i).map_or(0, |lanes| lanes[l])
+        };
+        let counts: Vec<u32> = (0..acc.len()).map(|i| unpacked(i, 0)).collect();
+        let mut sums = vec![0u32; voxels * 2 * per];
+        for (v, out) in sums.chunks_exact_mut(2 * per).enumerate() {
+            let ids = dominant(&counts[v * clusters..(v + 1) * clusters]);
+            for (slot, &id) in ids.iter().enumerate() {
+                if id != u32::MAX {
+                    let i = v * clusters + id as usize;
+                    out[slot * per] = counts[i];
+                    for l in 1..per {
+                        // Raw value sums, scaled to 8.8 fixed point like the kernel's.
+                        out[slot * per + l] = unpacked(i, l) << 8;
+                    }
+                }
+            }
+        }
+        Buckets { counts, sums }
+    }
+
     fn accumulate(&self, compute: &Compute) -> Result<Buckets> {
         match compute {
-            Compute::Cpu => Ok(self.accumulate_streaming()),
+            Compute::Cpu => Ok(match self.ctx.patches.packed_samples() {
+                Some(packed) => self.accumulate_packed(packed),
+                None => self.accumulate_streaming(),
+            }),
             Compute::Gpu(gpu) => crate::gpu::bucket_accumulate::bucket_accumulate(
                 gpu,
                 &self.sample_list(),

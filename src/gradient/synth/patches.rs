@@ -150,6 +150,10 @@ pub struct LevelPatches {
     clusters: Option<Vec<u8>>,
     /// With a mask: per cluster, whether its pixels lie in the positive region.
     cluster_regions: Option<Vec<bool>>,
+    /// Per pixel, its cluster (0 on levels that do not quantize) and its sample as four
+    /// 16-bit lanes: 1 (a count), then each channel's value. What the CPU bucket accumulation
+    /// adds with one integer addition ([`Self::packed_samples`]); empty beyond 3 channels.
+    packed_samples: Vec<(u32, u64)>,
     /// Centre pixel of every candidate patch.
     centres: Vec<(u32, u32)>,
     /// Set by `build` (an option only so `vector` can be used while building).
@@ -178,6 +182,9 @@ pub struct LevelPatches {
     /// The list centres, 8 per block, dimension-major (the candidates' layout).
     centre_blocks: Vec<[[f32; LANES]; KEPT]>,
 }
+
+/// Channels a packed sample holds besides its count (16 bits each in a u64).
+pub const PACKED_CHANNELS: usize = 3;
 
 /// A padding lane's candidate index.
 const NO_CANDIDATE: u32 = u32::MAX;
@@ -287,6 +294,7 @@ impl LevelPatches {
             image,
             clusters,
             cluster_regions,
+            packed_samples: Vec::new(),
             centres,
             pca: None,
             folded: None,
@@ -301,6 +309,7 @@ impl LevelPatches {
             centre_blocks: Vec::new(),
         };
         level.lines = level.gather_lines();
+        level.packed_samples = level.pack_samples();
         let dims = level.dims();
         let vectors: Vec<f32> = (0..level.centres.len() as u32)
             .into_par_iter()
@@ -414,6 +423,25 @@ impl LevelPatches {
     /// The colour cluster of pixel `p` (0 on levels that do not quantize).
     pub fn cluster(&self, p: usize) -> u32 {
         self.clusters.as_ref().map_or(0, |c| c[p] as u32)
+    }
+
+    /// Per pixel, its cluster and its sample packed as 16-bit lanes (count 1, then the channel
+    /// values), when the level has at most 3 channels; `None` otherwise.
+    pub fn packed_samples(&self) -> Option<&[(u32, u64)]> {
+        (!self.packed_samples.is_empty()).then_some(&self.packed_samples[..])
+    }
+
+    fn pack_samples(&self) -> Vec<(u32, u64)> {
+        if self.channels > PACKED_CHANNELS {
+            return Vec::new();
+        }
+        (0..self.image.len() / self.channels)
+            .map(|p| {
+                let lanes = self.value(p).iter().enumerate();
+                let word = lanes.fold(1u64, |w, (c, &v)| w | (v as u64) << (16 * (c + 1)));
+                (self.cluster(p), word)
+            })
+            .collect()
     }
 
     /// With a mask: per cluster, whether it holds positive-region pixels.
