@@ -141,15 +141,19 @@ fn project_slices(
 ) -> [[f32; KEPT]; 3] {
     let frame = ctx.frame(p, solid.period());
     let (n, c) = (ctx.patches.size, solid.channels);
-    std::array::from_fn(|o| {
+    // A loop, not `std::array::from_fn`: its closure would be compiled apart from the caller,
+    // without the caller's AVX2 (half the projection's speed).
+    let mut projections = [[0.0; KEPT]; 3];
+    for (o, out) in projections.iter_mut().enumerate() {
         if o as u32 >= ctx.params.matched_slices {
-            return [0.0; KEPT]; // a slice left free is never searched
+            continue; // a slice left free is never searched
         }
         if frame.is_identity() {
             // Axis-aligned slices: whole-voxel steps along two axes, projected straight from
             // the control points their samples are nearest to.
             let (u, v) = ctx.params.slice_axes().of(o);
-            return ctx.patches.folded().project(solid, p, u, v);
+            *out = ctx.patches.folded().project(solid, p, u, v);
+            continue;
         }
         // A direction field: each sample located on its own.
         for b in 0..n {
@@ -159,8 +163,9 @@ fn project_slices(
                 solid.taylor(q, &mut buffer[at..at + c]);
             }
         }
-        ctx.patches.pca().project(buffer)
-    })
+        *out = ctx.patches.pca().project(buffer);
+    }
+    projections
 }
 
 /// Index of the candidate with the smallest `cost` (ties: the nearer in appearance, i.e. the

@@ -98,6 +98,16 @@ impl KBest {
 
     #[inline(always)]
     fn offer(&mut self, item: u64) {
+        if self.k == 1 {
+            // The nearest only: keep the smaller key, the bound exact at once.
+            match self.items.first_mut() {
+                Some(kept) if *kept <= item => {}
+                Some(kept) => *kept = item,
+                None => self.items.push(item),
+            }
+            self.worst = f32::from_bits((self.items[0] >> 32) as u32);
+            return;
+        }
         self.items.push(item);
         if self.items.len() == 2 * self.k {
             self.cut();
