@@ -51,7 +51,7 @@ pub struct SynthArgs {
     pub search: SearchArg,
     /// Nearest-patch search: P > 0 approximate (the paper's ANN step), scanning the P lists (of
     /// about sqrt(candidates), k-means of the patches' projections) nearest to each query; 0
-    /// exact (exhaustive, 1.4-1.6x slower).
+    /// exact (exhaustive, about 3x slower; the same quality by `eval`).
     #[arg(long, default_value_t = solidsynth::gradient::synth::DEFAULT_PROBES)]
     pub probes: u32,
     /// Slices matched per check point: 3, or 2 (orthogonal to x and y only) for anisotropic

@@ -148,9 +148,9 @@ impl Default for GradientSynthParams {
 }
 
 /// Lists probed by the default approximate nearest-patch search (of ~128 at the finest level).
-/// Measured at 96^3 on six exemplars: eval ratios within a few percent of the exact search's,
-/// either way, for 30-40% less time.
-pub const DEFAULT_PROBES: u32 = 8;
+/// Measured at 96^3 on nine exemplars (BENCHMARKS.md): 4 probes give eval ratios within the
+/// seed-to-seed spread of 8 probes' and of the exact search's, in 15-20% less time than 8.
+pub const DEFAULT_PROBES: u32 = 4;
 
 /// Largest accepted size (the control grid of 1024^3 is 256^3 points).
 pub const MAX_SIZE: u32 = 1024;
