@@ -269,10 +269,12 @@ impl PeriodicSolid {
     }
 
     /// Offset of the values of control point `p` (any integers: wrapped).
+    #[inline(always)]
     pub fn offset(&self, p: [i64; 3]) -> usize {
         let m = self.m as i64;
-        let w = p.map(|v| wrap(v, m) as usize);
-        ((w[2] * self.m as usize + w[1]) * self.m as usize + w[0]) * self.channels * 4
+        // Not `p.map(..)`: its closure is compiled out of line, without the caller's AVX2.
+        let (x, y, z) = (wrap(p[0], m), wrap(p[1], m), wrap(p[2], m));
+        ((z * m + y) * m + x) as usize * self.channels * 4
     }
 
     /// The control point nearest to voxel `q` (ties, at half spacing, to the upper one: the
