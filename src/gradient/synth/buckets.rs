@@ -68,6 +68,76 @@ fn indices_in_band(
     }
 }
 
+/// Per (voxel, cluster), the sample count and channel sums as the four 16-bit lanes of one u64
+/// (the CPU backend's bucket sums; a sample is packed alike: 1, then its channel values, at
+/// most 3). A channel lane could overflow past 257 samples of 255, so a slot whose count reaches
+/// 256 is moved to a list of spilled sums and restarts at zero: the totals are exact.
+struct PackedSums {
+    clusters: usize,
+    acc: Vec<u64>,
+    spills: Vec<(usize, u64)>,
+}
+
+impl PackedSums {
+    const SPILL_AT: u16 = 256;
+
+    fn new(voxels: usize, clusters: usize) -> PackedSums {
+        PackedSums {
+            clusters,
+            acc: vec![0; voxels * clusters],
+            spills: Vec::new(),
+        }
+    }
+
+    /// Adds a sample of `cluster` (`word`: its packed count and values) to voxel `v`.
+    #[inline(always)]
+    fn add(&mut self, v: usize, (cluster, word): (u32, u64)) {
+        let i = v * self.clusters + cluster as usize;
+        let sum = self.acc[i] + word;
+        if sum as u16 == Self::SPILL_AT {
+            self.spills.push((i, sum));
+            self.acc[i] = 0;
+        } else {
+            self.acc[i] = sum;
+        }
+    }
+
+    /// The kernel's result: every (voxel, cluster) count, and each voxel's two dominant
+    /// clusters' counts and sums in 8.8 fixed point.
+    fn finish(self, channels: usize) -> Buckets {
+        let (clusters, per) = (self.clusters, 1 + channels);
+        let voxels = self.acc.len() / clusters;
+        let lane = |word: u64, l: usize| ((word >> (16 * l)) & 0xFFFF) as u32;
+        // Slot -> its unpacked lanes, for the few slots that spilled.
+        let mut spilled: std::collections::BTreeMap<usize, [u32; 4]> = Default::default();
+        for (i, word) in self.spills {
+            let lanes = spilled.entry(i).or_default();
+            for (l, lane_sum) in lanes.iter_mut().enumerate() {
+                *lane_sum += lane(word, l);
+            }
+        }
+        let acc = self.acc;
+        let unpacked =
+            |i: usize, l: usize| lane(acc[i], l) + spilled.get(&i).map_or(0, |lanes| lanes[l]);
+        let counts: Vec<u32> = (0..acc.len()).map(|i| unpacked(i, 0)).collect();
+        let mut sums = vec![0u32; voxels * 2 * per];
+        for (v, out) in sums.chunks_exact_mut(2 * per).enumerate() {
+            let ids = dominant(&counts[v * clusters..(v + 1) * clusters]);
+            for (slot, &id) in ids.iter().enumerate() {
+                if id != u32::MAX {
+                    let i = v * clusters + id as usize;
+                    out[slot * per] = counts[i];
+                    for l in 1..per {
+                        // Raw value sums, scaled to 8.8 fixed point like the kernel's.
+                        out[slot * per + l] = unpacked(i, l) << 8;
+                    }
+                }
+            }
+        }
+        Buckets { counts, sums }
+    }
+}
+
 /// One tile's view of the samples: the buckets of control layer `k` (voxels z in
 /// [4k - 2, 4k + 2)), control rows `rows` (voxels y in [4 rows.start - 2, 4 rows.end - 2))
 /// and control columns `cols` (likewise along x): exactly the buckets the tile's control
@@ -392,57 +462,13 @@ impl Tile<'_> {
         list
     }
 
-    /// [`Self::accumulate_streaming`] with the count and channel sums of each (voxel, cluster)
-    /// as the 16-bit lanes of one u64 (`packed`: per pixel, its cluster and its sample packed
-    /// alike): one addition per sample, and half the memory, so the tile's sums sit well
-    /// inside the L2 cache. A channel lane could overflow past 257 samples of 255, so a slot
-    /// whose count reaches 256 is moved to a list of spilled sums and restarts at zero: the
-    /// integers are exactly those of the unpacked sums.
+    /// [`Self::accumulate_streaming`] in [`PackedSums`] (`packed`: per pixel, its cluster and
+    /// its sample packed alike): one addition per sample, and half the memory, so the tile's
+    /// sums sit well inside the L2 cache. The same integers.
     fn accumulate_packed(&self, packed: &[(u32, u64)]) -> Buckets {
-        const SPILL_AT: u16 = 256;
-        let clusters = self.clusters;
-        let per = 1 + self.solid.channels;
-        let voxels = self.voxels();
-        let mut acc = vec![0u64; voxels * clusters];
-        let mut spills: Vec<(usize, u64)> = Vec::new();
-        self.for_each_sample(|v, px| {
-            let (cluster, word) = packed[px];
-            let i = v * clusters + cluster as usize;
-            let sum = acc[i] + word;
-            if sum as u16 == SPILL_AT {
-                spills.push((i, sum));
-                acc[i] = 0;
-            } else {
-                acc[i] = sum;
-            }
-        });
-        let lane = |word: u64, l: usize| ((word >> (16 * l)) & 0xFFFF) as u32;
-        // Slot -> its unpacked lanes, for the few slots that spilled.
-        let mut spilled: std::collections::BTreeMap<usize, [u32; 4]> = Default::default();
-        for (i, word) in spills {
-            let lanes = spilled.entry(i).or_default();
-            for (l, lane_sum) in lanes.iter_mut().enumerate() {
-                *lane_sum += lane(word, l);
-            }
-        }
-        let unpacked =
-            |i: usize, l: usize| lane(acc[i], l) + spilled.get(&i).map_or(0, |lanes| lanes[l]);
-        let counts: Vec<u32> = (0..acc.len()).map(|i| unpacked(i, 0)).collect();
-        let mut sums = vec![0u32; voxels * 2 * per];
-        for (v, out) in sums.chunks_exact_mut(2 * per).enumerate() {
-            let ids = dominant(&counts[v * clusters..(v + 1) * clusters]);
-            for (slot, &id) in ids.iter().enumerate() {
-                if id != u32::MAX {
-                    let i = v * clusters + id as usize;
-                    out[slot * per] = counts[i];
-                    for l in 1..per {
-                        // Raw value sums, scaled to 8.8 fixed point like the kernel's.
-                        out[slot * per + l] = unpacked(i, l) << 8;
-                    }
-                }
-            }
-        }
-        Buckets { counts, sums }
+        let mut sums = PackedSums::new(self.voxels(), self.clusters);
+        self.for_each_sample(|v, px| sums.add(v, packed[px]));
+        sums.finish(self.solid.channels)
     }
 
     fn accumulate(&self, compute: &Compute) -> Result<Buckets> {
@@ -684,4 +710,45 @@ pub fn update(
         },
         refitted as f64 / (solid.m as f64).powi(3),
     ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::util::hash::SeededRng;
+
+    /// The packed sums equal the CPU reference of the kernel, also for slots far past the
+    /// 16-bit lanes' range (thousands of samples of 255 in one voxel and cluster).
+    #[test]
+    fn packed_sums_equal_the_kernel_reference_past_the_lanes_range() {
+        let (voxels, clusters, channels) = (7usize, 5usize, 3usize);
+        let mut rng = SeededRng::new(11);
+        let mut below = |n: usize| rng.below(n as u64) as u32;
+        let mut samples: Vec<[u32; 5]> = Vec::new();
+        for _ in 0..20_000 {
+            let v = below(voxels);
+            // Voxel 0 gets one heavy cluster of saturated values, the rest are random.
+            let (cluster, values) = if v == 0 && below(4) > 0 {
+                (2, [255, 255, 254])
+            } else {
+                let c = below(clusters);
+                (c, [below(256), below(256), below(256)])
+            };
+            samples.push([v, cluster, values[0], values[1], values[2]]);
+        }
+        let mut packed = PackedSums::new(voxels, clusters);
+        for s in &samples {
+            let word = 1 | (s[2] as u64) << 16 | (s[3] as u64) << 32 | (s[4] as u64) << 48;
+            packed.add(s[0] as usize, (s[1], word));
+        }
+        assert!(packed.spills.len() > 10, "the test must spill");
+        let flat: Vec<u32> = samples.iter().flatten().copied().collect();
+        let want = crate::cpu::bucket_accumulate::bucket_accumulate(
+            &flat,
+            voxels,
+            clusters as u32,
+            channels as u32,
+        );
+        assert_eq!(packed.finish(channels), want);
+    }
 }
