@@ -2,19 +2,19 @@
 //! per-voxel buckets and each control point is refitted to the buckets nearest to it (eq. 2).
 //!
 //! Bucket reuse: buckets exist for one tile at a time (the voxels whose nearest control points
-//! are in layer K, rows R0..R1 and columns C0..C1: z in [4K - 2, 4K + 2), y in [4 R0 - 2,
-//! 4 R1 - 2), x in [4 C0 - 2, 4 C1 - 2)), so memory is O(P^2) at most per tile being processed
-//! instead of O(P^3), and on the CPU a tile's buckets fit a core's L2 cache. Only check points whose slices can reach the tile are
-//! visited. Tiles are independent (they read the previous solid and the matches) and run in
-//! parallel.
+//! are in layers K0..K1, rows R0..R1 and columns C0..C1: z in [4 K0 - 2, 4 K1 - 2), y in
+//! [4 R0 - 2, 4 R1 - 2), x in [4 C0 - 2, 4 C1 - 2)): on the GPU a whole control layer, O(P^2)
+//! memory instead of O(P^3); on the CPU a cube of about 5^3 control points whose buckets fit a
+//! core's L2 cache. Only check points whose slices can reach the tile are visited. Tiles are
+//! independent (they read the previous solid and the matches) and run in parallel.
 //!
 //! Accumulation is kernel `bucket_accumulate` (wgsl/bucket_accumulate.wgsl): pass 1 counts the
 //! samples of every (voxel, colour cluster), pass 2 sums, in 8.8 fixed point, the samples of each
-//! voxel's two dominant clusters. On the CPU backend the samples are streamed straight into the
-//! counts and sums ([`accumulate_streaming`], the same integer arithmetic as
-//! `crate::cpu::bucket_accumulate`; the kernel's sample list is not built, though a small
-//! layer keeps (bucket, pixel) pairs between its two passes); on the GPU the
-//! layer's samples are listed and dispatched. Both give the same integers.
+//! voxel's two dominant clusters. On the CPU backend the samples are streamed straight into
+//! per-(voxel, cluster) counts and sums (packed 16-bit lanes, [`PackedSums`], or with four
+//! channels plain ones), from which each voxel keeps its two dominant clusters': the same
+//! integers as `crate::cpu::bucket_accumulate`, without the kernel's sample list. On the GPU
+//! the layer's samples are listed and dispatched.
 
 use super::matching::{Match, MatchContext, UNMATCHED};
 use super::refine::Targets;
@@ -33,8 +33,8 @@ const LAYER: i64 = SPACING as i64;
 /// coplanar) at zero gradient instead of singular.
 const RIDGE: f64 = 0.5;
 
-/// Voxels per tile the CPU backend aims at: its per-cluster counts and sums (192 bytes a voxel
-/// with 12 clusters and 3 channels) then stay in a core's L2 cache (1.5 MB).
+/// Voxels per tile the CPU backend aims at: its per-cluster counts and sums (96 bytes a voxel
+/// packed, with 12 clusters; 240 unpacked with 4 channels) then stay in a core's L2 cache.
 const TILE_VOXELS: i64 = 8 << 10;
 
 /// The samples t in 0..n of a slice axis whose coordinates `c0 + s t`, wrapped, lie in the
@@ -72,7 +72,7 @@ fn indices_in_band(
 /// (the CPU backend's bucket sums; a sample is packed alike: 1, then its channel values, at
 /// most 3). A channel lane could overflow past 257 samples of 255, so a slot whose count reaches
 /// 256 is moved to a list of spilled sums and restarts at zero: the totals are exact.
-struct PackedSums {
+pub(super) struct PackedSums {
     clusters: usize,
     acc: Vec<u64>,
     spills: Vec<(usize, u64)>,
@@ -80,6 +80,15 @@ struct PackedSums {
 
 impl PackedSums {
     const SPILL_AT: u16 = 256;
+    /// Channels a packed sample holds besides its count.
+    pub(super) const CHANNELS: usize = 3;
+
+    /// A sample of `values` (at most [`Self::CHANNELS`]) as lanes: 1, then each value.
+    pub(super) fn pack(values: &[u8]) -> u64 {
+        debug_assert!(values.len() <= Self::CHANNELS);
+        let lanes = values.iter().enumerate();
+        lanes.fold(1, |word, (c, &v)| word | (v as u64) << (16 * (c + 1)))
+    }
 
     fn new(voxels: usize, clusters: usize) -> PackedSums {
         PackedSums {
@@ -138,10 +147,9 @@ impl PackedSums {
     }
 }
 
-/// One tile's view of the samples: the buckets of control layer `k` (voxels z in
-/// [4k - 2, 4k + 2)), control rows `rows` (voxels y in [4 rows.start - 2, 4 rows.end - 2))
-/// and control columns `cols` (likewise along x): exactly the buckets the tile's control
-/// points are fitted to.
+/// One tile's view of the samples: the buckets of control layers `layers` (voxels z in
+/// [4 layers.start - 2, 4 layers.end - 2)), control rows `rows` (likewise along y) and control
+/// columns `cols` (along x): exactly the buckets the tile's control points are fitted to.
 struct Tile<'a> {
     solid: &'a PeriodicSolid,
     matches: &'a [Match],
@@ -165,10 +173,11 @@ impl Tile<'_> {
     fn z0(&self) -> i64 {
         self.layers.start as i64 * LAYER - LAYER / 2
     }
-    /// First voxel y of the tile's buckets, and their rows.
+    /// Voxels of the tile's buckets along z.
     fn depth(&self) -> i64 {
         self.layers.len() as i64 * LAYER
     }
+    /// First voxel y of the tile's buckets, and their rows.
     fn y0(&self) -> i64 {
         self.rows.start as i64 * SPACING as i64 - SPACING as i64 / 2
     }
@@ -293,21 +302,17 @@ impl Tile<'_> {
         let (first_y, rows) = cubes(1, reach);
         let (first_x, cols) = cubes(0, reach);
         for cz in first_z..first_z + layers {
-            let cz = cz.rem_euclid(m) as u32;
             for cy in first_y..first_y + rows {
-                let cy = cy.rem_euclid(m) as u32;
                 for cx in first_x..first_x + cols {
-                    let cx = cx.rem_euclid(m) as u32;
-                    let cube_index =
-                        ((cz as usize * m as usize) + cy as usize) * m as usize + cx as usize;
-                    for k in 0..nc {
-                        let p = self.points[cube_index * nc + k].map(i64::from);
+                    let cube = cube_index([cx, cy, cz]);
+                    for i in cube * nc..(cube + 1) * nc {
+                        let p = self.points[i].map(i64::from);
                         // Beyond the slices' reach of the tile along an axis: nothing lands.
                         if !near(p, [reach; 3]) {
                             continue;
                         }
                         let frame = ctx.frame(p, p_len);
-                        let matched = &self.matches[cube_index * nc + k];
+                        let matched = &self.matches[i];
                         for (o, &candidate) in matched.iter().enumerate() {
                             if candidate == UNMATCHED {
                                 continue;
@@ -615,8 +620,7 @@ fn tile_bands(m: u32) -> Vec<std::ops::Range<u32>> {
 /// One representation update: the new solid and the fraction of points refitted. With
 /// `targets`, also every bucket's average (the samples of eq. 3).
 ///
-/// The CPU backend works tile by tile (a control layer in square bands of rows and columns,
-/// [`tile_bands`]), in parallel; the GPU backend a whole layer per dispatch, one after another
+/// The CPU backend works tile by tile (cubes of control points, [`tile_bands`]), in parallel; the GPU backend a whole layer per dispatch, one after another
 /// (one queue). A bucket's samples are the same whichever tile holds it, so both give the
 /// same integers.
 pub fn update(
@@ -738,8 +742,8 @@ mod tests {
         }
         let mut packed = PackedSums::new(voxels, clusters);
         for s in &samples {
-            let word = 1 | (s[2] as u64) << 16 | (s[3] as u64) << 32 | (s[4] as u64) << 48;
-            packed.add(s[0] as usize, (s[1], word));
+            let values = [s[2], s[3], s[4]].map(|v| v as u8);
+            packed.add(s[0] as usize, (s[1], PackedSums::pack(&values)));
         }
         assert!(packed.spills.len() > 10, "the test must spill");
         let flat: Vec<u32> = samples.iter().flatten().copied().collect();

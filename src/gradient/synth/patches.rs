@@ -3,6 +3,7 @@
 //! grid), their PCA projections for the nearest-patch search, and what the bucket step reads back: the sample
 //! values and, at the finest level, their colour clusters.
 
+use super::buckets::PackedSums;
 use super::folded::FoldedProjection;
 use super::pca::{PatchPca, KEPT};
 use crate::error::{Error, Result};
@@ -192,9 +193,6 @@ pub struct LevelPatches {
     /// The list centres, 8 per block, dimension-major (the candidates' layout).
     centre_blocks: Vec<[[f32; LANES]; KEPT]>,
 }
-
-/// Channels a packed sample holds besides its count (16 bits each in a u64).
-pub const PACKED_CHANNELS: usize = 3;
 
 /// A padding lane's candidate index.
 const NO_CANDIDATE: u32 = u32::MAX;
@@ -442,15 +440,11 @@ impl LevelPatches {
     }
 
     fn pack_samples(&self) -> Vec<(u32, u64)> {
-        if self.channels > PACKED_CHANNELS {
+        if self.channels > PackedSums::CHANNELS {
             return Vec::new();
         }
         (0..self.image.len() / self.channels)
-            .map(|p| {
-                let lanes = self.value(p).iter().enumerate();
-                let word = lanes.fold(1u64, |w, (c, &v)| w | (v as u64) << (16 * (c + 1)));
-                (self.cluster(p), word)
-            })
+            .map(|p| (self.cluster(p), PackedSums::pack(self.value(p))))
             .collect()
     }
 
