@@ -14,7 +14,10 @@
 //! 441 samples' evaluation and projection: a third of the multiply-adds.
 //!
 //! The sums are the same as the sample-by-sample projection's, added in another order, so the
-//! projections agree to float rounding (tested), not bit for bit.
+//! projections agree to float rounding (tested), not bit for bit. Where the samples lie exactly
+//! one control spacing apart (the coarsest level) every point holds one sample and folding
+//! saves nothing: there the samples are evaluated and projected one by one, without tables
+//! (the same floats as the sample-by-sample projection, tested).
 
 use super::pca::{PatchPca, KEPT};
 use super::{PeriodicSolid, SPACING};
@@ -29,6 +32,11 @@ pub struct FoldedProjection {
     /// Per pattern (cell position along u, then v: 16), per slot (v-major), per channel: the
     /// sums G0, Gu, Gv.
     sums: Vec<[[f32; KEPT]; 3]>,
+    /// Samples exactly one control spacing apart (the coarsest level): each is nearest to a
+    /// point of its own, at the same offset as every other, so folding saves nothing and its
+    /// tables (three rows per sample and pattern, ~750 KB) only cost cache bandwidth. Then
+    /// no tables: the basis column of every input (what `pca.project` reads, ~16 KB).
+    columns: Option<Vec<[f32; KEPT]>>,
     bias: [f32; KEPT],
 }
 
@@ -54,6 +62,22 @@ impl FoldedProjection {
             .unwrap_or(1);
         let dims = (n * n) as usize * channels;
         assert_eq!(pca.dims, dims, "PCA input is the slice's samples");
+        if s == d {
+            let basis = |k: usize, input: usize| pca.basis.get(k * dims + input).copied();
+            return FoldedProjection {
+                size: n,
+                spacing: s,
+                channels,
+                slots,
+                sums: Vec::new(),
+                columns: Some(
+                    (0..dims)
+                        .map(|input| std::array::from_fn(|k| basis(k, input).unwrap_or(0.0)))
+                        .collect(),
+                ),
+                bias: *pca.bias(),
+            };
+        }
         let per_pattern = slots * slots * channels;
         let mut sums = vec![[[0f64; KEPT]; 3]; (d * d) as usize * per_pattern];
         for rv in 0..d {
@@ -89,6 +113,7 @@ impl FoldedProjection {
                 .iter()
                 .map(|g| g.map(|row| row.map(|x| x as f32)))
                 .collect(),
+            columns: None,
             bias: *pca.bias(),
         }
     }
@@ -102,6 +127,9 @@ impl FoldedProjection {
         let w = 3 - u - v;
         let d = SPACING as i64;
         let h = self.size / 2;
+        if let Some(columns) = &self.columns {
+            return self.project_spaced(columns, solid, p, u, v);
+        }
         let (cu0, _) = nearest(p[u] - self.spacing * h);
         let (cv0, _) = nearest(p[v] - self.spacing * h);
         let (cw, tw) = nearest(p[w]);
@@ -130,6 +158,53 @@ impl FoldedProjection {
             }
         }
         acc
+    }
+
+    /// [`Self::project`] for samples one control spacing apart: sample (a, b) is nearest to
+    /// point (first + a, first + b) at the same offset t as the first, so each is evaluated
+    /// there (as [`PeriodicSolid::taylor`] does, the same operations in the same order) and
+    /// projected as `pca.project` does: the same floats as the sample-by-sample projection.
+    #[inline(always)]
+    fn project_spaced(
+        &self,
+        columns: &[[f32; KEPT]],
+        solid: &PeriodicSolid,
+        p: [i64; 3],
+        u: usize,
+        v: usize,
+    ) -> [f32; KEPT] {
+        let w = 3 - u - v;
+        let h = self.size / 2;
+        let mut first = [0i64; 3];
+        let mut t = [0f32; 3];
+        for (axis, start) in [
+            (u, p[u] - self.spacing * h),
+            (v, p[v] - self.spacing * h),
+            (w, p[w]),
+        ] {
+            let (c, offset) = nearest(start);
+            first[axis] = c;
+            t[axis] = offset as f32;
+        }
+        let mut acc = [0f32; KEPT];
+        let mut point = first;
+        let mut column = columns.iter();
+        for b in 0..self.size {
+            point[v] = first[v] + b;
+            for a in 0..self.size {
+                point[u] = first[u] + a;
+                let base = solid.offset(point);
+                for k in 0..self.channels {
+                    let f = &solid.data[base + k * 4..base + k * 4 + 4];
+                    let value = f[0] + f[1] * t[0] + f[2] * t[1] + f[3] * t[2];
+                    let weights = column.next().expect("a column per input");
+                    for (sum, weight) in acc.iter_mut().zip(weights) {
+                        *sum += weight * value;
+                    }
+                }
+            }
+        }
+        std::array::from_fn(|k| acc[k] - self.bias[k])
     }
 }
 
@@ -189,6 +264,10 @@ mod tests {
                         let want = pca.project(&buffer);
                         assert!(want.iter().any(|x| x.abs() > 1.0), "a trivial projection");
                         let got = folded.project(&solid, p, u, v);
+                        if spacing == SPACING {
+                            // No folding at this spacing: the very same floats.
+                            assert_eq!(got, want, "spacing {spacing} axes {u},{v} p {p:?}");
+                        }
                         for k in 0..KEPT {
                             let tolerance = 1e-3 * (1.0 + want[k].abs());
                             assert!(
