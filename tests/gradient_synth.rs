@@ -41,6 +41,7 @@ fn the_solid_is_textured_like_its_exemplar_and_tiles() {
     let exemplar = cobblestone(48, 9, 3);
     for search in [
         SliceSearch::Crossbar { n1: 20, n2: 50 },
+        SliceSearch::CrossbarNearest { n1: 20, n2: 50 },
         SliceSearch::Independent,
     ] {
         let params = GradientSynthParams { search, ..small() };

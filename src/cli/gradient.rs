@@ -27,8 +27,12 @@ pub enum GradientCommand {
 
 #[derive(Clone, Copy, Debug, clap::ValueEnum)]
 pub enum SearchArg {
-    /// E_y and E_z chosen among the N1 = 20 / N2 = 50 nearest for crossbar consistency.
+    /// The paper's: E_y (E_z) the nearest to its slice among the N1 = 20 (N2 = 50) patches
+    /// most consistent with E_x (and E_y) on their crossbars.
     Crossbar,
+    /// E_y (E_z) the most crossbar-consistent among the N1 = 20 (N2 = 50) patches nearest to
+    /// its slice.
+    CrossbarNearest,
     /// Three independent nearest-patch searches.
     Independent,
 }
@@ -387,6 +391,7 @@ fn synth(a: SynthArgs, quiet: bool) -> anyhow::Result<()> {
         clusters: a.clusters,
         search: match a.search {
             SearchArg::Crossbar => SliceSearch::Crossbar { n1: 20, n2: 50 },
+            SearchArg::CrossbarNearest => SliceSearch::CrossbarNearest { n1: 20, n2: 50 },
             SearchArg::Independent => SliceSearch::Independent,
         },
         field,

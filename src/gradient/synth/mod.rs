@@ -41,6 +41,7 @@
 
 pub mod buckets;
 pub mod clusters;
+pub mod crossbar;
 pub mod folded;
 pub mod frame;
 pub mod ivf;
@@ -89,9 +90,14 @@ pub const PAPER_LEVELS: [LevelSpec; 3] = [
 pub enum SliceSearch {
     /// Three independent nearest-patch searches (as in Kopf et al.).
     Independent,
-    /// E_x nearest; E_y the most crossbar-consistent with E_x among the `n1` nearest to s_y;
-    /// E_z the most consistent with both among the `n2` nearest to s_z.
+    /// The paper's: E_x nearest to s_x; E_y the nearest to s_y among the `n1` candidates most
+    /// crossbar-consistent with E_x; E_z the nearest to s_z among the `n2` most consistent with
+    /// both ([`crossbar`]: the sets are precomputed per level).
     Crossbar { n1: u32, n2: u32 },
+    /// The other way round (this crate's reading before session 15): E_y the most
+    /// crossbar-consistent with E_x among the `n1` nearest to s_y; E_z the most consistent
+    /// with both among the `n2` nearest to s_z. Two k-nearest searches per check point.
+    CrossbarNearest { n1: u32, n2: u32 },
 }
 
 #[derive(Clone, Debug)]
@@ -195,7 +201,9 @@ impl GradientSynthParams {
                 ),
             ));
         }
-        if let SliceSearch::Crossbar { n1, n2 } = self.search {
+        if let SliceSearch::Crossbar { n1, n2 } | SliceSearch::CrossbarNearest { n1, n2 } =
+            self.search
+        {
             bounded("crossbar candidates N1", n1, 256)?;
             bounded("crossbar candidates N2", n2, 256)?;
         }
@@ -569,6 +577,15 @@ fn iterate(
             distance_channel,
             mix64(params.seed ^ li as u64),
         )?;
+        let sets = match params.search {
+            SliceSearch::Crossbar { n1, n2 } => Some(crossbar::CrossbarSets::build(
+                &patches,
+                params.matched_slices == 3,
+                n1.max(n2) as usize,
+                mix64(params.seed ^ 0xc805_0000 ^ li as u64),
+            )),
+            _ => None,
+        };
         let mut level = LevelReport {
             spec: *spec,
             candidates: patches.candidates(),
@@ -589,6 +606,7 @@ fn iterate(
                 level: li as u32,
                 iteration: it,
                 patches: &patches,
+                sets: sets.as_ref(),
             };
             let points = matching::check_points(solid.m, &ctx);
             let matches = matching::match_all(&solid, &ctx, &points);
