@@ -19,9 +19,9 @@ use super::pca::PatchPca;
 use rayon::prelude::*;
 
 /// Lists the approximate search of the lines scans.
-const PROBES: usize = 8;
+const PROBES: usize = 4;
 /// Preselected candidates per kept one, ranked by the exact line distance.
-const PRESELECT: usize = 2;
+const PRESELECT: usize = 1;
 
 /// Largest set size (N_1 and N_2 are at most this).
 pub const MAX_SET: usize = 256;
@@ -43,10 +43,7 @@ impl ConsistentSets {
         let as_floats = |i: u32, line: Line| patches.line(i, line).iter().map(|&v| v as f32);
         let targets: Vec<f32> = (0..n as u32).flat_map(|i| as_floats(i, to)).collect();
         let pca = PatchPca::fit(&targets, dims, seed);
-        let points: Vec<_> = targets
-            .par_chunks_exact(dims)
-            .map(|v| pca.project(v))
-            .collect();
+        let points = pca.project_each(n, |i, buffer| buffer.extend(as_floats(i as u32, to)));
         let index = IvfIndex::build(&points);
         let ranked: Vec<(u32, u32)> = (0..n as u32)
             .into_par_iter()

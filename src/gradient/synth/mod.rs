@@ -577,6 +577,7 @@ fn iterate(
             distance_channel,
             mix64(params.seed ^ li as u64),
         )?;
+        let t_sets = Instant::now();
         let sets = match params.search {
             SliceSearch::Crossbar { n1, n2 } => Some(crossbar::CrossbarSets::build(
                 &patches,
@@ -586,6 +587,11 @@ fn iterate(
             )),
             _ => None,
         };
+        tracing::debug!(
+            "level {li}: patches {:.3} s, crossbar sets {:.3} s",
+            (t_sets - t0).as_secs_f64(),
+            t_sets.elapsed().as_secs_f64()
+        );
         let mut level = LevelReport {
             spec: *spec,
             candidates: patches.candidates(),

@@ -6,7 +6,7 @@
 use super::buckets::PackedSums;
 use super::folded::FoldedProjection;
 use super::ivf::IvfIndex;
-use super::pca::{PatchPca, KEPT};
+use super::pca::{PatchPca, KEPT, MAX_SAMPLES};
 use crate::error::{Error, Result};
 use crate::exemplar::Image;
 use rayon::prelude::*;
@@ -165,15 +165,16 @@ impl LevelPatches {
         level.lines = level.gather_lines();
         level.packed_samples = level.pack_samples();
         let dims = level.dims();
-        let vectors: Vec<f32> = (0..level.centres.len() as u32)
-            .into_par_iter()
-            .flat_map_iter(|i| level.vector(i))
+        // The PCA is fitted to (at most) MAX_SAMPLES evenly strided candidates: gather only
+        // those (`fit` strides the same way, so passing it every vector gave the same basis).
+        let count = level.centres.len();
+        let stride = count.div_ceil(MAX_SAMPLES).max(1);
+        let sampled: Vec<f32> = (0..count as u32)
+            .step_by(stride)
+            .flat_map(|i| level.vector(i))
             .collect();
-        let pca = PatchPca::fit(&vectors, dims, seed);
-        let points: Vec<[f32; KEPT]> = vectors
-            .par_chunks_exact(dims)
-            .map(|v| pca.project(v))
-            .collect();
+        let pca = PatchPca::fit(&sampled, dims, seed);
+        let points = pca.project_each(count, |i, buffer| level.write_vector(i as u32, buffer));
         level.index = Some(IvfIndex::build(&points));
         level.points = points;
         level.folded = Some(FoldedProjection::new(
@@ -291,6 +292,12 @@ impl LevelPatches {
     /// Candidate `i` as a patch vector (row b, then column a, then channel).
     pub fn vector(&self, i: u32) -> Vec<f32> {
         let mut v = Vec::with_capacity(self.dims());
+        self.write_vector(i, &mut v);
+        v
+    }
+
+    /// [`Self::vector`], appended to `v`.
+    pub fn write_vector(&self, i: u32, v: &mut Vec<f32>) {
         for b in 0..self.size {
             for a in 0..self.size {
                 v.extend(
@@ -300,7 +307,6 @@ impl LevelPatches {
                 );
             }
         }
-        v
     }
 
     /// Sum of squared differences between `line_a` of candidate `a` and `line_b` of `b`
