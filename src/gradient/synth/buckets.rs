@@ -28,6 +28,8 @@ use rayon::prelude::*;
 
 /// Voxels of a control layer's buckets along z (one control spacing).
 const LAYER: i64 = SPACING as i64;
+// A control point's buckets (LAYER x SPACING^2) are the bits of a u64 in `Tile::fit`.
+const _: () = assert!(LAYER * SPACING as i64 * SPACING as i64 == 64);
 /// Ridge on the gradient unknowns of eq. 2 (in bucket-count x voxel^2 units; a full
 /// neighbourhood has ~100 on the diagonal): keeps under-determined directions (all buckets
 /// coplanar) at zero gradient instead of singular.
@@ -72,6 +74,7 @@ fn indices_in_band(
 /// (the CPU backend's bucket sums; a sample is packed alike: 1, then its channel values, at
 /// most 3). A channel lane could overflow past 257 samples of 255, so a slot whose count reaches
 /// 256 is moved to a list of spilled sums and restarts at zero: the totals are exact.
+#[derive(Clone)]
 pub(super) struct PackedSums {
     clusters: usize,
     acc: Vec<u64>,
@@ -111,9 +114,10 @@ impl PackedSums {
         }
     }
 
-    /// The kernel's result: every (voxel, cluster) count, and each voxel's two dominant
-    /// clusters' counts and sums in 8.8 fixed point.
-    fn finish(self, channels: usize) -> Buckets {
+    /// The kernel's result: each voxel's two dominant clusters' counts and sums in 8.8 fixed
+    /// point, and with `with_counts` every (voxel, cluster) count (only the region separation
+    /// reads those; the packed path has no regions, so synthesis leaves them out).
+    fn finish(self, channels: usize, with_counts: bool) -> Buckets {
         let (clusters, per) = (self.clusters, 1 + channels);
         let voxels = self.acc.len() / clusters;
         let lane = |word: u64, l: usize| ((word >> (16 * l)) & 0xFFFF) as u32;
@@ -126,16 +130,31 @@ impl PackedSums {
             }
         }
         let acc = self.acc;
-        let unpacked =
-            |i: usize, l: usize| lane(acc[i], l) + spilled.get(&i).map_or(0, |lanes| lanes[l]);
-        let counts: Vec<u32> = (0..acc.len()).map(|i| unpacked(i, 0)).collect();
+        let any_spilled = !spilled.is_empty();
+        let unpacked = |i: usize, l: usize| {
+            let spilled_lanes = if any_spilled {
+                spilled.get(&i).map_or(0, |lanes| lanes[l])
+            } else {
+                0
+            };
+            lane(acc[i], l) + spilled_lanes
+        };
+        let counts: Vec<u32> = if with_counts {
+            (0..acc.len()).map(|i| unpacked(i, 0)).collect()
+        } else {
+            Vec::new()
+        };
         let mut sums = vec![0u32; voxels * 2 * per];
+        let mut voxel_counts = vec![0u32; clusters];
         for (v, out) in sums.chunks_exact_mut(2 * per).enumerate() {
-            let ids = dominant(&counts[v * clusters..(v + 1) * clusters]);
+            for (k, count) in voxel_counts.iter_mut().enumerate() {
+                *count = unpacked(v * clusters + k, 0);
+            }
+            let ids = dominant(&voxel_counts);
             for (slot, &id) in ids.iter().enumerate() {
                 if id != u32::MAX {
                     let i = v * clusters + id as usize;
-                    out[slot * per] = counts[i];
+                    out[slot * per] = voxel_counts[id as usize];
                     for l in 1..per {
                         // Raw value sums, scaled to 8.8 fixed point like the kernel's.
                         out[slot * per + l] = unpacked(i, l) << 8;
@@ -473,7 +492,7 @@ impl Tile<'_> {
     fn accumulate_packed(&self, packed: &[(u32, u64)]) -> Buckets {
         let mut sums = PackedSums::new(self.voxels(), self.clusters);
         self.for_each_sample(|v, px| sums.add(v, packed[px]));
-        sums.finish(self.solid.channels)
+        sums.finish(self.solid.channels, self.ctx.patches.cluster_regions().is_some())
     }
 
     fn accumulate(&self, compute: &Compute) -> Result<Buckets> {
@@ -549,13 +568,39 @@ impl Tile<'_> {
         let mut out =
             Vec::with_capacity(self.layers.len() * self.rows.len() * self.cols.len() * c * 4);
         let mut refitted = 0;
+        // The normal matrix of eq. 2 over the buckets that hold samples (row (1, dx, dy, dz)
+        // per bucket; its sums are small integers, exact in any order), ridged and inverted.
+        let offsets: Vec<Vector4<f64>> = (-LAYER / 2..LAYER / 2)
+            .flat_map(|dz| {
+                (-d / 2..d / 2).flat_map(move |dy| {
+                    (-d / 2..d / 2).map(move |dx| Vector4::new(1.0, dx as f64, dy as f64, dz as f64))
+                })
+            })
+            .collect();
+        let inverse = |filled: u64| {
+            let mut ata = Matrix4::<f64>::zeros();
+            for (k, row) in offsets.iter().enumerate() {
+                if filled >> k & 1 == 1 {
+                    ata += row * row.transpose();
+                }
+            }
+            for i in 1..4 {
+                ata[(i, i)] += RIDGE;
+            }
+            ata.try_inverse().unwrap_or_else(Matrix4::zeros)
+        };
+        // Usually (at the finer levels nearly always) every bucket holds samples: that
+        // matrix is inverted once.
+        const ALL: u64 = u64::MAX;
+        let full_inverse = inverse(ALL);
+        let mut atb = vec![Vector4::<f64>::zeros(); c];
         for z in self.layers.clone().map(i64::from) {
             for y in self.rows.clone().map(i64::from) {
                 for x in self.cols.clone().map(i64::from) {
                     let old = solid.offset([x, y, z]);
-                    let mut ata = Matrix4::<f64>::zeros();
-                    let mut atb = vec![Vector4::<f64>::zeros(); c];
-                    let mut samples = 0;
+                    atb.iter_mut().for_each(|b| *b = Vector4::zeros());
+                    let mut filled = 0u64;
+                    let mut k = 0;
                     for dz in -LAYER / 2..LAYER / 2 {
                         for dy in -d / 2..d / 2 {
                             for dx in -d / 2..d / 2 {
@@ -567,12 +612,12 @@ impl Tile<'_> {
                                 let v = ((bz * height + by) * width + bx) as usize;
                                 let (s0, s1) = (v * 2 * per, (v * 2 + 1) * per);
                                 let count = buckets.sums[s0] + buckets.sums[s1];
+                                k += 1;
                                 if count == 0 {
                                     continue;
                                 }
-                                samples += 1;
-                                let row = Vector4::new(1.0, dx as f64, dy as f64, dz as f64);
-                                ata += row * row.transpose();
+                                filled |= 1 << (k - 1);
+                                let row = &offsets[k - 1];
                                 for (ch, b) in atb.iter_mut().enumerate() {
                                     let sum = (buckets.sums[s0 + 1 + ch]
                                         + buckets.sums[s1 + 1 + ch])
@@ -582,15 +627,16 @@ impl Tile<'_> {
                             }
                         }
                     }
-                    if samples == 0 {
+                    if filled == 0 {
                         out.extend_from_slice(&solid.data[old..old + c * 4]);
                         continue;
                     }
                     refitted += 1;
-                    for i in 1..4 {
-                        ata[(i, i)] += RIDGE;
-                    }
-                    let inv = ata.try_inverse().unwrap_or_else(Matrix4::zeros);
+                    let inv = if filled == ALL {
+                        full_inverse
+                    } else {
+                        inverse(filled)
+                    };
                     for b in &atb {
                         let sol = inv * b;
                         out.extend(sol.iter().map(|&v| v as f32));
@@ -753,6 +799,9 @@ mod tests {
             clusters as u32,
             channels as u32,
         );
-        assert_eq!(packed.finish(channels), want);
+        let without_counts = packed.clone().finish(channels, false);
+        assert!(without_counts.counts.is_empty());
+        assert_eq!(without_counts.sums, want.sums);
+        assert_eq!(packed.finish(channels, true), want);
     }
 }
