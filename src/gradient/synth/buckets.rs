@@ -492,7 +492,10 @@ impl Tile<'_> {
     fn accumulate_packed(&self, packed: &[(u32, u64)]) -> Buckets {
         let mut sums = PackedSums::new(self.voxels(), self.clusters);
         self.for_each_sample(|v, px| sums.add(v, packed[px]));
-        sums.finish(self.solid.channels, self.ctx.patches.cluster_regions().is_some())
+        sums.finish(
+            self.solid.channels,
+            self.ctx.patches.cluster_regions().is_some(),
+        )
     }
 
     fn accumulate(&self, compute: &Compute) -> Result<Buckets> {
@@ -573,7 +576,8 @@ impl Tile<'_> {
         let offsets: Vec<Vector4<f64>> = (-LAYER / 2..LAYER / 2)
             .flat_map(|dz| {
                 (-d / 2..d / 2).flat_map(move |dy| {
-                    (-d / 2..d / 2).map(move |dx| Vector4::new(1.0, dx as f64, dy as f64, dz as f64))
+                    (-d / 2..d / 2)
+                        .map(move |dx| Vector4::new(1.0, dx as f64, dy as f64, dz as f64))
                 })
             })
             .collect();

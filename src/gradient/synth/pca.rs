@@ -18,6 +18,39 @@ pub const MAX_SAMPLES: usize = 1500;
 /// Subspace iterations (the spectrum of image patches decays fast: a handful converge).
 const ITERATIONS: usize = 8;
 
+/// `x q`, its two halves of rows on two threads (the fit's products are its whole cost, and
+/// otherwise serial).
+fn product(x: &DMatrix<f64>, q: &DMatrix<f64>) -> DMatrix<f64> {
+    let half = x.nrows() / 2;
+    let (top, bottom) = rayon::join(
+        || x.rows(0, half) * q,
+        || x.rows(half, x.nrows() - half) * q,
+    );
+    DMatrix::from_fn(x.nrows(), q.ncols(), |i, j| {
+        if i < half {
+            top[(i, j)]
+        } else {
+            bottom[(i - half, j)]
+        }
+    })
+}
+
+/// `x^T z` without transposing `x`, its two halves of columns on two threads.
+fn transposed_product(x: &DMatrix<f64>, z: &DMatrix<f64>) -> DMatrix<f64> {
+    let half = x.ncols() / 2;
+    let (top, bottom) = rayon::join(
+        || x.columns(0, half).tr_mul(z),
+        || x.columns(half, x.ncols() - half).tr_mul(z),
+    );
+    DMatrix::from_fn(x.ncols(), z.ncols(), |i, j| {
+        if i < half {
+            top[(i, j)]
+        } else {
+            bottom[(i - half, j)]
+        }
+    })
+}
+
 /// A fitted projection: `mean` and `KEPT` orthonormal rows of `dims` values.
 #[derive(Clone, Debug)]
 pub struct PatchPca {
@@ -55,8 +88,8 @@ impl PatchPca {
             (rng.below(1 << 20) as f64 / (1 << 19) as f64) - 1.0
         });
         for _ in 0..ITERATIONS {
-            let z = &x * &q;
-            q = x.transpose() * z;
+            let z = product(&x, &q);
+            q = transposed_product(&x, &z);
             q = q.qr().q();
         }
         // Rayleigh-Ritz: order (and rotate) the subspace's directions by variance.
