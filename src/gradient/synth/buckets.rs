@@ -293,10 +293,20 @@ impl Tile<'_> {
                 reaches[3 - u - v] = 0;
                 let ranges: [(i64, i64); 3] =
                     std::array::from_fn(|axis| cubes(axis, reaches[axis]));
-                for cz in ranges[2].0..ranges[2].0 + ranges[2].1 {
-                    for cy in ranges[1].0..ranges[1].0 + ranges[1].1 {
-                        for cx in ranges[0].0..ranges[0].0 + ranges[0].1 {
-                            let cube = cube_index([cx, cy, cz]);
+                // Wrapped cube coordinates, once per axis (not a division per cube).
+                let wrapped = |axis: usize| -> Vec<usize> {
+                    let (first, count) = ranges[axis];
+                    (first..first + count)
+                        .map(|c| c.rem_euclid(m) as usize)
+                        .collect()
+                };
+                let (zs, ys, xs) = (wrapped(2), wrapped(1), wrapped(0));
+                let m = m as usize;
+                for &cz in &zs {
+                    for &cy in &ys {
+                        let row = (cz * m + cy) * m;
+                        for &cx in &xs {
+                            let cube = row + cx;
                             for i in cube * nc..(cube + 1) * nc {
                                 let p = self.points[i].map(i64::from);
                                 let candidate = self.matches[i][o];
