@@ -80,6 +80,20 @@ impl Image {
         let i = ((y * self.width + x) * self.channels) as usize;
         &self.pixels[i..i + self.channels as usize]
     }
+    /// The `width` x `height` pixels whose top-left corner is (x, y) (which must fit).
+    pub fn crop(&self, x: u32, y: u32, width: u32, height: u32) -> Image {
+        assert!(
+            x + width <= self.width && y + height <= self.height,
+            "crop inside the image"
+        );
+        let row = (width * self.channels) as usize;
+        let mut out = Image::new(width, height, self.channels);
+        for (r, dst) in out.pixels.chunks_exact_mut(row).enumerate() {
+            let start = ((y + r as u32) * self.width + x) as usize * self.channels as usize;
+            dst.copy_from_slice(&self.pixels[start..start + row]);
+        }
+        out
+    }
     /// The channels of pixel (x, y) after resolving out-of-range coordinates with `border`.
     pub fn at_border(&self, x: i32, y: i32, border: Border) -> &[u8] {
         self.at(

@@ -543,7 +543,6 @@ impl IvfIndex {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::exemplar::Image;
     use crate::gradient::synth::patches::LevelPatches;
     use crate::util::hash::SeededRng;
 
@@ -590,15 +589,7 @@ mod tests {
 
     /// Candidates of a 64x64 crop of the built-in exemplar (3,600 patches of 5x5 samples).
     fn level() -> LevelPatches {
-        let full = crate::exemplar::default_exemplar();
-        let mut img = Image::new(64, 64, full.channels);
-        for y in 0..64 {
-            for x in 0..64 {
-                let p = full.at(x, y).to_vec();
-                let i = ((y * 64 + x) * full.channels) as usize;
-                img.pixels[i..i + p.len()].copy_from_slice(&p);
-            }
-        }
+        let img = crate::exemplar::default_exemplar().crop(0, 0, 64, 64);
         LevelPatches::build(&img, 1, 5, None, None, 3).unwrap()
     }
 

@@ -312,19 +312,13 @@ pub fn match_check_point(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::exemplar::Image;
     use crate::gradient::synth::{LevelSpec, DEFAULT_PROBES};
 
     #[test]
     fn crossbar_matches_come_from_the_consistent_sets() {
-        let full = crate::exemplar::default_exemplar().with_channels(3);
-        let mut img = Image::new(64, 64, 3);
-        for y in 0..64 {
-            for x in 0..64 {
-                let i = ((y * 64 + x) * 3) as usize;
-                img.pixels[i..i + 3].copy_from_slice(full.at(x, y));
-            }
-        }
+        let img = crate::exemplar::default_exemplar()
+            .with_channels(3)
+            .crop(0, 0, 64, 64);
         let spec = LevelSpec {
             spacing: 1,
             size: 9,
