@@ -5,8 +5,10 @@
 //! spacings 4, 2, 1 voxels: the control grid stays fixed, 4.2.3) and per iteration (N_O = 3):
 //! 1. every cube of the control grid gets N_C = 3 seeded random check points; at each, three
 //!    orthogonal N x N slices of the current solid are evaluated with the first-order Taylor
-//!    approximation (4.2.4) and matched to exemplar patches through a PCA projection and a k-d
-//!    tree, with crossbar consistency (4.2.1, [`matching`]);
+//!    approximation (4.2.4) and matched to exemplar patches through a PCA projection and an
+//!    approximate nearest-neighbour index ([`ivf`]), E_y and E_z among the patches most
+//!    crossbar-consistent with E_x (and E_y), sets precomputed per level (4.2.1, [`matching`],
+//!    [`crossbar`]);
 //! 2. the matched patches' samples go into per-voxel buckets, at the finest level with colour
 //!    quantization (two passes: per-cluster counts, then sums of the two dominant clusters);
 //!    buckets live only for one control layer at a time (bucket reuse, O(n^2 N) memory), and

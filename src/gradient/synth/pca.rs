@@ -11,7 +11,7 @@ use crate::util::hash::SeededRng;
 use nalgebra::{DMatrix, SymmetricEigen};
 use rayon::prelude::*;
 
-/// Kept dimensions: the k-d tree's dimensionality.
+/// Kept dimensions: the dimensionality of the nearest-patch search.
 pub const KEPT: usize = 16;
 /// Patches used to fit the basis (evenly strided over all of them).
 pub const MAX_SAMPLES: usize = 1500;
