@@ -20,7 +20,9 @@ use rayon::prelude::*;
 
 /// Lists the approximate search of the lines scans.
 const PROBES: usize = 4;
-/// Preselected candidates per kept one, ranked by the exact line distance.
+/// Preselected candidates per kept one, ranked by the exact line distance. 1: the PCA's nearest
+/// K are kept, only reordered (in the unit test 4 lists and 1x keep 98% of the exact sets;
+/// 8 lists and 2x, 100%, for 40% more building time and eval ratios within noise).
 const PRESELECT: usize = 1;
 
 /// Largest set size (N_1 and N_2 are at most this).
