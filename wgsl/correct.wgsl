@@ -52,35 +52,82 @@ fn stride() -> u32 {
     return 3u + params.pixel_words;
 }
 
-// Voxels outside the stored bricks read as zero (only voxels the plan does not need read them).
-fn triple(p: vec3<i32>) -> vec3<u32> {
+// The stored bricks that a voxel's three 5x5 plane neighbourhoods reach. Along each axis a
+// window of +-2 around local coordinate l (0..3) stays within l's brick and the neighbour brick
+// on l's nearer side, so the seven bricks here (own, one step along x, y, z, and the diagonal
+// steps within each plane) cover all 75 neighbours: seven brick-table reads per voxel instead of
+// one per neighbour. Each holds its slot's first voxel index (slot * 64) or ABSENT. Periodic
+// states wrap whole bricks (periods are multiples of 4), so local coordinates survive the wrap.
+struct Around {
+    local: vec3<i32>,
+    own: u32,
+    x: u32, y: u32, z: u32,
+    yz: u32, zx: u32, xy: u32,
+}
+
+fn brick_base(p: vec3<i32>) -> u32 {
     let s = state_index(p);
-    if (s == ABSENT) {
-        return vec3<u32>(0u);
-    }
-    let i = s * stride();
-    return vec3<u32>(state[i], state[i + 1u], state[i + 2u]);
+    return select(s & ~63u, ABSENT, s == ABSENT);
 }
 
-// Unit vector along volume axis `a`.
-fn axis(a: u32) -> vec3<i32> {
-    return vec3<i32>(select(0, 1, a == 0u), select(0, 1, a == 1u), select(0, 1, a == 2u));
+fn around(pos: vec3<i32>) -> Around {
+    let local = pos & vec3<i32>(3);
+    // Two voxels toward the nearer neighbour brick along each axis.
+    let step = select(vec3<i32>(2), vec3<i32>(-2), local < vec3<i32>(2));
+    let sx = vec3<i32>(step.x, 0, 0);
+    let sy = vec3<i32>(0, step.y, 0);
+    let sz = vec3<i32>(0, 0, step.z);
+    return Around(local, brick_base(pos), brick_base(pos + sx), brick_base(pos + sy),
+        brick_base(pos + sz), brick_base(pos + sy + sz), brick_base(pos + sz + sx),
+        brick_base(pos + sx + sy));
 }
 
-fn project_plane(pos: vec3<i32>, a: u32) -> array<i32, MAX_PCA_OUT> {
-    let eu = axis((a + 1u) % 3u);
-    let ev = axis((a + 2u) % 3u);
-    let mean = select(select(params.mean2, params.mean1, a == 1u), params.mean0, a == 0u);
-    let weights = select(select(params.weights2, params.weights1, a == 1u), params.weights0, a == 0u);
-    var acc: array<i32, MAX_PCA_OUT>;
-    for (var j = 0u; j < MAX_PCA_OUT; j++) {
-        acc[j] = 0;
+// State index of the voxel at (du, dv) (|du|, |dv| <= 2) in plane a of the voxel `r` surrounds
+// (u = axis a + 1, v = axis a + 2, as `axis`); ABSENT when its brick is not stored.
+fn plane_neighbour(r: Around, a: u32, du: i32, dv: i32) -> u32 {
+    let ua = (a + 1u) % 3u;
+    let va = (a + 2u) % 3u;
+    let nu = r.local[ua] + du;
+    let nv = r.local[va] + dv;
+    let cross_u = nu < 0 || nu > 3;
+    let cross_v = nv < 0 || nv > 3;
+    // This plane's bricks: own, along u, along v, along both.
+    let along_u = select(select(r.x, r.z, a == 1u), r.y, a == 0u);
+    let along_v = select(select(r.y, r.x, a == 1u), r.z, a == 0u);
+    let along_uv = select(select(r.xy, r.zx, a == 1u), r.yz, a == 0u);
+    let base = select(select(r.own, along_u, cross_u), select(along_v, along_uv, cross_u), cross_v);
+    var n = r.local;
+    n[ua] = nu & 3;
+    n[va] = nv & 3;
+    return select(base + u32(n.z * 16 + n.y * 4 + n.x), ABSENT, base == ABSENT);
+}
+
+// The projection's weights and biases (host: `projection_uniform` in src/gpu/synth.rs), in a
+// uniform buffer: every invocation reads the same word at the same time, which a uniform read
+// serves from one load where a storage read is a per-lane gather (on lavapipe the weight reads
+// of the storage layout took ~45% of the kernel). Vector g of plane a's bias is v[a * 4 + g]
+// (outputs 4g..4g+3: sum_i mean_i * weight_ji); input i's weights for outputs 4g..4g+3 are
+// v[PROJECTION_BASE + (a * pca_in + i) * groups + g], groups = ceil(PCA_OUT / 4).
+const PROJECTION_BASE: u32 = 12u;
+const PROJECTION_VECTORS: u32 = 4096u;
+struct ProjectionWeights {
+    v: array<vec4<i32>, PROJECTION_VECTORS>,
+}
+@group(0) @binding(5) var<uniform> projection: ProjectionWeights;
+
+// The CPU reference sums (x_i - mean_i) * w_ji; here sum_i x_i * w_ji - bias_j, the same value
+// (it fits an i32, analysis::pca::choose_shift) reached through wrapping partial sums.
+fn project_plane(r: Around, a: u32) -> array<i32, MAX_PCA_OUT> {
+    let groups = (PCA_OUT + 3u) / 4u;
+    var acc: array<vec4<i32>, 4>;
+    for (var g = 0u; g < 4u; g++) {
+        acc[g] = -projection.v[a * 4u + g];
     }
-    var i = 0u;
+    var row = PROJECTION_BASE + a * params.pca_in * groups;
     for (var dv = -2; dv <= 2; dv++) {
         for (var du = -2; du <= 2; du++) {
-            // One brick lookup per neighbour; absent voxels read as zero.
-            let s = state_index(pos + du * eu + dv * ev);
+            // Absent voxels read as zero.
+            let s = plane_neighbour(r, a, du, dv);
             // The neighbour's first value word, read once for its (up to 4) channels.
             var word = 0u;
             if (s != ABSENT) {
@@ -93,11 +140,11 @@ fn project_plane(pos: vec3<i32>, a: u32) -> array<i32, MAX_PCA_OUT> {
                 } else if (ch < 4u) {
                     byte = (word >> (ch * 8u)) & 0xFFu;
                 }
-                let centred = i32(byte) - bitcast<i32>(level[mean + i]);
-                for (var j = 0u; j < PCA_OUT; j++) {
-                    acc[j] += centred * bitcast<i32>(level[weights + j * params.pca_in + i]);
+                let x = i32(byte);
+                for (var g = 0u; g < groups; g++) {
+                    acc[g] += x * projection.v[row + g];
                 }
-                i++;
+                row += groups;
             }
         }
     }
@@ -107,7 +154,7 @@ fn project_plane(pos: vec3<i32>, a: u32) -> array<i32, MAX_PCA_OUT> {
         q[j] = 0;
     }
     for (var j = 0u; j < PCA_OUT; j++) {
-        q[j] = clamp(((acc[j] + round) >> params.shift) + 128, 0, 255);
+        q[j] = clamp(((acc[j / 4u][j % 4u] + round) >> params.shift) + 128, 0, 255);
     }
     return q;
 }
@@ -116,10 +163,16 @@ fn distance(q: ptr<function, array<i32, MAX_PCA_OUT>>, a: u32, c: u32) -> u32 {
     let proj = select(select(params.proj2, params.proj1, a == 1u), params.proj0, a == 0u);
     let base = proj + (u32(coord_y(c)) * params.ex_width + u32(coord_x(c))) * params.proj_words;
     var d = 0u;
-    for (var j = 0u; j < PCA_OUT; j++) {
-        let byte = (level[base + j / 4u] >> ((j % 4u) * 8u)) & 0xFFu;
-        let diff = (*q)[j] - i32(byte);
-        d += u32(diff * diff);
+    // One read per word of 4 projected bytes.
+    for (var w = 0u; w < (PCA_OUT + 3u) / 4u; w++) {
+        let word = level[base + w];
+        for (var b = 0u; b < 4u; b++) {
+            let j = w * 4u + b;
+            if (j < PCA_OUT) {
+                let diff = (*q)[j] - i32((word >> (b * 8u)) & 0xFFu);
+                d += u32(diff * diff);
+            }
+        }
     }
     return d;
 }
@@ -138,15 +191,19 @@ fn factor(t: vec3<u32>) -> u32 {
     return 16u + penalty(0u, t.x) + penalty(1u, t.y) + penalty(2u, t.z);
 }
 
-fn best_2d(pos: vec3<i32>, a: u32, q: ptr<function, array<i32, MAX_PCA_OUT>>) -> u32 {
-    let eu = axis((a + 1u) % 3u);
-    let ev = axis((a + 2u) % 3u);
+fn best_2d(r: Around, a: u32, q: ptr<function, array<i32, MAX_PCA_OUT>>) -> u32 {
     let cand2d = select(select(params.cand2d2, params.cand2d1, a == 1u), params.cand2d0, a == 0u);
     var best = 0u;
     var best_d = 0xFFFFFFFFu;
     for (var dv = -1; dv <= 1; dv++) {
         for (var du = -1; du <= 1; du++) {
-            let c = triple(pos + du * eu + dv * ev)[a];
+            // Coordinate a of the neighbour's triple (0 when its brick is not stored: only
+            // voxels the plan does not need read those).
+            let s = plane_neighbour(r, a, du, dv);
+            var c = 0u;
+            if (s != ABSENT) {
+                c = state[s * stride() + a];
+            }
             let sx = coord_x(c) - du;
             let sy = coord_y(c) - dv;
             if (params.border != 0u && (sx < 0 || sy < 0 || sx >= i32(params.ex_width) || sy >= i32(params.ex_height))) {
@@ -195,13 +252,16 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let cls = vec3<u32>(params.class_x, params.class_y, params.class_z);
     let pos = brick_at(params.list_offset, tid / 8u) * 4
         + vec3<i32>(cls + 2u * vec3<u32>(k & 1u, (k >> 1u) & 1u, k >> 2u));
-    var q0 = project_plane(pos, 0u);
-    var q1 = project_plane(pos, 1u);
-    var q2 = project_plane(pos, 2u);
-    let best2d = vec3<u32>(best_2d(pos, 0u, &q0), best_2d(pos, 1u, &q1), best_2d(pos, 2u, &q2));
+    let r = around(pos);
+    var q0 = project_plane(r, 0u);
+    var q1 = project_plane(r, 1u);
+    var q2 = project_plane(r, 2u);
+    let best2d = vec3<u32>(best_2d(r, 0u, &q0), best_2d(r, 1u, &q1), best_2d(r, 2u, &q2));
     var best = best2d;
+    let own = r.own + u32(r.local.z * 16 + r.local.y * 4 + r.local.x); // active bricks are stored
     if (params.mode == 0u) {
-        best = triple(pos);
+        let o = own * stride();
+        best = vec3<u32>(state[o], state[o + 1u], state[o + 2u]);
         var best_d = (distance(&q0, 0u, best.x) + distance(&q1, 1u, best.y) + distance(&q2, 2u, best.z)) * factor(best);
         for (var a = 0u; a < 3u; a++) {
             var owner = a;
@@ -247,7 +307,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             }
         }
     }
-    let i = state_index(pos) * stride(); // active bricks are stored
+    let i = own * stride();
     next_state[i] = best.x;
     next_state[i + 1u] = best.y;
     next_state[i + 2u] = best.z;

@@ -19,7 +19,44 @@ pub struct GpuState {
 pub struct GpuSynth {
     ctx: Arc<GpuContext>,
     levels: Vec<wgpu::Buffer>,
+    /// Per level, the `correct` kernel's projection weights ([`projection_uniform`]).
+    projections: Vec<wgpu::Buffer>,
     table: wgpu::Buffer,
+}
+
+/// Vectors (`vec4<i32>`) of `ProjectionWeights` in wgsl/correct.wgsl, and where its weights
+/// start (after 4 bias vectors per plane).
+const PROJECTION_VECTORS: usize = 4096;
+const PROJECTION_BASE: usize = 12;
+
+/// Level `p`'s PCA projection laid out as wgsl/correct.wgsl's `ProjectionWeights` reads it: per
+/// plane a, the biases b_j = sum_i mean_i * w_ji (wrapping, as the kernel's partial sums) in 4
+/// vectors at 4a, then from PROJECTION_BASE, per plane and input i, the weights of outputs
+/// 4g..4g+3 in ceil(pca_out / 4) vectors. None when the level's weights do not fit.
+fn projection_uniform(p: &LevelPack) -> Option<Vec<i32>> {
+    let (inputs, outputs) = (p.pca_in as usize, p.pca_out as usize);
+    let groups = outputs.div_ceil(4);
+    if outputs > 16 || PROJECTION_BASE + 3 * inputs * groups > PROJECTION_VECTORS {
+        return None;
+    }
+    let word = |at: u32| p.words[at as usize] as i32;
+    let mut v = vec![0i32; PROJECTION_VECTORS * 4];
+    for a in 0..3 {
+        let (mean, weights) = (p.offsets.mean[a], p.offsets.weights[a]);
+        let weight = |j: usize, i: usize| word(weights + (j * inputs + i) as u32);
+        for j in 0..outputs {
+            v[a * 16 + j] = (0..inputs).fold(0i32, |b, i| {
+                b.wrapping_add(word(mean + i as u32).wrapping_mul(weight(j, i)))
+            });
+        }
+        for i in 0..inputs {
+            let row = (PROJECTION_BASE + (a * inputs + i) * groups) * 4;
+            for j in 0..outputs {
+                v[row + j] = weight(j, i);
+            }
+        }
+    }
+    Some(v)
 }
 
 fn entries<'a>(buffers: &[(u32, &'a wgpu::Buffer)]) -> Vec<wgpu::BindGroupEntry<'a>> {
@@ -53,6 +90,36 @@ impl GpuSynth {
                 ));
             }
         }
+        let uniform_bytes = (PROJECTION_VECTORS * 16) as u64;
+        if (ctx.limits.max_uniform_buffer_binding_size as u64) < uniform_bytes {
+            return Err(Error::Gpu(format!(
+                "the adapter's uniform bindings hold {} bytes; the correction kernel needs \
+                 {uniform_bytes}; use --backend cpu",
+                ctx.limits.max_uniform_buffer_binding_size
+            )));
+        }
+        let mut projections = Vec::with_capacity(packs.len());
+        for p in packs {
+            let words = projection_uniform(p).ok_or_else(|| {
+                Error::invalid(
+                    "exemplar",
+                    format!(
+                        "its PCA ({} inputs, {} outputs) is too large for the GPU correction \
+                         kernel's weights; use --backend cpu",
+                        p.pca_in, p.pca_out
+                    ),
+                )
+            })?;
+            use wgpu::util::DeviceExt;
+            projections.push(
+                ctx.device
+                    .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                        label: Some("projection weights"),
+                        contents: bytemuck::cast_slice(&words),
+                        usage: wgpu::BufferUsages::UNIFORM,
+                    }),
+            );
+        }
         for k in ["init", "upsample", "colorize"] {
             ctx.pipeline(k)?;
         }
@@ -61,7 +128,12 @@ impl GpuSynth {
             .map(|p| ctx.storage_buffer("level data", bytemuck::cast_slice(&p.words)))
             .collect();
         let table = ctx.storage_buffer("jitter table", bytemuck::cast_slice(table));
-        Ok(GpuSynth { ctx, levels, table })
+        Ok(GpuSynth {
+            ctx,
+            levels,
+            projections,
+            table,
+        })
     }
 
     pub fn max_state_bytes(&self) -> u64 {
@@ -241,6 +313,7 @@ impl GpuSynth {
                 (2, &s.current),
                 (3, scratch),
                 (4, index),
+                (5, &self.projections[level]),
             ],
             groups(p.list_count as u64 * 8),
             Some((scratch, &s.current, bytes)),
