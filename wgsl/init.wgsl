@@ -41,51 +41,77 @@ fn cell_hash(cell: vec3<i32>) -> u32 {
     return h;
 }
 
+// The Gaussians of the 5^3 cells around this workgroup's cell (its brick: bricks and jitter
+// cells are both 4^3 and aligned), computed once per workgroup instead of once per voxel (the
+// CPU reference likewise shares them per cell: src/lazy/jitter.rs, cell_gaussians). Per cell
+// (x fastest from the corner cell - REACH): centre (1/256 voxels), then shape | direction << 2.
+const CELLS_AROUND: u32 = 125u;
+var<workgroup> gaussians: array<vec4<i32>, CELLS_AROUND>;
+
+fn gaussian_of(cell: vec3<i32>) -> vec4<i32> {
+    let h = cell_hash(cell);
+    let shape = hash32(h ^ 4u);
+    return vec4<i32>(
+        cell.x * CELL * 256 + i32(hash32(h ^ 1u) & 1023u),
+        cell.y * CELL * 256 + i32(hash32(h ^ 2u) & 1023u),
+        cell.z * CELL * 256 + i32(hash32(h ^ 3u) & 1023u),
+        i32((shape & 3u) | (((shape >> 2u) & 63u) << 2u)),
+    );
+}
+
+// floor(r2 / sig2) for 0 <= r2 < 2^24 and sig2 > 0, through f32 (an integer division runs lane by
+// lane on SIMD drivers such as lavapipe): both operands convert exactly and the quotient's error
+// is well under 1, so one step either way makes it exact.
+fn floor_div(r2: i32, sig2: i32) -> i32 {
+    var q = i32(f32(r2) / f32(sig2));
+    q -= select(0, 1, q * sig2 > r2);
+    q += select(0, 1, (q + 1) * sig2 <= r2);
+    return q;
+}
+
 fn jitter_offset(p: vec3<i32>) -> vec3<i32> {
     var amps = array<i32, 4>(params.amp0, params.amp1, params.amp2, params.amp3);
     var sig2 = array<i32, 4>(params.sig0, params.sig1, params.sig2, params.sig3);
     let pos = p * 256 + vec3<i32>(128);
-    let cell = p >> vec3<u32>(2u); // floor(p / CELL), CELL = 4
     var disp = vec3<i32>(0);
-    for (var cz = cell.z - REACH; cz <= cell.z + REACH; cz++) {
-        for (var cy = cell.y - REACH; cy <= cell.y + REACH; cy++) {
-            for (var cx = cell.x - REACH; cx <= cell.x + REACH; cx++) {
-                let h = cell_hash(vec3<i32>(cx, cy, cz));
-                let centre = vec3<i32>(
-                    cx * CELL * 256 + i32(hash32(h ^ 1u) & 1023u),
-                    cy * CELL * 256 + i32(hash32(h ^ 2u) & 1023u),
-                    cz * CELL * 256 + i32(hash32(h ^ 3u) & 1023u),
-                );
-                let shape = hash32(h ^ 4u);
-                let s = shape & 3u;
-                let dir = (shape >> 2u) & 63u;
-                let d = pos - centre;
-                let r2 = d.x * d.x + d.y * d.y + d.z * d.z;
-                let q = r2 / sig2[s];
-                if (q < WEIGHT_ENTRIES) {
-                    let t = (amps[s] * i32(table[q])) >> 16u;
-                    let base = u32(WEIGHT_ENTRIES) + dir * 3u;
-                    disp += t * vec3<i32>(
-                        bitcast<i32>(table[base]),
-                        bitcast<i32>(table[base + 1u]),
-                        bitcast<i32>(table[base + 2u]),
-                    );
-                }
-            }
+    for (var g = 0u; g < CELLS_AROUND; g++) {
+        let gauss = gaussians[g];
+        let s = u32(gauss.w) & 3u;
+        let dir = u32(gauss.w) >> 2u;
+        let d = pos - gauss.xyz;
+        let r2 = d.x * d.x + d.y * d.y + d.z * d.z;
+        // As the reference: only within the weight table's reach (r2 < 144 sig2 < 2^24).
+        if (r2 < WEIGHT_ENTRIES * sig2[s]) {
+            let q = floor_div(r2, sig2[s]);
+            let t = (amps[s] * i32(table[q])) >> 16u;
+            let base = u32(WEIGHT_ENTRIES) + dir * 3u;
+            disp += t * vec3<i32>(
+                bitcast<i32>(table[base]),
+                bitcast<i32>(table[base + 1u]),
+                bitcast<i32>(table[base + 2u]),
+            );
         }
     }
     return (disp + vec3<i32>(32768)) >> vec3<u32>(16u);
 }
 
 @compute @workgroup_size(64)
-fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let tid = gid.x + gid.y * params.grid_stride;
-    if (tid >= params.list_count * 64u) {
+fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) li: u32) {
+    // One workgroup per brick (uniform: the Gaussians' barrier needs the whole workgroup).
+    let brick = wid.x + wid.y * (params.grid_stride / 64u);
+    if (brick >= params.list_count) {
         return;
     }
-    let pos = voxel_of(brick_at(params.list_offset, tid / 64u), tid % 64u);
+    let tid = brick * 64u + li;
+    let cell = brick_at(params.list_offset, brick);
+    let pos = voxel_of(cell, li);
     var warp = vec3<i32>(0);
     if (params.jitter_on != 0u) {
+        for (var g = li; g < CELLS_AROUND; g += 64u) {
+            let o = vec3<i32>(vec3<u32>(g % 5u, (g / 5u) % 5u, g / 25u)) - vec3<i32>(REACH);
+            gaussians[g] = gaussian_of(cell + o);
+        }
+        workgroupBarrier();
         warp = jitter_offset(pos);
     }
     var q = pos + warp + vec3<i32>(i32(params.tile_x), i32(params.tile_y), i32(params.tile_z));
