@@ -153,6 +153,33 @@ fn synthesis_kernels_bit_exact_on_gpu_and_cpu() {
             s.synthesize(b, &|_, _| {}).unwrap()
         });
     }
+    // Odd exemplar sizes (27, 14, 7, 4: children one pixel wider than twice their parent's
+    // coordinates reach, so upsampling resolves past the edge) on both borders.
+    for border in [Border::Wrap, Border::Mirror] {
+        let cells = fixture(include_bytes!("../tests/fixtures/cells32.png"));
+        let input = AnalysisInput {
+            exemplars: vec![cells.crop(2, 3, 27, 27)],
+            masks: vec![],
+            border,
+            names: vec!["odd-sized fixture".into()],
+        };
+        let a = analysis::analyze(
+            &input,
+            &AnalysisParams::default(),
+            &Compute::Cpu,
+            &|_, _| {},
+        )
+        .unwrap();
+        assert_eq!(a.exemplar(0).levels[0].image.width, 27);
+        let params = SynthParams {
+            seed: 11,
+            ..Default::default()
+        };
+        let b = Box3::new([-4, 6, -2], [8, 14, 9]);
+        same_on_both(&format!("odd size, {border:?}"), &a, &params, &gpu, |s| {
+            s.synthesize(b, &|_, _| {}).unwrap()
+        });
+    }
     // A tileable solid (reads wrap around each level's period; periodic jitter and tiling).
     let a = analysis(false, Border::Wrap);
     let params = SynthParams {

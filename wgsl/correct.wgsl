@@ -191,19 +191,6 @@ fn factor(t: vec3<u32>) -> u32 {
     return 16u + penalty(0u, t.x) + penalty(1u, t.y) + penalty(2u, t.z);
 }
 
-// `resolve` for a coordinate at most one pixel outside the exemplar (a pixel's coordinate minus a
-// neighbour offset of -1, 0 or 1), without `resolve`'s general fallback: SIMD drivers such as
-// lavapipe execute both sides of a branch whose lanes disagree, and that fallback's integer
-// divisions run lane by lane.
-fn resolve_step(c: i32, len: u32) -> u32 {
-    let n = i32(len);
-    if (params.border == 0u) {
-        return u32(select(select(c, c - n, c >= n), c + n, c < 0));
-    }
-    // Mirror (reflect-101); a 1-pixel exemplar resolves everything to 0.
-    return u32(clamp(select(select(c, 2 * (n - 1) - c, c >= n), -c, c < 0), 0, n - 1));
-}
-
 fn best_2d(r: Around, a: u32, q: ptr<function, array<i32, MAX_PCA_OUT>>) -> u32 {
     let cand2d = select(select(params.cand2d2, params.cand2d1, a == 1u), params.cand2d0, a == 0u);
     var best = 0u;
@@ -222,7 +209,7 @@ fn best_2d(r: Around, a: u32, q: ptr<function, array<i32, MAX_PCA_OUT>>) -> u32 
             if (params.border != 0u && (sx < 0 || sy < 0 || sx >= i32(params.ex_width) || sy >= i32(params.ex_height))) {
                 continue;
             }
-            let src = pack_coord(resolve_step(sx, params.ex_width), resolve_step(sy, params.ex_height));
+            let src = pack_coord(resolve_near(sx, params.ex_width, params.border), resolve_near(sy, params.ex_height, params.border));
             let list = cand2d + (u32(coord_y(src)) * params.ex_width + u32(coord_x(src))) * params.k2d;
             for (var j = 0u; j < K2D; j++) {
                 let cand = level[list + j];

@@ -39,12 +39,10 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         if (pslot != ABSENT) {
             pc = parent[pslot * stride + a];
         }
-        t[a] = pack_resolved(
-            2 * coord_x(pc) + offsets[a].x,
-            2 * coord_y(pc) + offsets[a].y,
-            params.ex_width,
-            params.ex_height,
-            params.border,
+        // Within [0, 2 * parent size), at most one pixel past the child level's edge.
+        t[a] = pack_coord(
+            resolve_near(2 * coord_x(pc) + offsets[a].x, params.ex_width, params.border),
+            resolve_near(2 * coord_y(pc) + offsets[a].y, params.ex_height, params.border),
         );
         child[ci + a] = t[a];
     }

@@ -41,6 +41,19 @@ fn resolve(c: i32, len: u32, border: u32) -> u32 {
     return u32(m);
 }
 
+// `resolve` for a coordinate at most one pixel outside the exemplar (c in [-1, len]), without
+// `resolve`'s general fallback: SIMD drivers such as lavapipe execute both sides of a branch
+// even when no lane takes one, so that fallback's integer divisions ran lane by lane for every
+// call (~8% of the correction kernel).
+fn resolve_near(c: i32, len: u32, border: u32) -> u32 {
+    let n = i32(len);
+    if (border == 0u) {
+        return u32(select(select(c, c - n, c >= n), c + n, c < 0));
+    }
+    // Mirror (reflect-101); a 1-pixel exemplar resolves everything to 0.
+    return u32(clamp(select(select(c, 2 * (n - 1) - c, c >= n), -c, c < 0), 0, n - 1));
+}
+
 fn pack_coord(x: u32, y: u32) -> u32 {
     return x | (y << 16u);
 }
