@@ -91,7 +91,7 @@ impl GpuSynth {
             }
         }
         let uniform_bytes = (PROJECTION_VECTORS * 16) as u64;
-        if (ctx.limits.max_uniform_buffer_binding_size as u64) < uniform_bytes {
+        if ctx.limits.max_uniform_buffer_binding_size < uniform_bytes {
             return Err(Error::Gpu(format!(
                 "the adapter's uniform bindings hold {} bytes; the correction kernel needs \
                  {uniform_bytes}; use --backend cpu",
@@ -359,5 +359,72 @@ impl GpuSynth {
     /// Wait until all submitted kernels finished (for per-kernel timing).
     pub fn finish(&self) -> Result<()> {
         self.ctx.wait_idle()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::lazy::pack::LevelOffsets;
+
+    /// The kernel's sum_i x_i w_ji - b_j over the uniform's layout equals the reference's
+    /// sum_i (x_i - mean_i) w_ji for every plane and output.
+    #[test]
+    fn projection_uniform_reproduces_the_centred_projection() {
+        let (inputs, outputs) = (100usize, 12usize);
+        let mut words = Vec::new();
+        let mut offsets = LevelOffsets::default();
+        let mut rng = 12345u32;
+        let mut next = move || {
+            rng = crate::util::hash::hash32(rng);
+            rng
+        };
+        for a in 0..3 {
+            offsets.mean[a] = words.len() as u32;
+            words.extend((0..inputs).map(|_| next() % 256));
+            offsets.weights[a] = words.len() as u32;
+            words.extend((0..inputs * outputs).map(|_| ((next() % 65536) as i32 - 32768) as u32));
+        }
+        let pack = LevelPack {
+            words,
+            offsets,
+            width: 1,
+            height: 1,
+            channels: 4,
+            color_channels: 3,
+            pixel_words: 1,
+            pca_in: inputs as u32,
+            pca_out: outputs as u32,
+            shift: 16,
+            proj_words: 3,
+            k2d: 2,
+            k3d_stride: 4,
+            shared: false,
+        };
+        let v = projection_uniform(&pack).unwrap();
+        let groups = outputs.div_ceil(4);
+        let x: Vec<i32> = (0..inputs).map(|_| (next() % 256) as i32).collect();
+        for a in 0..3 {
+            let word = |at: u32| pack.words[at as usize] as i32;
+            for j in 0..outputs {
+                let reference: i64 = (0..inputs)
+                    .map(|i| {
+                        let w = word(pack.offsets.weights[a] + (j * inputs + i) as u32);
+                        (x[i] - word(pack.offsets.mean[a] + i as u32)) as i64 * w as i64
+                    })
+                    .sum();
+                let kernel = (0..inputs).fold(v[a * 16 + j].wrapping_neg(), |acc, i| {
+                    let w = v[(PROJECTION_BASE + (a * inputs + i) * groups) * 4 + j];
+                    acc.wrapping_add(x[i].wrapping_mul(w))
+                });
+                assert_eq!(kernel as i64, reference, "plane {a} output {j}");
+            }
+        }
+        // Too many inputs for the uniform: refused, not truncated.
+        let big = LevelPack {
+            pca_in: 500,
+            ..pack
+        };
+        assert!(projection_uniform(&big).is_none());
     }
 }
