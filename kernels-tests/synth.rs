@@ -21,22 +21,7 @@ fn analysis(three: bool, border: Border) -> Analysis {
     } else {
         vec![cells]
     };
-    let names = (0..exemplars.len())
-        .map(|i| format!("fixture {i}"))
-        .collect();
-    let input = AnalysisInput {
-        exemplars,
-        masks: vec![],
-        border,
-        names,
-    };
-    let a = analysis::analyze(
-        &input,
-        &AnalysisParams::default(),
-        &Compute::Cpu,
-        &|_, _| {},
-    )
-    .unwrap();
+    let a = analyze(exemplars, vec![], border);
     // The default analysis balances usage: the kernels then scale distances by penalties.
     assert!(
         a.exemplars
@@ -45,6 +30,30 @@ fn analysis(three: bool, border: Border) -> Analysis {
         "the kernels must be tested with usage penalties"
     );
     a
+}
+
+/// The default analysis (on the CPU) of `exemplars` with feature masks `masks`.
+fn analyze(
+    exemplars: Vec<solidsynth::exemplar::Image>,
+    masks: Vec<solidsynth::exemplar::Image>,
+    border: Border,
+) -> Analysis {
+    let names = (0..exemplars.len())
+        .map(|i| format!("fixture {i}"))
+        .collect();
+    let input = AnalysisInput {
+        exemplars,
+        masks,
+        border,
+        names,
+    };
+    analysis::analyze(
+        &input,
+        &AnalysisParams::default(),
+        &Compute::Cpu,
+        &|_, _| {},
+    )
+    .unwrap()
 }
 
 /// Whole box syntheses run every kernel in sequence (init, upsample, 8 sub-passes x passes per
@@ -127,19 +136,7 @@ fn synthesis_kernels_bit_exact_on_gpu_and_cpu() {
         for (i, m) in mask.pixels.iter_mut().enumerate() {
             *m = if (i % 32) / 8 % 2 == 0 { 255 } else { 0 };
         }
-        let input = AnalysisInput {
-            exemplars: vec![exemplar],
-            masks: vec![mask],
-            border: Border::Wrap,
-            names: vec!["fixture with a feature".into()],
-        };
-        let a = analysis::analyze(
-            &input,
-            &AnalysisParams::default(),
-            &Compute::Cpu,
-            &|_, _| {},
-        )
-        .unwrap();
+        let a = analyze(vec![exemplar], vec![mask], Border::Wrap);
         assert_eq!(
             a.exemplar(0).levels[0].image.channels,
             if rgba { 5 } else { 4 }
@@ -157,19 +154,7 @@ fn synthesis_kernels_bit_exact_on_gpu_and_cpu() {
     // coordinates reach, so upsampling resolves past the edge) on both borders.
     for border in [Border::Wrap, Border::Mirror] {
         let cells = fixture(include_bytes!("../tests/fixtures/cells32.png"));
-        let input = AnalysisInput {
-            exemplars: vec![cells.crop(2, 3, 27, 27)],
-            masks: vec![],
-            border,
-            names: vec!["odd-sized fixture".into()],
-        };
-        let a = analysis::analyze(
-            &input,
-            &AnalysisParams::default(),
-            &Compute::Cpu,
-            &|_, _| {},
-        )
-        .unwrap();
+        let a = analyze(vec![cells.crop(2, 3, 27, 27)], vec![], border);
         assert_eq!(a.exemplar(0).levels[0].image.width, 27);
         let params = SynthParams {
             seed: 11,
