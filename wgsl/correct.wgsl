@@ -34,7 +34,10 @@ override K2D: u32 = 2u;
 @group(0) @binding(0) var<uniform> params: CorrectParams;
 // (binding 1: level data, declared by the prelude)
 @group(0) @binding(2) var<storage, read> state: array<u32>;
-@group(0) @binding(3) var<storage, read_write> next_state: array<u32>;
+// The sub-pass's results: one record (stride words, as a state voxel) per listed class voxel,
+// in list order (`tid`), which `scatter` then writes into the state. Records of voxels the plan
+// does not need stay unwritten.
+@group(0) @binding(3) var<storage, read_write> updates: array<u32>;
 // (binding 4: the level's brick index, declared by the prelude)
 
 // Index of voxel p in the state (ABSENT when its brick is not stored).
@@ -258,9 +261,9 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     var q2 = project_plane(r, 2u);
     let best2d = vec3<u32>(best_2d(r, 0u, &q0), best_2d(r, 1u, &q1), best_2d(r, 2u, &q2));
     var best = best2d;
-    let own = r.own + u32(r.local.z * 16 + r.local.y * 4 + r.local.x); // active bricks are stored
     if (params.mode == 0u) {
-        let o = own * stride();
+        // The voxel's current triple (active bricks are stored).
+        let o = (r.own + u32(r.local.z * 16 + r.local.y * 4 + r.local.x)) * stride();
         best = vec3<u32>(state[o], state[o + 1u], state[o + 2u]);
         var best_d = (distance(&q0, 0u, best.x) + distance(&q1, 1u, best.y) + distance(&q2, 2u, best.z)) * factor(best);
         for (var a = 0u; a < 3u; a++) {
@@ -307,12 +310,12 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             }
         }
     }
-    let i = own * stride();
-    next_state[i] = best.x;
-    next_state[i + 1u] = best.y;
-    next_state[i + 2u] = best.z;
+    let i = tid * stride();
+    updates[i] = best.x;
+    updates[i + 1u] = best.y;
+    updates[i + 2u] = best.z;
     let pixels = vec3<u32>(params.pixels0, params.pixels1, params.pixels2);
     for (var wd = 0u; wd < params.pixel_words; wd++) {
-        next_state[i + 3u + wd] = value_word(best, wd, pixels, params.ex_width, params.pixel_words, params.channels);
+        updates[i + 3u + wd] = value_word(best, wd, pixels, params.ex_width, params.pixel_words, params.channels);
     }
 }

@@ -1,18 +1,23 @@
-//! Dispatch of the synthesis kernels `init`, `upsample`, `correct`, `colorize` (CPU references in
-//! `src/cpu/`). Level data stays resident; a level's state is two buffers: `correct` reads one
-//! and writes the other (only its class's voxels), which is then copied back, so no invocation
-//! reads a value written in the same sub-pass. Work is submitted without waiting; the only wait
-//! is the bounded read-back of the colours.
+//! Dispatch of the synthesis kernels `init`, `upsample`, `correct`, `scatter`, `colorize` (CPU
+//! references in `src/cpu/`). Level data stays resident; a level's state is one buffer plus the
+//! corrections' records: `correct` reads the state and writes records, `scatter` writes them
+//! back, so no invocation reads a value written in the same sub-pass. Work is submitted without
+//! waiting; the only wait is the bounded read-back of the colours.
 
 use super::context::GpuContext;
 use crate::error::{Error, Result};
-use crate::kernel_types::{ColorizeParams, CorrectParams, InitParams, UpsampleParams};
+use crate::kernel_types::{
+    ColorizeParams, CorrectParams, InitParams, ScatterParams, UpsampleParams,
+};
 use crate::lazy::pack::LevelPack;
 use std::sync::Arc;
 
 pub struct GpuState {
     current: wgpu::Buffer,
-    scratch: Option<wgpu::Buffer>,
+    /// The corrections' records (`wgsl/correct.wgsl`, then `scatter`), grown to the largest
+    /// sub-pass of the state so far: at most an eighth of the state.
+    records: Option<wgpu::Buffer>,
+    record_words: u64,
     words: u64,
 }
 
@@ -146,14 +151,12 @@ impl GpuSynth {
         self.ctx.device_buffer("triples", words as usize)
     }
 
-    #[allow(clippy::type_complexity)]
     fn run(
         &self,
         kernel: &'static str,
         constants: &[(&str, f64)],
         buffers: &[(u32, &wgpu::Buffer)],
         grid: (u32, u32, u32),
-        then: Option<(&wgpu::Buffer, &wgpu::Buffer, u64)>,
     ) -> Result<()> {
         let pipeline = self.ctx.pipeline_with(kernel, constants)?;
         self.ctx.checked(kernel, || {
@@ -177,9 +180,6 @@ impl GpuSynth {
                 pass.set_bind_group(0, &bind, &[]);
                 pass.dispatch_workgroups(grid.0, grid.1, grid.2);
             }
-            if let Some((from, to, bytes)) = then {
-                encoder.copy_buffer_to_buffer(from, 0, to, 0, Some(bytes));
-            }
             self.ctx.queue.submit(Some(encoder.finish()));
             Ok(())
         })
@@ -201,7 +201,8 @@ impl GpuSynth {
             });
         GpuState {
             current,
-            scratch: None,
+            records: None,
+            record_words: 0,
             words: words.len() as u64,
         }
     }
@@ -236,10 +237,11 @@ impl GpuSynth {
             (3, &out),
             (4, index),
         ];
-        self.run(kernel, &[], &buffers, groups(voxels), None)?;
+        self.run(kernel, &[], &buffers, groups(voxels))?;
         Ok(GpuState {
             current: out,
-            scratch: None,
+            records: None,
+            record_words: 0,
             words,
         })
     }
@@ -275,6 +277,9 @@ impl GpuSynth {
         )
     }
 
+    /// One correction sub-pass: `correct` reads the state and writes one record per listed
+    /// class voxel, then `scatter` writes the needed records into the state (queue order keeps
+    /// the two apart), so no invocation reads a value written in the same sub-pass.
     pub fn correct(
         &mut self,
         level: usize,
@@ -282,23 +287,16 @@ impl GpuSynth {
         s: &mut GpuState,
         index: &wgpu::Buffer,
     ) -> Result<()> {
-        let bytes = s.words * 4;
-        if s.scratch.is_none() {
-            let scratch = self.state_buffer(s.words);
-            self.ctx.checked("copy", || {
-                let mut encoder =
-                    self.ctx
-                        .device
-                        .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                            label: Some("copy"),
-                        });
-                encoder.copy_buffer_to_buffer(&s.current, 0, &scratch, 0, Some(bytes));
-                self.ctx.queue.submit(Some(encoder.finish()));
-                Ok(())
-            })?;
-            s.scratch = Some(scratch);
+        let threads = p.list_count as u64 * 8;
+        let record_words = (threads * (3 + p.pixel_words as u64)).max(1);
+        if s.record_words < record_words {
+            s.records = Some(
+                self.ctx
+                    .device_buffer("correction records", record_words as usize),
+            );
+            s.record_words = record_words;
         }
-        let scratch = s.scratch.as_ref().unwrap();
+        let records = s.records.as_ref().unwrap();
         let uniform = self.ctx.uniform_buffer("correct params", p);
         self.run(
             "correct",
@@ -311,13 +309,44 @@ impl GpuSynth {
                 (0, &uniform),
                 (1, &self.levels[level]),
                 (2, &s.current),
-                (3, scratch),
+                (3, records),
                 (4, index),
                 (5, &self.projections[level]),
             ],
-            groups(p.list_count as u64 * 8),
-            Some((scratch, &s.current, bytes)),
+            groups(threads),
+        )?;
+        let uniform = self
+            .ctx
+            .uniform_buffer("scatter params", &ScatterParams::of(p));
+        self.run(
+            "scatter",
+            &[],
+            &[(0, &uniform), (2, records), (3, &s.current), (4, index)],
+            groups(threads),
         )
+    }
+
+    /// Run `scatter` alone on host data (the kernels-test of its reference): returns the state
+    /// after writing `records` into `state`.
+    pub fn scatter_words(
+        &self,
+        p: &ScatterParams,
+        records: &[u32],
+        state: &[u32],
+        index: &wgpu::Buffer,
+    ) -> Result<Vec<u32>> {
+        let records = self
+            .ctx
+            .storage_buffer("records", bytemuck::cast_slice(records));
+        let s = self.upload_state(state);
+        let uniform = self.ctx.uniform_buffer("scatter params", p);
+        self.run(
+            "scatter",
+            &[],
+            &[(0, &uniform), (2, &records), (3, &s.current), (4, index)],
+            groups(p.list_count as u64 * 8),
+        )?;
+        self.read_state(&s)
     }
 
     pub fn colorize(
@@ -342,7 +371,6 @@ impl GpuSynth {
                 (4, index),
             ],
             groups(n as u64),
-            None,
         )?;
         self.ctx.read_words(&out, n)
     }
