@@ -86,7 +86,7 @@ fn around(pos: vec3<i32>) -> Around {
 }
 
 // State index of the voxel at (du, dv) (|du|, |dv| <= 2) in plane a of the voxel `r` surrounds
-// (u = axis a + 1, v = axis a + 2, as `axis`); ABSENT when its brick is not stored.
+// (u = axis (a + 1) % 3, v = axis (a + 2) % 3); ABSENT when its brick is not stored.
 fn plane_neighbour(r: Around, a: u32, du: i32, dv: i32) -> u32 {
     let ua = (a + 1u) % 3u;
     let va = (a + 2u) % 3u;
@@ -106,9 +106,10 @@ fn plane_neighbour(r: Around, a: u32, du: i32, dv: i32) -> u32 {
 }
 
 // The projection's weights and biases (host: `projection_uniform` in src/gpu/synth.rs), in a
-// uniform buffer: every invocation reads the same word at the same time, which a uniform read
-// serves from one load where a storage read is a per-lane gather (on lavapipe the weight reads
-// of the storage layout took ~45% of the kernel). Vector g of plane a's bias is v[a * 4 + g]
+// uniform buffer: every invocation reads the same words at the same time. Read from the level's
+// storage buffer they took ~45% of the kernel on lavapipe, from here about a quarter (lavapipe
+// still reads them lane by lane, their index coming from a loop counter; unrolling the loops to
+// make it constant compiled for seconds and ran slower). Vector g of plane a's bias is v[a * 4 + g]
 // (outputs 4g..4g+3: sum_i mean_i * weight_ji); input i's weights for outputs 4g..4g+3 are
 // v[PROJECTION_BASE + (a * pca_in + i) * groups + g], groups = ceil(PCA_OUT / 4).
 const PROJECTION_BASE: u32 = 12u;
