@@ -165,6 +165,20 @@ fn synthesis_kernels_bit_exact_on_gpu_and_cpu() {
             s.synthesize(b, &|_, _| {}).unwrap()
         });
     }
+    // Weights beyond 16 bits (analyses before revision 2): the GPU reads them unpacked and the
+    // CPU backend without its 16-bit multiply-adds.
+    let mut a = analysis(false, Border::Wrap);
+    for level in &mut a.exemplars[0].levels {
+        level.pca.weights[5] = 40_000;
+    }
+    let params = SynthParams {
+        seed: 12,
+        ..Default::default()
+    };
+    let b = Box3::new([-2, -7, 3], [9, 2, 12]);
+    same_on_both("weights beyond 16 bits", &a, &params, &gpu, |s| {
+        s.synthesize(b, &|_, _| {}).unwrap()
+    });
     // A tileable solid (reads wrap around each level's period; periodic jitter and tiling).
     let a = analysis(false, Border::Wrap);
     let params = SynthParams {

@@ -30,6 +30,8 @@ const MAX_PCA_OUT: u32 = 16u;
 override CHANNELS: u32 = 3u;
 override PCA_OUT: u32 = 8u;
 override K2D: u32 = 2u;
+// Whether the projection weights come two 16-bit halves to a word (see `ProjectionWeights`).
+override PACKED_WEIGHTS: bool = false;
 
 @group(0) @binding(0) var<uniform> params: CorrectParams;
 // (binding 1: level data, declared by the prelude)
@@ -110,8 +112,11 @@ fn plane_neighbour(r: Around, a: u32, du: i32, dv: i32) -> u32 {
 // storage buffer they took ~45% of the kernel on lavapipe, from here about a quarter (lavapipe
 // still reads them lane by lane, their index coming from a loop counter; unrolling the loops to
 // make it constant compiled for seconds and ran slower). Vector g of plane a's bias is v[a * 4 + g]
-// (outputs 4g..4g+3: sum_i mean_i * weight_ji); input i's weights for outputs 4g..4g+3 are
-// v[PROJECTION_BASE + (a * pca_in + i) * groups + g], groups = ceil(PCA_OUT / 4).
+// (outputs 4g..4g+3: sum_i mean_i * weight_ji). Input i's weights start at vector
+// PROJECTION_BASE + (a * pca_in + i) * per_input: unpacked, per_input = ceil(PCA_OUT / 4) vectors
+// of outputs 4g..4g+3; with PACKED_WEIGHTS (every weight fits 16 bits), ceil(PCA_OUT / 8) vectors,
+// vector h holding outputs 8h..8h+3 in its low halves and 8h+4..8h+7 in its high halves (half
+// the reads, which lavapipe makes lane by lane).
 const PROJECTION_BASE: u32 = 12u;
 const PROJECTION_VECTORS: u32 = 4096u;
 struct ProjectionWeights {
@@ -127,7 +132,8 @@ fn project_plane(r: Around, a: u32) -> array<i32, MAX_PCA_OUT> {
     for (var g = 0u; g < 4u; g++) {
         acc[g] = -projection.v[a * 4u + g];
     }
-    var row = PROJECTION_BASE + a * params.pca_in * groups;
+    let per_input = select(groups, (groups + 1u) / 2u, PACKED_WEIGHTS);
+    var row = PROJECTION_BASE + a * params.pca_in * per_input;
     for (var dv = -2; dv <= 2; dv++) {
         for (var du = -2; du <= 2; du++) {
             // Absent voxels read as zero.
@@ -145,10 +151,20 @@ fn project_plane(r: Around, a: u32) -> array<i32, MAX_PCA_OUT> {
                     byte = (word >> (ch * 8u)) & 0xFFu;
                 }
                 let x = i32(byte);
-                for (var g = 0u; g < groups; g++) {
-                    acc[g] += x * projection.v[row + g];
+                if (PACKED_WEIGHTS) {
+                    for (var h = 0u; h < per_input; h++) {
+                        let pair = projection.v[row + h];
+                        acc[2u * h] += x * ((pair << vec4<u32>(16u)) >> vec4<u32>(16u));
+                        if (2u * h + 1u < groups) {
+                            acc[2u * h + 1u] += x * (pair >> vec4<u32>(16u));
+                        }
+                    }
+                } else {
+                    for (var g = 0u; g < groups; g++) {
+                        acc[g] += x * projection.v[row + g];
+                    }
                 }
-                row += groups;
+                row += per_input;
             }
         }
     }

@@ -24,8 +24,9 @@ pub struct GpuState {
 pub struct GpuSynth {
     ctx: Arc<GpuContext>,
     levels: Vec<wgpu::Buffer>,
-    /// Per level, the `correct` kernel's projection weights ([`projection_uniform`]).
-    projections: Vec<wgpu::Buffer>,
+    /// Per level, the `correct` kernel's projection weights ([`projection_uniform`]) and
+    /// whether they are packed.
+    projections: Vec<(wgpu::Buffer, bool)>,
     table: wgpu::Buffer,
 }
 
@@ -36,32 +37,59 @@ const PROJECTION_BASE: usize = 12;
 
 /// Level `p`'s PCA projection laid out as wgsl/correct.wgsl's `ProjectionWeights` reads it: per
 /// plane a, the biases b_j = sum_i mean_i * w_ji (wrapping, as the kernel's partial sums) in 4
-/// vectors at 4a, then from PROJECTION_BASE, per plane and input i, the weights of outputs
-/// 4g..4g+3 in ceil(pca_out / 4) vectors. None when the level's weights do not fit.
-fn projection_uniform(p: &LevelPack) -> Option<Vec<i32>> {
+/// vectors at 4a, then from PROJECTION_BASE, per plane and input i, its weights in
+/// [`ProjectionLayout::vectors_per_input`] vectors. Packed (every weight fits 16 bits, as in
+/// every analysis since revision 2): vector h holds outputs 8h..8h+3 in its low halves and
+/// 8h+4..8h+7 in its high halves; else vector g holds outputs 4g..4g+3. None when the level's
+/// weights do not fit the uniform.
+fn projection_uniform(p: &LevelPack) -> Option<ProjectionLayout> {
     let (inputs, outputs) = (p.pca_in as usize, p.pca_out as usize);
-    let groups = outputs.div_ceil(4);
-    if outputs > 16 || PROJECTION_BASE + 3 * inputs * groups > PROJECTION_VECTORS {
+    let word = |at: u32| p.words[at as usize] as i32;
+    let weight =
+        |a: usize, j: usize, i: usize| word(p.offsets.weights[a] + (j * inputs + i) as u32);
+    if outputs > 16 || PROJECTION_BASE + 3 * inputs * outputs.div_ceil(8) > PROJECTION_VECTORS {
         return None;
     }
-    let word = |at: u32| p.words[at as usize] as i32;
+    let packed = (0..3)
+        .all(|a| (0..outputs).all(|j| (0..inputs).all(|i| i16::try_from(weight(a, j, i)).is_ok())));
+    let per_input = if packed {
+        outputs.div_ceil(8)
+    } else {
+        outputs.div_ceil(4)
+    };
+    if outputs > 16 || PROJECTION_BASE + 3 * inputs * per_input > PROJECTION_VECTORS {
+        return None;
+    }
     let mut v = vec![0i32; PROJECTION_VECTORS * 4];
     for a in 0..3 {
-        let (mean, weights) = (p.offsets.mean[a], p.offsets.weights[a]);
-        let weight = |j: usize, i: usize| word(weights + (j * inputs + i) as u32);
+        let mean = p.offsets.mean[a];
         for j in 0..outputs {
             v[a * 16 + j] = (0..inputs).fold(0i32, |b, i| {
-                b.wrapping_add(word(mean + i as u32).wrapping_mul(weight(j, i)))
+                b.wrapping_add(word(mean + i as u32).wrapping_mul(weight(a, j, i)))
             });
         }
         for i in 0..inputs {
-            let row = (PROJECTION_BASE + (a * inputs + i) * groups) * 4;
+            let row = (PROJECTION_BASE + (a * inputs + i) * per_input) * 4;
             for j in 0..outputs {
-                v[row + j] = weight(j, i);
+                let w = weight(a, j, i);
+                if packed {
+                    // Output j = 8h + 4 half + c: component c of vector h, low or high half.
+                    let at = row + (j / 8) * 4 + j % 4;
+                    v[at] |= if j % 8 < 4 { w & 0xFFFF } else { w << 16 };
+                } else {
+                    v[row + j] = w;
+                }
             }
         }
     }
-    Some(v)
+    Some(ProjectionLayout { vectors: v, packed })
+}
+
+/// A level's projection uniform ([`projection_uniform`]) and whether its weights are packed
+/// two to a word (the kernel's `PACKED_WEIGHTS`).
+struct ProjectionLayout {
+    vectors: Vec<i32>,
+    packed: bool,
 }
 
 fn entries<'a>(buffers: &[(u32, &'a wgpu::Buffer)]) -> Vec<wgpu::BindGroupEntry<'a>> {
@@ -105,7 +133,7 @@ impl GpuSynth {
         }
         let mut projections = Vec::with_capacity(packs.len());
         for p in packs {
-            let words = projection_uniform(p).ok_or_else(|| {
+            let layout = projection_uniform(p).ok_or_else(|| {
                 Error::invalid(
                     "exemplar",
                     format!(
@@ -116,14 +144,14 @@ impl GpuSynth {
                 )
             })?;
             use wgpu::util::DeviceExt;
-            projections.push(
-                ctx.device
-                    .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                        label: Some("projection weights"),
-                        contents: bytemuck::cast_slice(&words),
-                        usage: wgpu::BufferUsages::UNIFORM,
-                    }),
-            );
+            let buffer = ctx
+                .device
+                .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some("projection weights"),
+                    contents: bytemuck::cast_slice(&layout.vectors),
+                    usage: wgpu::BufferUsages::UNIFORM,
+                });
+            projections.push((buffer, layout.packed));
         }
         for k in ["init", "upsample", "colorize"] {
             ctx.pipeline(k)?;
@@ -298,12 +326,14 @@ impl GpuSynth {
         }
         let records = s.records.as_ref().unwrap();
         let uniform = self.ctx.uniform_buffer("correct params", p);
+        let (projection, packed) = &self.projections[level];
         self.run(
             "correct",
             &[
                 ("CHANNELS", p.channels as f64),
                 ("PCA_OUT", p.pca_out as f64),
                 ("K2D", p.k2d as f64),
+                ("PACKED_WEIGHTS", if *packed { 1.0 } else { 0.0 }),
             ],
             &[
                 (0, &uniform),
@@ -311,7 +341,7 @@ impl GpuSynth {
                 (2, &s.current),
                 (3, records),
                 (4, index),
-                (5, &self.projections[level]),
+                (5, projection),
             ],
             groups(threads),
         )?;
@@ -429,28 +459,50 @@ mod tests {
             k3d_stride: 4,
             shared: false,
         };
-        let v = projection_uniform(&pack).unwrap();
-        let groups = outputs.div_ceil(4);
         let x: Vec<i32> = (0..inputs).map(|_| (next() % 256) as i32).collect();
-        for a in 0..3 {
-            let word = |at: u32| pack.words[at as usize] as i32;
-            for j in 0..outputs {
-                let reference: i64 = (0..inputs)
-                    .map(|i| {
-                        let w = word(pack.offsets.weights[a] + (j * inputs + i) as u32);
-                        (x[i] - word(pack.offsets.mean[a] + i as u32)) as i64 * w as i64
-                    })
-                    .sum();
-                let kernel = (0..inputs).fold(v[a * 16 + j].wrapping_neg(), |acc, i| {
-                    let w = v[(PROJECTION_BASE + (a * inputs + i) * groups) * 4 + j];
-                    acc.wrapping_add(x[i].wrapping_mul(w))
-                });
-                assert_eq!(kernel as i64, reference, "plane {a} output {j}");
+        let check = |pack: &LevelPack, packed: bool| {
+            let layout = projection_uniform(pack).unwrap();
+            assert_eq!(layout.packed, packed);
+            let v = &layout.vectors;
+            let per_input = if packed { 2 } else { 3 };
+            // The kernel's unpacking: a vector component's low or high half, sign-extended.
+            let weight = |a: usize, i: usize, j: usize| {
+                let row = (PROJECTION_BASE + (a * inputs + i) * per_input) * 4;
+                if packed {
+                    let w = v[row + (j / 8) * 4 + j % 4];
+                    if j % 8 < 4 {
+                        (w << 16) >> 16
+                    } else {
+                        w >> 16
+                    }
+                } else {
+                    v[row + j]
+                }
+            };
+            for a in 0..3 {
+                let word = |at: u32| pack.words[at as usize] as i32;
+                for j in 0..outputs {
+                    let reference: i64 = (0..inputs)
+                        .map(|i| {
+                            let w = word(pack.offsets.weights[a] + (j * inputs + i) as u32);
+                            (x[i] - word(pack.offsets.mean[a] + i as u32)) as i64 * w as i64
+                        })
+                        .sum();
+                    let kernel = (0..inputs).fold(v[a * 16 + j].wrapping_neg(), |acc, i| {
+                        acc.wrapping_add(x[i].wrapping_mul(weight(a, i, j)))
+                    });
+                    assert_eq!(kernel as i64, reference, "plane {a} output {j}");
+                }
             }
-        }
+        };
+        check(&pack, true);
+        // One weight beyond 16 bits: the unpacked layout.
+        let mut wide = pack.clone();
+        wide.words[wide.offsets.weights[1] as usize + 7] = 40_000;
+        check(&wide, false);
         // Too many inputs for the uniform: refused, not truncated.
         let big = LevelPack {
-            pca_in: 500,
+            pca_in: 700,
             ..pack
         };
         assert!(projection_uniform(&big).is_none());
