@@ -17,7 +17,6 @@ pub struct GpuState {
     /// The corrections' records (`wgsl/correct.wgsl`, then `scatter`), grown to the largest
     /// sub-pass of the state so far: at most an eighth of the state.
     records: Option<wgpu::Buffer>,
-    record_words: u64,
     words: u64,
 }
 
@@ -230,7 +229,6 @@ impl GpuSynth {
         GpuState {
             current,
             records: None,
-            record_words: 0,
             words: words.len() as u64,
         }
     }
@@ -269,7 +267,6 @@ impl GpuSynth {
         Ok(GpuState {
             current: out,
             records: None,
-            record_words: 0,
             words,
         })
     }
@@ -317,12 +314,14 @@ impl GpuSynth {
     ) -> Result<()> {
         let threads = p.list_count as u64 * 8;
         let record_words = (threads * (3 + p.pixel_words as u64)).max(1);
-        if s.record_words < record_words {
+        if s.records
+            .as_ref()
+            .is_none_or(|b| b.size() < record_words * 4)
+        {
             s.records = Some(
                 self.ctx
                     .device_buffer("correction records", record_words as usize),
             );
-            s.record_words = record_words;
         }
         let records = s.records.as_ref().unwrap();
         let uniform = self.ctx.uniform_buffer("correct params", p);

@@ -12,26 +12,17 @@
 
 const ABSENT: u32 = 0xFFFFFFFFu;
 
-// Border::resolve: 0 = wrap, 1 = mirror (reflect-101). Coordinates less than a period outside
-// the exemplar (nearly all) resolve by compare-and-select: SIMD drivers such as lavapipe run an
-// integer division lane by lane, and this was one of the correction kernel's costliest steps.
+// Border::resolve: 0 = wrap, 1 = mirror (reflect-101).
 fn resolve(c: i32, len: u32, border: u32) -> u32 {
     let n = i32(len);
-    var r = c;
-    if (border == 0u) {
-        r = select(r, r + n, r < 0);
-        r = select(r, r - n, r >= n);
-    } else if (n > 1) {
-        r = select(r, -r, r < 0);
-        r = select(r, 2 * (n - 1) - r, r >= n);
-    } else {
-        return 0u;
-    }
-    if (r >= 0 && r < n) {
-        return u32(r);
+    if (c >= -1 && c <= n) {
+        return resolve_near(c, len, border);
     }
     if (border == 0u) {
         return u32(((c % n) + n) % n);
+    }
+    if (n == 1) {
+        return 0u;
     }
     let period = 2 * (n - 1);
     let m = ((c % period) + period) % period;
