@@ -14,6 +14,18 @@ fn main() {
         std::env::set_var("NODEVICE_SELECT", "1");
     }
     let args = cli::Cli::parse();
+    // Output piped into a reader that quits early (`solidsynth eval ... | head`) ends the
+    // process quietly, as for any Unix tool, instead of a panic in `println!` (Rust ignores
+    // SIGPIPE by default). Files are unaffected: they are written to temporaries and renamed
+    // before the summaries are printed. The server keeps ignoring it: a client that hangs up
+    // must not stop it.
+    #[cfg(unix)]
+    if !matches!(args.command, cli::Command::Serve(_)) {
+        // SAFETY: restoring a signal's default disposition, before any other thread exists.
+        unsafe {
+            libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+        }
+    }
     // An interrupted command leaves no partial output behind: outputs are written to
     // temporaries (renamed into place when complete), which the handler deletes.
     let _ = ctrlc::set_handler(|| {

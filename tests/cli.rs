@@ -365,6 +365,33 @@ fn eval_scores_a_volume_and_writes_a_sheet() {
     assert!(image::open(&sheet).unwrap().width() > 3 * 24);
     let o = run(&["eval", ex.to_str().unwrap(), nrrd.to_str().unwrap()]);
     assert!(String::from_utf8_lossy(&o.stdout).contains("completeness"));
+    // Into a pipe whose reader has gone (`eval ... | head` after head quit): no panic, no
+    // error message, ended by SIGPIPE like any Unix tool.
+    #[cfg(unix)]
+    {
+        use std::os::unix::process::ExitStatusExt;
+        let (reader, writer) = std::io::pipe().unwrap();
+        drop(reader);
+        let o = bin()
+            .args([
+                "eval",
+                ex.to_str().unwrap(),
+                nrrd.to_str().unwrap(),
+                "--json",
+            ])
+            .stdout(writer)
+            .stderr(std::process::Stdio::piped())
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        assert!(!stderr.contains("panicked"), "{stderr}");
+        assert_eq!(
+            o.status.signal(),
+            Some(libc::SIGPIPE),
+            "{:?}: {stderr}",
+            o.status
+        );
+    }
 }
 
 #[test]
