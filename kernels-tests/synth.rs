@@ -86,7 +86,7 @@ fn synthesis_kernels_bit_exact_on_gpu_and_cpu() {
             Box3::new([100, -50, 7], [109, -41, 16]),
         ),
     ];
-    let colors = [ColorSource::Average, ColorSource::X, ColorSource::Z];
+    let colors = [ColorSource::Matched, ColorSource::X, ColorSource::Z];
     for ((three, border, mode, jitter, b), color) in cases.into_iter().zip(colors) {
         let a = analysis(three, border);
         let params = SynthParams {
@@ -141,8 +141,10 @@ fn synthesis_kernels_bit_exact_on_gpu_and_cpu() {
             a.exemplar(0).levels[0].image.channels,
             if rgba { 5 } else { 4 }
         );
+        // Matched colours: with four colour channels (rgba) every byte of the table is used.
         let params = SynthParams {
             seed: 3,
+            color: ColorSource::Matched,
             ..Default::default()
         };
         let b = Box3::new([-3, 5, 0], [9, 13, 10]);

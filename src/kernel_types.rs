@@ -168,9 +168,11 @@ gpu_struct! {
         table_offset: u32,
         /// The output bricks (one thread per voxel; colours in list order, 64 per brick).
         list_offset: u32, list_count: u32, grid_stride: u32,
-        _r0: u32, _r1: u32,
+        /// Word offset of the `--color matched` table in the level data (`lazy::color_match`).
+        match_table: u32, _r1: u32,
         color_channels: u32, pixel_words: u32,
-        /// 0: the voxel's cached value (mean of its three pixels); a + 1: exemplar a's pixel.
+        /// 0: the voxel's cached value (mean of its three pixels); a + 1: exemplar a's pixel;
+        /// 4: the cached value mapped through the match table.
         source: u32, ex_width: u32,
         pixels0: u32, pixels1: u32, pixels2: u32, _pad: u32,
     }

@@ -410,6 +410,103 @@ fn triples_explain_the_colours() {
     }
 }
 
+/// `--color matched` recolours the same solid: one table per channel (the same mean gives the
+/// same colour everywhere, sub-boxes included), monotone, and the colours' spread comes closer
+/// to the exemplar's than the plain mean's.
+#[test]
+fn matched_colours_restore_the_exemplar_contrast() {
+    use solidsynth::backend::Compute;
+    use solidsynth::lazy::{Box3, ColorSource, SynthParams, Synthesizer};
+    let a = common::analyze(vec![common::fixture("cells32.png")], Border::Wrap);
+    let synth = |color, b| {
+        let params = SynthParams {
+            seed: 6,
+            color,
+            ..Default::default()
+        };
+        Synthesizer::new(&a, params, &Compute::Cpu)
+            .unwrap()
+            .synthesize(b, &|_, _| {})
+            .unwrap()
+    };
+    let b = Box3::new([-4, 0, 3], [20, 24, 27]);
+    let (mean, matched) = (
+        synth(ColorSource::Average, b),
+        synth(ColorSource::Matched, b),
+    );
+    let channels = mean.channels as usize;
+    assert_eq!(channels, 3);
+    let mut table = [[None::<u8>; 256]; 3];
+    for (m, t) in mean.data.chunks_exact(3).zip(matched.data.chunks_exact(3)) {
+        for ch in 0..3 {
+            let slot = &mut table[ch][m[ch] as usize];
+            assert_eq!(
+                *slot.get_or_insert(t[ch]),
+                t[ch],
+                "channel {ch}, mean {}",
+                m[ch]
+            );
+        }
+    }
+    for column in &table {
+        let seen: Vec<u8> = column.iter().flatten().copied().collect();
+        assert!(
+            seen.windows(2).all(|w| w[0] <= w[1]),
+            "not monotone: {seen:?}"
+        );
+    }
+    // Total standard deviation of the colour channels.
+    let spread = |bytes: &[u8], stride: usize| {
+        (0..3)
+            .map(|ch| {
+                let v: Vec<f64> = bytes.chunks_exact(stride).map(|p| p[ch] as f64).collect();
+                let m = v.iter().sum::<f64>() / v.len() as f64;
+                v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / v.len() as f64
+            })
+            .sum::<f64>()
+            .sqrt()
+    };
+    let img = common::fixture("cells32.png");
+    let (e, m, t) = (
+        spread(&img.pixels, img.channels as usize),
+        spread(&mean.data, 3),
+        spread(&matched.data, 3),
+    );
+    eprintln!("colour spread: exemplar {e:.1}, mean {m:.1}, matched {t:.1}");
+    assert!(
+        (t - e).abs() < (m - e).abs(),
+        "exemplar {e:.1}, mean {m:.1}, matched {t:.1}"
+    );
+    // The probe itself (a tileable solid of the same parameters, 64^3 for a 32^2 exemplar)
+    // gets the exemplar's spread, up to rounding and clamping.
+    let params = SynthParams {
+        seed: 6,
+        color: ColorSource::Matched,
+        ..Default::default()
+    };
+    let probe = Synthesizer::new(&a, params, &Compute::Cpu)
+        .unwrap()
+        .synthesize_tileable(64, &|_, _| {}, false)
+        .unwrap()
+        .0;
+    let p = spread(&probe.data, 3);
+    eprintln!("probe spread, matched: {p:.1}");
+    assert!(
+        (p - e).abs() < 0.02 * e,
+        "exemplar {e:.1}, matched probe {p:.1}"
+    );
+    // Spatially deterministic: a sub-box is the same voxels of the box.
+    let sub = Box3::new([0, 5, 10], [9, 13, 17]);
+    let part = synth(ColorSource::Matched, sub);
+    for z in 0..7u32 {
+        for y in 0..8u32 {
+            for x in 0..9u32 {
+                assert_eq!(part.at(x, y, z), matched.at(x + 4, y + 5, z + 7));
+            }
+        }
+    }
+}
+
 /// A tileable solid wraps around: the difference across the wrap (last slice to first) is like
 /// the difference between neighbouring slices inside, unlike in a box of the infinite solid.
 #[test]

@@ -1,13 +1,14 @@
 // Voxel colours of an output box, colour channels packed into one u32: the voxel's cached value
 // (the rounded mean of its three exemplar pixels), or, on request, the pixel of one exemplar at
-// the voxel's coordinate in it. CPU reference: src/cpu/colorize.rs.
+// the voxel's coordinate in it, or the cached value mapped channel by channel through the
+// `--color matched` table (src/lazy/color_match.rs). CPU reference: src/cpu/colorize.rs.
 
 struct ColorizeParams {
     grid_lo_x: i32, grid_lo_y: i32, grid_lo_z: i32,
     grid_x: u32, grid_y: u32, grid_z: u32,
     table_offset: u32,
     list_offset: u32, list_count: u32, grid_stride: u32,
-    _r0: u32, _r1: u32,
+    match_table: u32, _r1: u32,
     color_channels: u32, pixel_words: u32,
     source: u32, ex_width: u32,
     pixels0: u32, pixels1: u32, pixels2: u32, _pad: u32,
@@ -39,7 +40,15 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         mask = (1u << (params.color_channels * 8u)) - 1u;
     }
     var word = state[i + 3u];
-    if (params.source != 0u) {
+    if (params.source == 4u) {
+        // Byte c of table word k: channel c's output for value k.
+        var mapped = 0u;
+        for (var c = 0u; c < 4u; c++) {
+            let k = (word >> (c * 8u)) & 0xFFu;
+            mapped |= level[params.match_table + k] & (0xFFu << (c * 8u));
+        }
+        word = mapped;
+    } else if (params.source != 0u) {
         let a = params.source - 1u;
         let pixels = array<u32, 3>(params.pixels0, params.pixels1, params.pixels2);
         let c = state[i + a];

@@ -56,7 +56,10 @@ pub struct SolidParams {
     /// first (`2,2,2,1`).
     #[arg(long, default_value = "2", value_name = "N|N,N,N,N")]
     pub passes: solidsynth::lazy::PassSchedule,
-    /// Output colour: the mean of the voxel's three exemplar pixels, or one exemplar's pixel.
+    /// Output colour: the mean of the voxel's three exemplar pixels (the paper's rule);
+    /// `matched`: that mean with the exemplar's mean colour and contrast restored (a table from
+    /// a probe solid synthesized when the session starts; better histogram and sharpness
+    /// scores); or one exemplar's pixel (x, y, z).
     #[arg(long, value_enum, default_value = "average")]
     pub color: ColorSource,
     /// Coarse-level cache (paper 6.2): the levels above the finest come from one tileable solid

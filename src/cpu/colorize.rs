@@ -1,6 +1,7 @@
 //! CPU reference of `wgsl/colorize.wgsl`: the colour channels of each output voxel, packed into
 //! one u32: its cached value (the rounded mean of its three exemplar pixels), or, on request, the
-//! pixel of one exemplar at the voxel's coordinate in it.
+//! pixel of one exemplar at the voxel's coordinate in it, or the cached value mapped channel by
+//! channel through the `--color matched` table (`lazy::color_match`).
 
 use super::synth_common::{brick_at, voxel_index};
 use crate::kernel_types::ColorizeParams;
@@ -29,6 +30,12 @@ pub fn colorize(p: &ColorizeParams, level: &[u32], state: &[u32], bricks: &[u32]
             let i = slot * stride;
             let value = if p.source == 0 {
                 state[i + 3]
+            } else if p.source == 4 {
+                let value = state[i + 3];
+                (0..4).fold(0, |mapped, c| {
+                    let k = (value >> (c * 8)) & 0xFF;
+                    mapped | (level[(p.match_table + k) as usize] & (0xFF << (c * 8)))
+                })
             } else {
                 let a = (p.source - 1) as usize;
                 let (x, y) = crate::analysis::frame::unpack(state[i + a]);

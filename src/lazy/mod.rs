@@ -9,6 +9,7 @@
 //! synthesized independently: determinism makes the seams invisible by construction.
 
 pub mod bricks;
+pub mod color_match;
 pub mod cut;
 pub mod exec;
 pub mod jitter;
@@ -103,6 +104,23 @@ pub enum ColorSource {
     X,
     Y,
     Z,
+    /// The mean, given the exemplars' mean colour and contrast back (a mean of three pixels
+    /// narrows them) by a per-channel table from a probe solid ([`color_match`]). Starting a
+    /// session then synthesizes the probe (64^3 to 128^3, tileable).
+    Matched,
+}
+
+impl ColorSource {
+    /// `ColorizeParams::source`: 0 the mean, a + 1 exemplar a's pixel, 4 the matched mean.
+    pub fn kernel_code(self) -> u32 {
+        match self {
+            ColorSource::Average => 0,
+            ColorSource::X => 1,
+            ColorSource::Y => 2,
+            ColorSource::Z => 3,
+            ColorSource::Matched => 4,
+        }
+    }
 }
 
 /// What defines the solid besides the analysis.
@@ -199,10 +217,16 @@ pub struct Synthesizer {
 impl Synthesizer {
     pub fn new(analysis: &Analysis, params: SynthParams, compute: &Compute) -> Result<Synthesizer> {
         params.validate()?;
-        let packs: Vec<LevelPack> = (0..ANALYSED_LEVELS)
+        let mut packs: Vec<LevelPack> = (0..ANALYSED_LEVELS)
             .rev()
             .map(|l| LevelPack::new(analysis, l))
             .collect();
+        if params.color == ColorSource::Matched {
+            let table = Self::matching_table(analysis, &params, compute)?;
+            let finest = packs.last_mut().unwrap();
+            let at = finest.offsets.color_match as usize;
+            finest.words[at..at + table.len()].copy_from_slice(&table);
+        }
         let table = jitter::table();
         let exec = exec::Executor::new(compute, &packs, &table)?;
         Ok(Synthesizer {
@@ -216,6 +240,39 @@ impl Synthesizer {
             cache: None,
             usage: None,
         })
+    }
+
+    /// The `--color matched` table of this analysis and these parameters: the statistics of
+    /// the mean colours of a tileable probe solid (same analysis and parameters) taken to the
+    /// exemplars' (see [`color_match`]).
+    fn matching_table(
+        analysis: &Analysis,
+        params: &SynthParams,
+        compute: &Compute,
+    ) -> Result<Vec<u32>> {
+        // Tileable solids are synthesized whole, without the coarse-level cache; a cached
+        // solid's colour statistics are those of the same texture, so its table is the same
+        // estimate.
+        let probe_params = SynthParams {
+            color: ColorSource::Average,
+            coarse_cache: None,
+            ..params.clone()
+        };
+        let mut probe = Synthesizer::new(analysis, probe_params, compute)?;
+        let finest = probe.packs.last().unwrap();
+        let edge = color_match::probe_edge(finest.width);
+        let colors = analysis.color_channels as usize;
+        let mut target = vec![[0u64; 256]; colors.min(4)];
+        for e in 0..if analysis.shared { 1 } else { 3 } {
+            let image = &analysis.exemplar(e).levels[0].image;
+            let h = color_match::histograms(&image.pixels, image.channels as usize, colors);
+            for (t, h) in target.iter_mut().zip(h) {
+                t.iter_mut().zip(h).for_each(|(a, b)| *a += b);
+            }
+        }
+        let (volume, _) = probe.synthesize_tileable(edge, &|_, _| {}, false)?;
+        let source = color_match::histograms(&volume.data, volume.channels as usize, colors);
+        Ok(color_match::table(&source, &target))
     }
 
     /// From now on, count after each level's correction how often every exemplar pixel is a
@@ -891,7 +948,7 @@ impl Synthesizer {
             );
             // The paper's reduced search at the finest level: 4 of the 3D candidates.
             let k3d_used = if pack_index + 1 == self.packs.len() {
-                4
+                color_match::FINEST_K3D
             } else {
                 pack.k3d_stride
             }
@@ -948,11 +1005,11 @@ impl Synthesizer {
             list_offset: layout.output_list,
             list_count: count,
             grid_stride: stride_for(count as u64 * 64),
-            _r0: 0,
+            match_table: pack.offsets.color_match,
             _r1: 0,
             color_channels: pack.color_channels,
             pixel_words: pack.pixel_words,
-            source: self.params.color as u32,
+            source: self.params.color.kernel_code(),
             ex_width: pack.width,
             pixels0: pack.offsets.pixels[0],
             pixels1: pack.offsets.pixels[1],

@@ -20,6 +20,9 @@ pub struct LevelOffsets {
     pub counts: [u32; 3],
     /// Slab triples of exemplar 0.
     pub slab: u32,
+    /// The `--color matched` table (`color_match`, 256 words): the identity until a
+    /// [`crate::lazy::Synthesizer`] fills the finest level's from its probe.
+    pub color_match: u32,
 }
 
 /// One pyramid level's exemplar data for synthesis.
@@ -93,7 +96,7 @@ impl LevelPack {
                 off.counts[t] = o_counts;
             }
         }
-        LevelPack {
+        let mut pack = LevelPack {
             words,
             offsets: off,
             width: first.image.width,
@@ -108,6 +111,10 @@ impl LevelPack {
             k2d: a.params.k2d[level],
             k3d_stride: a.params.max_3d,
             shared: a.shared,
-        }
+        };
+        // Every level carries one (256 words); colorize reads the finest level's.
+        pack.offsets.color_match = pack.words.len() as u32;
+        pack.words.extend(super::color_match::identity());
+        pack
     }
 }
