@@ -145,6 +145,94 @@ fn analyze_three_exemplars_and_a_feature_mask() {
     assert!(!a.shared && a.has_feature);
 }
 
+/// `--frame`: by default (the paper's frame) one image is analysed as three exemplars, the y
+/// plane's transposed, and a given --ey is transposed too; `--frame cyclic` keeps one shared
+/// image; an .ssa refuses the flag (its exemplars are fixed); `eval` takes the same frames.
+#[test]
+fn frames_orient_the_y_exemplar() {
+    let dir = tempfile::tempdir().unwrap();
+    let (stripes, cells) = (fixture_path("stripes32.png"), fixture_path("cells32.png"));
+    let analyse = |extra: &[&str], name: &str| {
+        let out = dir.path().join(name);
+        let mut args = vec!["analyze", "--backend", "cpu", "--periodic"];
+        args.extend_from_slice(extra);
+        args.extend_from_slice(&["-o", out.to_str().unwrap()]);
+        let o = run(&args);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        solidsynth::io::ssa::load(&out).unwrap()
+    };
+    let level0 =
+        |a: &solidsynth::analysis::Analysis, e: usize| a.exemplar(e).levels[0].image.clone();
+    // Colour and feature channels alike: y is x transposed, z is x.
+    let paper = analyse(&[stripes.to_str().unwrap()], "paper.ssa");
+    assert!(!paper.shared && paper.has_feature);
+    let (x, y, z) = (level0(&paper, 0), level0(&paper, 1), level0(&paper, 2));
+    assert_eq!(x.pixels, z.pixels);
+    assert_ne!(x.pixels, y.pixels);
+    assert_eq!(x.transposed().pixels, y.pixels);
+    let cyclic = analyse(
+        &[stripes.to_str().unwrap(), "--frame", "cyclic"],
+        "cyclic.ssa",
+    );
+    assert!(cyclic.shared);
+    assert_eq!(level0(&cyclic, 0).pixels, x.pixels);
+    let three = analyse(
+        &[
+            stripes.to_str().unwrap(),
+            "--ey",
+            cells.to_str().unwrap(),
+            "--ez",
+            cells.to_str().unwrap(),
+        ],
+        "three.ssa",
+    );
+    assert_eq!(
+        level0(&three, 1).transposed().pixels,
+        level0(&three, 2).pixels
+    );
+
+    let volume = dir.path().join("v.nrrd");
+    let paper_ssa = dir.path().join("paper.ssa");
+    let o = run(&[
+        "synth",
+        paper_ssa.to_str().unwrap(),
+        "--size",
+        "16",
+        "--backend",
+        "cpu",
+        "-o",
+        volume.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    for frame in ["paper", "cyclic"] {
+        let o = run(&[
+            "eval",
+            stripes.to_str().unwrap(),
+            volume.to_str().unwrap(),
+            "--frame",
+            frame,
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    }
+    let target = dir.path().join("w.nrrd");
+    let o = run(&[
+        "synth",
+        paper_ssa.to_str().unwrap(),
+        "--frame",
+        "paper",
+        "--size",
+        "8",
+        "-o",
+        target.to_str().unwrap(),
+    ]);
+    assert_user_error(
+        &o,
+        "--frame",
+        dir.path(),
+        &["paper.ssa", "cyclic.ssa", "three.ssa", "v.nrrd"],
+    );
+}
+
 #[test]
 fn feature_channel_is_automatic_unless_turned_off() {
     let dir = tempfile::tempdir().unwrap();

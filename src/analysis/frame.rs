@@ -20,6 +20,43 @@
 //! candidates of E1 and E2 are rotations of those of E0 and are computed once.
 //! Consequence for synthesis (next issue): coordinate inheritance reads
 //! child_a = 2 parent_a + (offset along axis a+1, offset along axis a+2).
+//!
+//! The paper's own inheritance (and the synthesis issue's formula) puts Ey the other way round,
+//! columns along x and rows along z, so that Ex and Ey share "up". Inputs given in that frame
+//! ([`InputFrame::Paper`], the command line's default) are brought into this one by transposing
+//! Ey ([`to_crate_frame`]): the same geometry, with the machinery above unchanged.
+
+/// How exemplar images lie in the three planes, as users give them (`--frame`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum InputFrame {
+    /// The paper's coordinate inheritance (the issue's formula): Ex columns along y, rows along
+    /// z; Ey columns along x, rows along z; Ez columns along x, rows along y. The planes
+    /// orthogonal to x and y share their rows' axis (z, "up"), so layered structures and
+    /// directional lighting in one image agree in two of the three planes. Ey is transposed
+    /// into the crate's frame ([`to_crate_frame`]), so one image becomes three exemplars
+    /// (about twice the analysis time: no shared candidate set).
+    #[default]
+    Paper,
+    /// The crate's frame as it is (table above): one image serves all three planes with one
+    /// shared candidate set; no two planes agree on "up".
+    Cyclic,
+}
+
+/// The exemplars (one for all planes, or Ex, Ey, Ez) in the crate's frame, given in `frame`:
+/// with [`InputFrame::Paper`] three images, Ey transposed (the paper's Ey has columns along x
+/// and rows along z, the crate's columns along z and rows along x). Masks go through the same.
+pub fn to_crate_frame(
+    mut images: Vec<crate::exemplar::Image>,
+    frame: InputFrame,
+) -> Vec<crate::exemplar::Image> {
+    if frame == InputFrame::Paper {
+        if images.len() == 1 {
+            images = vec![images[0].clone(), images[0].clone(), images[0].clone()];
+        }
+        images[1] = images[1].transposed();
+    }
+    images
+}
 
 /// Side of the square 2D neighbourhoods (the paper's N).
 pub const NEIGHBOURHOOD: i32 = 5;

@@ -1,6 +1,7 @@
 //! `solidsynth analyze`, and the input handling shared with the commands that synthesize.
 
 use clap::Args;
+use solidsynth::analysis::frame::{self, InputFrame};
 use solidsynth::analysis::{self, Analysis, AnalysisInput, AnalysisParams};
 use solidsynth::backend::Compute;
 use solidsynth::exemplar::{self, Border};
@@ -21,6 +22,14 @@ pub struct InputArgs {
     /// Exemplar for the plane orthogonal to z.
     #[arg(long, requires = "ey")]
     pub ez: Option<PathBuf>,
+    /// How the exemplars lie in the three planes, as (column axis, row axis) for x, y, z.
+    /// `paper` (default): (y, z), (x, z), (x, y), the paper's coordinate inheritance: the
+    /// planes orthogonal to x and y share "up" (z), so layered structures and directional
+    /// lighting agree in two of them (better scores, see BENCHMARKS.md); one image is analysed
+    /// as three exemplars (about twice the analysis time). `cyclic`: (y, z), (z, x), (x, y),
+    /// one image with one shared candidate set.
+    #[arg(long, value_enum)]
+    pub frame: Option<InputFrame>,
     /// The feature channel's mask: `auto` (each exemplar's luminance split in two by Otsu's
     /// threshold), `edges` (its strong edges: gradient magnitude above Otsu's threshold; for
     /// cells, mortar grids, cracks), `none` (colour only: the paper's plain search), or a mask
@@ -78,6 +87,11 @@ fn parse_feature_mask(s: &str) -> Result<FeatureMask, String> {
 }
 
 impl InputArgs {
+    /// The frame the exemplars are given in (`--frame`, default the paper's).
+    pub fn frame(&self) -> InputFrame {
+        self.frame.unwrap_or_default()
+    }
+
     /// Whether a feature-mask option other than the default was given.
     pub fn feature_mask_given(&self) -> bool {
         self.feature_mask != FeatureMask::Auto
@@ -121,6 +135,7 @@ impl InputArgs {
             exemplars.push(exemplar::load_image(ez, "--ez")?);
             names.push(format!("--ez {}", ez.display()));
         }
+
         if self.feature_mask == FeatureMask::None
             && self.feature_weight != solidsynth::analysis::DEFAULT_FEATURE_WEIGHT
         {
@@ -159,6 +174,21 @@ impl InputArgs {
         } else if self.feature_mask == FeatureMask::Edges {
             masks = exemplar::feature::edge_masks(&exemplars, border);
         }
+        // In the crate's frame: with the paper's, one image (and its mask) becomes three
+        // exemplars, Ey transposed.
+        let frame = self.frame();
+        if frame == InputFrame::Paper {
+            if names.len() == 1 {
+                names = vec![names[0].clone(), names[0].clone(), names[0].clone()];
+            }
+            names[1] = format!("{} (transposed: --frame paper)", names[1]);
+        }
+        let exemplars = frame::to_crate_frame(exemplars, frame);
+        let masks = if masks.is_empty() {
+            masks
+        } else {
+            frame::to_crate_frame(masks, frame)
+        };
         let params = AnalysisParams {
             feature_weight: self.feature_weight,
             balance_rounds: self.balance_rounds,
@@ -185,9 +215,9 @@ pub fn load_or_analyze(
     quiet: bool,
 ) -> solidsynth::Result<Analysis> {
     if args.is_ssa() {
-        if args.ey.is_some() || args.feature_mask_given() {
+        if args.ey.is_some() || args.feature_mask_given() || args.frame.is_some() {
             return Err(Error::invalid(
-                "--ey/--feature-mask/--feature-weight",
+                "--ey/--frame/--feature-mask/--feature-weight",
                 "are analysis inputs; an .ssa file already holds them",
             ));
         }

@@ -1,6 +1,7 @@
 //! `solidsynth eval`.
 
 use clap::Args;
+use solidsynth::analysis::frame::{to_crate_frame, InputFrame};
 use solidsynth::exemplar;
 use solidsynth::io::{atomic, nrrd};
 use solidsynth::metrics::{self, sheet, EvalParams, Scores};
@@ -19,6 +20,11 @@ pub struct EvalArgs {
     /// Exemplar of the slices perpendicular to z.
     #[arg(long, requires = "ey")]
     pub ez: Option<PathBuf>,
+    /// The frame the exemplars were given in when the volume was made (`synth --frame`,
+    /// default `paper`): with `paper`, the slices perpendicular to y, cut with columns along z
+    /// and rows along x, are scored against the y exemplar transposed.
+    #[arg(long, value_enum, default_value = "paper")]
+    pub frame: InputFrame,
     /// Slices scored per axis.
     #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..=64))]
     pub slices: u32,
@@ -43,6 +49,7 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
         exemplars.push(exemplar::load_image(ey, "--ey")?);
         exemplars.push(exemplar::load_image(ez, "--ez")?);
     }
+    let exemplars = to_crate_frame(exemplars, args.frame);
     let volume = nrrd::load(&args.volume)?;
     let params = EvalParams {
         slices_per_axis: args.slices,

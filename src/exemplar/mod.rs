@@ -94,6 +94,19 @@ impl Image {
         }
         out
     }
+    /// The image mirrored about its main diagonal: pixel (x, y) of the result is pixel (y, x)
+    /// of this one.
+    pub fn transposed(&self) -> Image {
+        let c = self.channels as usize;
+        let mut out = Image::new(self.height, self.width, self.channels);
+        for y in 0..self.width {
+            for x in 0..self.height {
+                let dst = (y * self.height + x) as usize * c;
+                out.pixels[dst..dst + c].copy_from_slice(self.at(y, x));
+            }
+        }
+        out
+    }
     /// The channels of pixel (x, y) after resolving out-of-range coordinates with `border`.
     pub fn at_border(&self, x: i32, y: i32, border: Border) -> &[u8] {
         self.at(
@@ -237,4 +250,29 @@ pub const DEFAULT_EXEMPLAR_PNG: &[u8] = include_bytes!("../../assets/default-exe
 /// Decode the built-in default exemplar.
 pub fn default_exemplar() -> Image {
     decode_image(DEFAULT_EXEMPLAR_PNG, "built-in exemplar").expect("built-in exemplar decodes")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Image;
+
+    #[test]
+    fn transposing_mirrors_about_the_diagonal() {
+        // 3 x 2, two channels: pixel (x, y) holds (x, 10 y).
+        let mut img = Image::new(3, 2, 2);
+        for y in 0..2 {
+            for x in 0..3 {
+                let i = ((y * 3 + x) * 2) as usize;
+                img.pixels[i..i + 2].copy_from_slice(&[x as u8, 10 * y as u8]);
+            }
+        }
+        let t = img.transposed();
+        assert_eq!((t.width, t.height, t.channels), (2, 3, 2));
+        for y in 0..3 {
+            for x in 0..2 {
+                assert_eq!(t.at(x, y), img.at(y, x));
+            }
+        }
+        assert_eq!(t.transposed().pixels, img.pixels);
+    }
 }
