@@ -104,7 +104,8 @@ fn analyze_and_inspect_fixture() {
     let o = run(&["inspect", out.to_str().unwrap(), "--json"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
-    assert_eq!(v["levels"].as_array().unwrap().len(), 4);
+    // Four levels for each of the three exemplars one image becomes (`--frame paper`).
+    assert_eq!(v["levels"].as_array().unwrap().len(), 3 * 4);
     assert_eq!(v["levels"][0]["width"], 32);
     let slab = dir.path().join("cells.slab.png");
     let img = image::open(&slab).unwrap();

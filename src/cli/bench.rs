@@ -108,6 +108,10 @@ pub struct BenchAnalyzeArgs {
     /// The feature channel, as `analyze --feature-mask` (auto, edges or none).
     #[arg(long, default_value = "auto", value_parser = ["auto", "edges", "none"])]
     pub feature_mask: String,
+    /// The frame, as `analyze --frame` (`paper`: three exemplars, about twice the time of
+    /// `cyclic`'s one shared image).
+    #[arg(long, default_value = "paper", value_parser = ["paper", "cyclic"])]
+    pub frame: String,
     /// Print JSON lines instead of a table.
     #[arg(long)]
     pub json: bool,
@@ -403,6 +407,7 @@ fn bench_analyze(args: BenchAnalyzeArgs) -> anyhow::Result<()> {
                 .arg("--balance-rounds")
                 .arg(args.balance_rounds.to_string())
                 .args(["--feature-mask", &args.feature_mask])
+                .args(["--frame", &args.frame])
                 .arg(&input)
                 .arg("-o")
                 .arg(&output);
