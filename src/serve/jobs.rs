@@ -332,13 +332,20 @@ impl State {
                 let analysis = match cached {
                     Some(a) => a,
                     None => {
-                        // The feature channel as the CLI's default (`--feature-mask auto`).
-                        let masks = crate::exemplar::feature::auto_masks(&[image.clone()]);
+                        // As the CLI's defaults: the feature channel (`--feature-mask auto`)
+                        // and the paper's frame (`--frame paper`: three exemplars).
+                        use crate::analysis::frame::{to_crate_frame, InputFrame};
+                        let frame = InputFrame::default();
+                        let masks = to_crate_frame(
+                            crate::exemplar::feature::auto_masks(&[image.clone()]),
+                            frame,
+                        );
+                        let exemplars = to_crate_frame(vec![image], frame);
                         let input = AnalysisInput {
-                            exemplars: vec![image],
+                            names: vec![name.clone(); exemplars.len()],
+                            exemplars,
                             masks,
                             border,
-                            names: vec![name.clone()],
                         };
                         let _work = lock(&self.work);
                         let a = Arc::new(analysis::analyze(
