@@ -215,6 +215,32 @@ fn frames_orient_the_y_exemplar() {
         ]);
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     }
+    // A non-square image: the paper's frame would transpose y to another size, so the default
+    // is the cyclic frame, and an explicit --frame paper is refused.
+    let wide = dir.path().join("wide.png");
+    image::open(&cells)
+        .unwrap()
+        .crop_imm(0, 0, 32, 24)
+        .save(&wide)
+        .unwrap();
+    assert!(analyse(&[wide.to_str().unwrap()], "wide.ssa").shared);
+    let o = run(&[
+        "analyze",
+        wide.to_str().unwrap(),
+        "--frame",
+        "paper",
+        "-o",
+        dir.path().join("refused.ssa").to_str().unwrap(),
+    ]);
+    let kept = [
+        "paper.ssa",
+        "cyclic.ssa",
+        "three.ssa",
+        "v.nrrd",
+        "wide.png",
+        "wide.ssa",
+    ];
+    assert_user_error(&o, "--frame paper", dir.path(), &kept);
     let target = dir.path().join("w.nrrd");
     let o = run(&[
         "synth",
@@ -226,12 +252,7 @@ fn frames_orient_the_y_exemplar() {
         "-o",
         target.to_str().unwrap(),
     ]);
-    assert_user_error(
-        &o,
-        "--frame",
-        dir.path(),
-        &["paper.ssa", "cyclic.ssa", "three.ssa", "v.nrrd"],
-    );
+    assert_user_error(&o, "--frame", dir.path(), &kept);
 }
 
 #[test]

@@ -27,19 +27,37 @@
 //! Ey ([`to_crate_frame`]): the same geometry, with the machinery above unchanged.
 
 /// How exemplar images lie in the three planes, as users give them (`--frame`).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum InputFrame {
     /// The paper's coordinate inheritance (the formula): Ex columns along y, rows along
     /// z; Ey columns along x, rows along z; Ez columns along x, rows along y. The planes
     /// orthogonal to x and y share their rows' axis (z, "up"), so layered structures and
     /// directional lighting in one image agree in two of the three planes. Ey is transposed
     /// into the crate's frame ([`to_crate_frame`]), so one image becomes three exemplars
-    /// (about twice the analysis time: no shared candidate set).
-    #[default]
+    /// (about twice the analysis time: no shared candidate set). The default where it fits
+    /// ([`default_frame`]).
     Paper,
     /// The crate's frame as it is (table above): one image serves all three planes with one
     /// shared candidate set; no two planes agree on "up".
     Cyclic,
+}
+
+/// Whether `images` (one for all planes, or Ex, Ey, Ez) can be given in the paper's frame: Ey
+/// transposed must have Ex's size (every square image can; a non-square one only as three
+/// exemplars with Ey given turned).
+pub fn paper_frame_fits(images: &[crate::exemplar::Image]) -> bool {
+    let (x, y) = (&images[0], &images[images.len().min(2) - 1]);
+    (y.height, y.width) == (x.width, x.height)
+}
+
+/// The frame of `images` when the user named none: the paper's where it fits
+/// ([`paper_frame_fits`]), else the cyclic one.
+pub fn default_frame(images: &[crate::exemplar::Image]) -> InputFrame {
+    if paper_frame_fits(images) {
+        InputFrame::Paper
+    } else {
+        InputFrame::Cyclic
+    }
 }
 
 /// The exemplars (one for all planes, or Ex, Ey, Ez) in the crate's frame, given in `frame`:

@@ -4,7 +4,7 @@ use clap::Args;
 use solidsynth::analysis::frame::{self, InputFrame};
 use solidsynth::analysis::{self, Analysis, AnalysisInput, AnalysisParams};
 use solidsynth::backend::Compute;
-use solidsynth::exemplar::{self, Border};
+use solidsynth::exemplar::{self, Border, Image};
 use solidsynth::io::{atomic, ssa};
 use solidsynth::Error;
 use std::path::PathBuf;
@@ -87,9 +87,35 @@ fn parse_feature_mask(s: &str) -> Result<FeatureMask, String> {
 }
 
 impl InputArgs {
-    /// The frame the exemplars are given in (`--frame`, default the paper's).
-    pub fn frame(&self) -> InputFrame {
-        self.frame.unwrap_or_default()
+    /// The frame `exemplars` are given in: `--frame`, or by default the paper's where it fits
+    /// (a square y exemplar), else the cyclic one (said in the log). An explicit `--frame paper`
+    /// that does not fit is an input error.
+    fn frame_of(&self, exemplars: &[Image]) -> solidsynth::Result<InputFrame> {
+        let fits = frame::paper_frame_fits(exemplars);
+        match self.frame {
+            Some(InputFrame::Paper) if !fits => {
+                let y = &exemplars[exemplars.len().min(2) - 1];
+                Err(Error::invalid(
+                    "--frame paper",
+                    format!(
+                        "transposes the y exemplar ({}x{}), which then no longer has the x \
+                         exemplar's size; use a square image or --frame cyclic",
+                        y.width, y.height
+                    ),
+                ))
+            }
+            Some(f) => Ok(f),
+            None => {
+                let f = frame::default_frame(exemplars);
+                if f == InputFrame::Cyclic {
+                    tracing::info!(
+                        "non-square exemplar: --frame cyclic (the paper's frame transposes the y \
+                         exemplar)"
+                    );
+                }
+                Ok(f)
+            }
+        }
     }
 
     /// Whether a feature-mask option other than the default was given.
@@ -176,7 +202,7 @@ impl InputArgs {
         }
         // In the crate's frame: with the paper's, one image (and its mask) becomes three
         // exemplars, Ey transposed.
-        let frame = self.frame();
+        let frame = self.frame_of(&exemplars)?;
         if frame == InputFrame::Paper {
             if names.len() == 1 {
                 names = vec![names[0].clone(), names[0].clone(), names[0].clone()];

@@ -1,7 +1,7 @@
 //! `solidsynth eval`.
 
 use clap::Args;
-use solidsynth::analysis::frame::{to_crate_frame, InputFrame};
+use solidsynth::analysis::frame::{default_frame, paper_frame_fits, to_crate_frame, InputFrame};
 use solidsynth::exemplar;
 use solidsynth::io::{atomic, nrrd};
 use solidsynth::metrics::{self, sheet, EvalParams, Scores};
@@ -20,11 +20,12 @@ pub struct EvalArgs {
     /// Exemplar of the slices perpendicular to z.
     #[arg(long, requires = "ey")]
     pub ez: Option<PathBuf>,
-    /// The frame the exemplars were given in when the volume was made (`synth --frame`,
-    /// default `paper`): with `paper`, the slices perpendicular to y, cut with columns along z
-    /// and rows along x, are scored against the y exemplar transposed.
-    #[arg(long, value_enum, default_value = "paper")]
-    pub frame: InputFrame,
+    /// The frame the exemplars were given in when the volume was made (as `synth --frame`,
+    /// and the same default: `paper` where it fits, i.e. a square y exemplar, else `cyclic`):
+    /// with `paper`, the slices perpendicular to y, cut with columns along z and rows along x,
+    /// are scored against the y exemplar transposed.
+    #[arg(long, value_enum)]
+    pub frame: Option<InputFrame>,
     /// Slices scored per axis.
     #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..=64))]
     pub slices: u32,
@@ -49,7 +50,16 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
         exemplars.push(exemplar::load_image(ey, "--ey")?);
         exemplars.push(exemplar::load_image(ez, "--ez")?);
     }
-    let exemplars = to_crate_frame(exemplars, args.frame);
+    let frame = args.frame.unwrap_or_else(|| default_frame(&exemplars));
+    if frame == InputFrame::Paper && !paper_frame_fits(&exemplars) {
+        return Err(solidsynth::Error::invalid(
+            "--frame paper",
+            "transposes the y exemplar, which then no longer has the x exemplar's size; use \
+             --frame cyclic",
+        )
+        .into());
+    }
+    let exemplars = to_crate_frame(exemplars, frame);
     let volume = nrrd::load(&args.volume)?;
     let params = EvalParams {
         slices_per_axis: args.slices,

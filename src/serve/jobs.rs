@@ -333,9 +333,9 @@ impl State {
                     Some(a) => a,
                     None => {
                         // As the CLI's defaults: the feature channel (`--feature-mask auto`)
-                        // and the paper's frame (`--frame paper`: three exemplars).
-                        use crate::analysis::frame::{to_crate_frame, InputFrame};
-                        let frame = InputFrame::default();
+                        // and the frame (the paper's, three exemplars, for a square image).
+                        use crate::analysis::frame::{default_frame, to_crate_frame};
+                        let frame = default_frame(std::slice::from_ref(&image));
                         let masks = to_crate_frame(
                             crate::exemplar::feature::auto_masks(&[image.clone()]),
                             frame,
