@@ -60,6 +60,29 @@ pub fn default_frame(images: &[crate::exemplar::Image]) -> InputFrame {
     }
 }
 
+/// The frame `images` are taken in: `requested`, or by default [`default_frame`]. A requested
+/// paper frame that does not fit ([`paper_frame_fits`]) is an input error.
+pub fn resolve_frame(
+    images: &[crate::exemplar::Image],
+    requested: Option<InputFrame>,
+) -> crate::Result<InputFrame> {
+    match requested {
+        Some(InputFrame::Paper) if !paper_frame_fits(images) => {
+            let y = &images[images.len().min(2) - 1];
+            Err(crate::Error::invalid(
+                "--frame paper",
+                format!(
+                    "transposes the y exemplar ({}x{}), which then no longer has the x \
+                     exemplar's size; use a square image or --frame cyclic",
+                    y.width, y.height
+                ),
+            ))
+        }
+        Some(frame) => Ok(frame),
+        None => Ok(default_frame(images)),
+    }
+}
+
 /// The exemplars (one for all planes, or Ex, Ey, Ez) in the crate's frame, given in `frame`:
 /// with [`InputFrame::Paper`] three images, Ey transposed (the paper's Ey has columns along x
 /// and rows along z, the crate's columns along z and rows along x). Masks go through the same.

@@ -87,35 +87,16 @@ fn parse_feature_mask(s: &str) -> Result<FeatureMask, String> {
 }
 
 impl InputArgs {
-    /// The frame `exemplars` are given in: `--frame`, or by default the paper's where it fits
-    /// (a square y exemplar), else the cyclic one (said in the log). An explicit `--frame paper`
-    /// that does not fit is an input error.
+    /// The frame `exemplars` are given in (`frame::resolve_frame`), saying so in the log when a
+    /// non-square image defaults to the cyclic one.
     fn frame_of(&self, exemplars: &[Image]) -> solidsynth::Result<InputFrame> {
-        let fits = frame::paper_frame_fits(exemplars);
-        match self.frame {
-            Some(InputFrame::Paper) if !fits => {
-                let y = &exemplars[exemplars.len().min(2) - 1];
-                Err(Error::invalid(
-                    "--frame paper",
-                    format!(
-                        "transposes the y exemplar ({}x{}), which then no longer has the x \
-                         exemplar's size; use a square image or --frame cyclic",
-                        y.width, y.height
-                    ),
-                ))
-            }
-            Some(f) => Ok(f),
-            None => {
-                let f = frame::default_frame(exemplars);
-                if f == InputFrame::Cyclic {
-                    tracing::info!(
-                        "non-square exemplar: --frame cyclic (the paper's frame transposes the y \
-                         exemplar)"
-                    );
-                }
-                Ok(f)
-            }
+        let frame = frame::resolve_frame(exemplars, self.frame)?;
+        if self.frame.is_none() && frame == InputFrame::Cyclic {
+            tracing::info!(
+                "non-square exemplar: --frame cyclic (the paper's frame transposes the y exemplar)"
+            );
         }
+        Ok(frame)
     }
 
     /// Whether a feature-mask option other than the default was given.
@@ -161,7 +142,6 @@ impl InputArgs {
             exemplars.push(exemplar::load_image(ez, "--ez")?);
             names.push(format!("--ez {}", ez.display()));
         }
-
         if self.feature_mask == FeatureMask::None
             && self.feature_weight != solidsynth::analysis::DEFAULT_FEATURE_WEIGHT
         {

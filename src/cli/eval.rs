@@ -1,7 +1,7 @@
 //! `solidsynth eval`.
 
 use clap::Args;
-use solidsynth::analysis::frame::{default_frame, paper_frame_fits, to_crate_frame, InputFrame};
+use solidsynth::analysis::frame::{resolve_frame, to_crate_frame, InputFrame};
 use solidsynth::exemplar;
 use solidsynth::io::{atomic, nrrd};
 use solidsynth::metrics::{self, sheet, EvalParams, Scores};
@@ -50,15 +50,7 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
         exemplars.push(exemplar::load_image(ey, "--ey")?);
         exemplars.push(exemplar::load_image(ez, "--ez")?);
     }
-    let frame = args.frame.unwrap_or_else(|| default_frame(&exemplars));
-    if frame == InputFrame::Paper && !paper_frame_fits(&exemplars) {
-        return Err(solidsynth::Error::invalid(
-            "--frame paper",
-            "transposes the y exemplar, which then no longer has the x exemplar's size; use \
-             --frame cyclic",
-        )
-        .into());
-    }
+    let frame = resolve_frame(&exemplars, args.frame)?;
     let exemplars = to_crate_frame(exemplars, frame);
     let volume = nrrd::load(&args.volume)?;
     let params = EvalParams {

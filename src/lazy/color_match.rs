@@ -19,10 +19,6 @@
 //! its histogram ratio at 1.80 where a 96^3 one gave 0.73. (The 3D candidates' means, which
 //! need no probe, are far wider than a solid's: a table from them barely stretched.)
 
-/// 3D candidates per pixel the finest level's correction considers (the paper's reduced
-/// search).
-pub const FINEST_K3D: u32 = 4;
-
 /// Channels a table word holds (one byte each).
 const WORD_CHANNELS: usize = 4;
 

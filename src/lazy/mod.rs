@@ -948,7 +948,7 @@ impl Synthesizer {
             );
             // The paper's reduced search at the finest level: 4 of the 3D candidates.
             let k3d_used = if pack_index + 1 == self.packs.len() {
-                color_match::FINEST_K3D
+                4
             } else {
                 pack.k3d_stride
             }
