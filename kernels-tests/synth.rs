@@ -190,6 +190,12 @@ fn synthesis_kernels_bit_exact_on_gpu_and_cpu() {
     same_on_both("tileable", &a, &params, &gpu, |s| {
         s.synthesize_tileable(32, &|_, _| {}, false).unwrap().0
     });
+    // The same tileable solid in groups of 16^3 (boxes of the periodic solid with their
+    // padding, initial level wrapping): what a solid too large for one buffer goes through.
+    same_on_both("tileable in groups", &a, &params, &gpu, |s| {
+        s.set_max_chunk_side(16);
+        s.synthesize_tileable(32, &|_, _| {}, false).unwrap().0
+    });
     // The coarse-level cache: level L-1 built once from a tileable solid, uploaded per request.
     let params = SynthParams {
         seed: 8,

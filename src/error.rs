@@ -15,8 +15,9 @@ pub enum Error {
     #[error("{path}: {problem}")]
     CorruptFile { path: PathBuf, problem: String },
 
-    /// Reading or writing a file failed.
-    #[error("{path}: {source}")]
+    /// Reading or writing a file failed. The message names the file; the cause is the error's
+    /// source (printed after it by `{:#}` / error reporters), not repeated in the message.
+    #[error("{path}")]
     Io {
         path: PathBuf,
         #[source]
@@ -55,6 +56,19 @@ impl Error {
             path: path.into(),
             source,
         }
+    }
+
+    /// The message followed by its causes (`path: No such file or directory`), for reports
+    /// that do not walk the source chain themselves.
+    pub fn report(&self) -> String {
+        let mut text = self.to_string();
+        let mut cause = std::error::Error::source(self);
+        while let Some(c) = cause {
+            text.push_str(": ");
+            text.push_str(&c.to_string());
+            cause = c.source();
+        }
+        text
     }
 
     /// True when the failure is the caller's input (bad flag, bad or damaged file): exit code 2.

@@ -760,6 +760,45 @@ fn synth_bad_inputs_exit_2_and_write_nothing() {
         &["bad.ssa", "future.ssa", "full"],
     );
     assert_eq!(std::fs::read(d.join("full/keep.png")).unwrap(), b"x");
+    // A directory no output can be written in (even by root) is refused before any work,
+    // named by its flag, and the other outputs are not written either.
+    #[cfg(target_os = "linux")]
+    {
+        let o = run(&[
+            "synth",
+            "--size",
+            "16",
+            "--backend",
+            "cpu",
+            "-o",
+            out_s,
+            "--flipbook",
+            "/proc/f.png",
+        ]);
+        assert_user_error(
+            &o,
+            "--flipbook /proc/f.png",
+            d,
+            &["bad.ssa", "future.ssa", "full"],
+        );
+    }
+    // The coarse cache belongs to the infinite solid, not to a tileable one.
+    let o = run(&[
+        "synth",
+        "--size",
+        "32",
+        "--tileable",
+        "--coarse-cache",
+        "64",
+        "-o",
+        out_s,
+    ]);
+    assert_user_error(
+        &o,
+        "--coarse-cache with --tileable",
+        d,
+        &["bad.ssa", "future.ssa", "full"],
+    );
 }
 
 #[test]

@@ -564,6 +564,35 @@ fn tileable_solids_wrap_around_seamlessly() {
     assert!(s.synthesize_tileable(48, &|_, _| {}, false).is_err());
 }
 
+/// A tileable solid too large for one buffer is synthesized as boxes of the periodic solid,
+/// group by group with their padding: the same voxels as the one-piece synthesis, and so still
+/// periodic.
+#[test]
+fn tileable_solids_in_groups_equal_the_one_piece_solid() {
+    use solidsynth::backend::Compute;
+    use solidsynth::lazy::{SynthParams, Synthesizer};
+    let a = common::analyze(vec![common::fixture("cells32.png")], Border::Wrap);
+    let params = SynthParams {
+        seed: 3,
+        ..Default::default()
+    };
+    let n = 32u32;
+    let mut whole = Synthesizer::new(&a, params.clone(), &Compute::Cpu).unwrap();
+    let (one_piece, one_piece_triples) = whole.synthesize_tileable(n, &|_, _| {}, true).unwrap();
+    assert_eq!(whole.last_stats().unwrap().groups, 1);
+    let mut grouped = Synthesizer::new(&a, params, &Compute::Cpu).unwrap();
+    // Groups of 16^3: 8 of them, each with its dependency padding reaching across the period.
+    grouped.set_max_chunk_side(16);
+    let (in_groups, group_triples) = grouped.synthesize_tileable(n, &|_, _| {}, true).unwrap();
+    assert_eq!(grouped.last_stats().unwrap().groups, 8);
+    assert_eq!(in_groups.dims(), one_piece.dims());
+    assert!(
+        in_groups.data == one_piece.data,
+        "grouped tileable solid differs"
+    );
+    assert!(group_triples == one_piece_triples, "grouped triples differ");
+}
+
 /// With the coarse-level cache the solid is another deterministic function of space: any box
 /// equals the same voxels of a larger one, and sparse samples equal the box's.
 #[test]

@@ -183,16 +183,10 @@ fn capture_cmd(a: CaptureArgs, quiet: bool) -> anyhow::Result<()> {
     let cap = capture::synthetic(a.size, a.lights as usize, a.seed);
     // Written into a hidden sibling directory, then renamed: the capture appears whole or not
     // at all (rename replaces an empty directory).
-    let tmp = tempfile::Builder::new()
-        .prefix(".solidsynth-capture-")
-        .tempdir_in(parent)
-        .map_err(|e| Error::io(parent, e))?;
-    capture::save(&cap, tmp.path())?;
-    let tmp = tmp.keep();
-    if let Err(e) = std::fs::rename(&tmp, out) {
-        let _ = std::fs::remove_dir_all(&tmp);
-        return Err(Error::io(out, e).into());
-    }
+    let mut outputs = atomic::Outputs::new();
+    let staging = outputs.directory(out)?;
+    capture::save(&cap, &staging)?;
+    outputs.commit()?;
     if !quiet {
         eprintln!(
             "captured {} images of {}x{} in {:.2} s -> {}",

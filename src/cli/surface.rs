@@ -111,13 +111,16 @@ pub fn run(args: SurfaceArgs, quiet: bool) -> anyhow::Result<()> {
     match &extra {
         None => atomic::write_file(&args.output, &mesh::glb::glb_bytes(&mesh, &atlas, &png))?,
         Some((mtl, png_path)) => {
+            // The three files appear together or not at all.
             let name = |p: &Path| p.file_name().unwrap().to_string_lossy().into_owned();
-            atomic::write_file(png_path, &png)?;
-            atomic::write_file(mtl, bake::mtl_text(&name(png_path)).as_bytes())?;
-            atomic::write_file(
+            let mut outputs = atomic::Outputs::new();
+            outputs.write_file(png_path, &png)?;
+            outputs.write_file(mtl, bake::mtl_text(&name(png_path)).as_bytes())?;
+            outputs.write_file(
                 &args.output,
                 bake::obj_text(&mesh, &atlas, &name(mtl)).as_bytes(),
             )?;
+            outputs.commit()?;
         }
     }
     let stats = synth.last_stats().cloned().unwrap_or_default();

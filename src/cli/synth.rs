@@ -162,9 +162,9 @@ impl TriplesWriter {
         self.file.write_all(&bytes)
     }
 
-    fn finish(self) -> solidsynth::Result<()> {
+    fn finish(self) -> atomic::PendingFile {
         assert_eq!(self.words_left, 0, "triples incomplete");
-        self.file.commit()
+        self.file
     }
 }
 
@@ -275,6 +275,14 @@ pub fn run(args: SynthArgs, quiet: bool) -> anyhow::Result<()> {
         return Err(Error::invalid(
             format!("--size {} with --tileable", args.size),
             "must be a multiple of 32 (every level a whole number of 4-voxel bricks)",
+        )
+        .into());
+    }
+    if args.tileable && args.solid.solid.coarse_cache.is_some() {
+        return Err(Error::invalid(
+            "--coarse-cache with --tileable",
+            "the cache builds regions of the infinite solid; a tileable solid is its own \
+             periodic definition: give one or the other",
         )
         .into());
     }
@@ -391,26 +399,27 @@ fn run_box(args: &SolidArgs, region: Box3, tileable: bool, quiet: bool) -> anyho
         }
         Ok(())
     };
+    let sink = |slab: solidsynth::lazy::Slab| take(slab.volume, slab.triples);
     if tileable {
-        let (volume, triples) = synth.synthesize_tileable(dims[0], &report, want_triples)?;
-        take(&volume, &triples)?;
+        synth.synthesize_tileable_slabs(dims[0], &report, want_triples, sink)?;
     } else {
-        synth.synthesize_slabs(region, &report, want_triples, |slab| {
-            take(slab.volume, slab.triples)
-        })?;
+        synth.synthesize_slabs(region, &report, want_triples, sink)?;
     }
     let synth_s = synth_start.elapsed().as_secs_f64();
     bar.finish_and_clear();
-    nrrd_out.finish()?;
+    // Every output is staged and they appear together at the end: a failure on the way (the
+    // flipbook's disk full, an interrupt) leaves none of them.
+    let mut outputs = atomic::Outputs::new();
+    outputs.stage(nrrd_out.finish());
     if let Some(t) = triples_out {
-        t.finish()?;
+        outputs.stage(t.finish());
     }
     let volume = kept.unwrap_or_else(|| Volume::new(0, 0, 0, channels));
     if let Some(p) = &args.vti {
-        solidsynth::io::vti::save(&volume, p)?;
+        outputs.write_file(p, &solidsynth::io::vti::to_checked_bytes(&volume, p)?)?;
     }
     if let Some(p) = &args.flipbook {
-        atomic::save_png(p, &flipbook(&volume))?;
+        outputs.save_png(p, &flipbook(&volume))?;
     }
     if let Some(p) = &args.sheet {
         let exemplars: Vec<_> = (0..if analysis.shared { 1 } else { 3 })
@@ -420,14 +429,18 @@ fn run_box(args: &SolidArgs, region: Box3, tileable: bool, quiet: bool) -> anyho
                     .select_channels(0..analysis.color_channels)
             })
             .collect();
-        atomic::save_png(p, &contact_sheet(&volume, &exemplars))?;
+        outputs.save_png(p, &contact_sheet(&volume, &exemplars))?;
     }
     if let Some(dir) = &args.slices {
-        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+        let staging = outputs.directory(dir)?;
         for z in 0..volume.nz {
-            atomic::save_png(&dir.join(format!("slice_{z:04}.png")), &z_slice(&volume, z))?;
+            let path = dir.join(format!("slice_{z:04}.png"));
+            let png = atomic::png_bytes(&z_slice(&volume, z))?;
+            std::fs::write(staging.join(path.file_name().expect("a file name")), png)
+                .map_err(|e| Error::io(&path, e))?;
         }
     }
+    outputs.commit()?;
     let kernels: serde_json::Map<String, serde_json::Value> = synth
         .kernel_times()
         .map(|t| {

@@ -23,6 +23,18 @@ pub fn check_output_path(path: &Path, flag: &str) -> Result<()> {
             format!("directory {} does not exist", parent.display()),
         ));
     }
+    // Outputs are staged beside their target: try that now, before any work, so an
+    // unwritable directory is named with its flag rather than found after a long synthesis.
+    tempfile::Builder::new()
+        .prefix(".solidsynth-")
+        .suffix(".probe")
+        .tempfile_in(parent)
+        .map_err(|e| {
+            Error::invalid(
+                format!("{flag} {}", path.display()),
+                format!("cannot write in directory {}: {e}", parent.display()),
+            )
+        })?;
     Ok(())
 }
 
@@ -50,7 +62,11 @@ static PENDING: std::sync::Mutex<Vec<std::path::PathBuf>> = std::sync::Mutex::ne
 pub fn discard_pending() {
     if let Ok(list) = PENDING.lock() {
         for p in list.iter() {
-            let _ = std::fs::remove_file(p);
+            if p.is_dir() {
+                let _ = std::fs::remove_dir_all(p);
+            } else {
+                let _ = std::fs::remove_file(p);
+            }
         }
     }
 }
@@ -111,14 +127,143 @@ impl PendingFile {
     }
 
     /// Flush to disk and put the file in place.
-    pub fn commit(mut self) -> Result<()> {
-        let tmp = self.tmp.take().expect("committed once");
-        forget_pending(tmp.path());
+    pub fn commit(self) -> Result<()> {
+        self.sync()?;
+        self.persist()
+    }
+
+    /// Flush the temporary to disk.
+    fn sync(&self) -> Result<()> {
+        let tmp = self.tmp.as_ref().expect("not committed");
         tmp.as_file()
             .sync_all()
-            .map_err(|e| Error::io(&self.path, e))?;
+            .map_err(|e| Error::io(&self.path, e))
+    }
+
+    /// Rename the temporary over the target.
+    fn persist(mut self) -> Result<()> {
+        let tmp = self.tmp.take().expect("committed once");
+        forget_pending(tmp.path());
         tmp.persist(&self.path)
             .map_err(|e| Error::io(&self.path, e.error))?;
+        Ok(())
+    }
+}
+
+/// A new directory of outputs being filled: a temporary directory beside the target that
+/// [`Outputs::commit`] renames into place (the target must not exist, or be an empty
+/// directory). Dropped uncommitted, it is deleted with its contents; an interrupt deletes it
+/// too (see [`discard_pending`]).
+struct PendingDir {
+    path: std::path::PathBuf,
+    /// Always Some until committed.
+    tmp: Option<tempfile::TempDir>,
+}
+
+impl PendingDir {
+    fn create(path: &Path) -> Result<PendingDir> {
+        let parent = path
+            .parent()
+            .filter(|p| !p.as_os_str().is_empty())
+            .unwrap_or(Path::new("."));
+        let mut builder = tempfile::Builder::new();
+        builder.prefix(".solidsynth-").suffix(".partial");
+        // As for files: an ordinary directory (0777 less the umask), not a private one.
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt;
+            builder.permissions(std::fs::Permissions::from_mode(0o777));
+        }
+        let tmp = builder
+            .tempdir_in(parent)
+            .map_err(|e| Error::io(parent, e))?;
+        if let Ok(mut list) = PENDING.lock() {
+            list.push(tmp.path().to_path_buf());
+        }
+        Ok(PendingDir {
+            path: path.to_path_buf(),
+            tmp: Some(tmp),
+        })
+    }
+
+    fn staging(&self) -> &Path {
+        self.tmp.as_ref().expect("not committed").path()
+    }
+
+    fn persist(mut self) -> Result<()> {
+        let tmp = self.tmp.take().expect("committed once");
+        forget_pending(tmp.path());
+        let staged = tmp.keep();
+        // rename(2) replaces an empty directory; anything else at the target is left as it
+        // was, and the staged copy deleted.
+        std::fs::rename(&staged, &self.path).map_err(|e| {
+            let _ = std::fs::remove_dir_all(&staged);
+            Error::io(&self.path, e)
+        })
+    }
+}
+
+impl Drop for PendingDir {
+    fn drop(&mut self) {
+        // An uncommitted temporary directory deletes itself (TempDir's drop).
+        if let Some(tmp) = &self.tmp {
+            forget_pending(tmp.path());
+        }
+    }
+}
+
+/// The outputs of one command, each staged as a temporary beside its target and all put in
+/// place together by [`Outputs::commit`] once every one is complete: a command that fails or is
+/// interrupted on the way (a later output's error, a full disk) leaves none of them behind, not
+/// merely no half-written one.
+#[derive(Default)]
+pub struct Outputs {
+    files: Vec<PendingFile>,
+    dirs: Vec<PendingDir>,
+}
+
+impl Outputs {
+    pub fn new() -> Outputs {
+        Outputs::default()
+    }
+
+    /// Add a file written piece by piece (complete when staged).
+    pub fn stage(&mut self, file: PendingFile) {
+        self.files.push(file);
+    }
+
+    /// Stage `bytes` as the file `path`.
+    pub fn write_file(&mut self, path: &Path, bytes: &[u8]) -> Result<()> {
+        let mut file = PendingFile::create(path)?;
+        file.write_all(bytes)?;
+        self.stage(file);
+        Ok(())
+    }
+
+    /// Stage an RGBA image as the PNG file `path`.
+    pub fn save_png(&mut self, path: &Path, img: &image::RgbaImage) -> Result<()> {
+        self.write_file(path, &png_bytes(img)?)
+    }
+
+    /// Stage a new directory `path`: returns the temporary directory to fill in its place.
+    pub fn directory(&mut self, path: &Path) -> Result<std::path::PathBuf> {
+        let dir = PendingDir::create(path)?;
+        let staging = dir.staging().to_path_buf();
+        self.dirs.push(dir);
+        Ok(staging)
+    }
+
+    /// Flush every staged file to disk, then rename each into place.
+    pub fn commit(self) -> Result<()> {
+        for f in &self.files {
+            f.sync()?;
+        }
+        for f in self.files {
+            f.persist()?;
+        }
+        for d in self.dirs {
+            d.persist()?;
+        }
         Ok(())
     }
 }
@@ -141,7 +286,7 @@ pub fn save_png(path: &Path, img: &image::RgbaImage) -> Result<()> {
 pub fn png_bytes(img: &image::RgbaImage) -> Result<Vec<u8>> {
     let mut buf = Vec::new();
     img.write_to(&mut std::io::Cursor::new(&mut buf), image::ImageFormat::Png)
-        .map_err(|e| Error::Gpu(format!("PNG encoding failed: {e}")))?;
+        .map_err(|e| Error::Internal(format!("PNG encoding failed: {e}")))?;
     Ok(buf)
 }
 
@@ -164,6 +309,48 @@ mod tests {
         assert_ne!(mode & 0o044, 0, "{mode:o}");
         // No temporary left beside it.
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+    }
+
+    #[test]
+    fn staged_outputs_appear_together_or_not_at_all() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        std::fs::write(d.join("a.bin"), b"old").unwrap();
+        let names = |d: &Path| {
+            let mut n: Vec<String> = std::fs::read_dir(d)
+                .unwrap()
+                .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+                .collect();
+            n.sort();
+            n
+        };
+        // Dropped before commit (a later output failed): nothing new, the old file kept.
+        let mut outputs = Outputs::new();
+        outputs.write_file(&d.join("a.bin"), b"new").unwrap();
+        outputs.write_file(&d.join("b.bin"), b"b").unwrap();
+        let staging = outputs.directory(&d.join("slices")).unwrap();
+        std::fs::write(staging.join("s0.png"), b"s").unwrap();
+        drop(outputs);
+        assert_eq!(names(d), ["a.bin"]);
+        assert_eq!(std::fs::read(d.join("a.bin")).unwrap(), b"old");
+        // Committed: all of them, and no temporaries; an empty directory is replaced.
+        std::fs::create_dir(d.join("slices")).unwrap();
+        let mut outputs = Outputs::new();
+        outputs.write_file(&d.join("a.bin"), b"new").unwrap();
+        outputs.write_file(&d.join("b.bin"), b"b").unwrap();
+        let staging = outputs.directory(&d.join("slices")).unwrap();
+        std::fs::write(staging.join("s0.png"), b"s").unwrap();
+        outputs.commit().unwrap();
+        assert_eq!(names(d), ["a.bin", "b.bin", "slices"]);
+        assert_eq!(std::fs::read(d.join("a.bin")).unwrap(), b"new");
+        assert_eq!(std::fs::read(d.join("slices/s0.png")).unwrap(), b"s");
+        // A directory that is not empty is not replaced, and the staged copy goes away.
+        let mut outputs = Outputs::new();
+        let staging = outputs.directory(&d.join("slices")).unwrap();
+        std::fs::write(staging.join("s1.png"), b"t").unwrap();
+        assert!(outputs.commit().is_err());
+        assert_eq!(names(d), ["a.bin", "b.bin", "slices"]);
+        assert_eq!(names(&d.join("slices")), ["s0.png"]);
     }
 
     #[test]

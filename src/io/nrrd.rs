@@ -37,7 +37,7 @@ pub fn header_of(dims: [u32; 3], channels: u32) -> String {
 pub fn save(v: &Volume, path: &Path) -> Result<()> {
     let mut w = SlabWriter::create(path, v.dims(), v.channels)?;
     w.write_slab(v)?;
-    w.finish()
+    w.finish().commit()
 }
 
 /// A volume written slab by slab along z (the file's order), so a large synthesis need not
@@ -81,9 +81,11 @@ impl SlabWriter {
         Ok(())
     }
 
-    pub fn finish(self) -> Result<()> {
+    /// The complete file, to commit or to stage with a command's other outputs
+    /// ([`crate::io::atomic::Outputs`]).
+    pub fn finish(self) -> crate::io::atomic::PendingFile {
         assert_eq!(self.slices_written, self.dims[2], "volume incomplete");
-        self.file.commit()
+        self.file
     }
 }
 

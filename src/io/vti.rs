@@ -34,13 +34,18 @@ pub fn to_bytes(v: &Volume) -> Vec<u8> {
 }
 
 pub fn save(v: &Volume, path: &Path) -> Result<()> {
+    atomic::write_file(path, &to_checked_bytes(v, path)?)
+}
+
+/// [`to_bytes`], refusing a volume the format cannot hold (`path` names the output).
+pub fn to_checked_bytes(v: &Volume, path: &Path) -> Result<Vec<u8>> {
     if v.data.len() > u32::MAX as usize {
         return Err(Error::invalid(
             path.display().to_string(),
             "a volume over 4 GiB does not fit a UInt32-headed .vti",
         ));
     }
-    atomic::write_file(path, &to_bytes(v))
+    Ok(to_bytes(v))
 }
 
 /// Read back a .vti written by [`to_bytes`] (this layout only: tests and round trips).

@@ -212,6 +212,42 @@ pub struct Synthesizer {
     /// When counting: per pack (coarsest first), per exemplar, how many stored voxels held each
     /// exemplar pixel after the level's correction (see [`Self::count_usage`]).
     usage: Option<Vec<[Vec<u64>; 3]>>,
+    /// While a tileable solid is synthesized group by group: its period per level (coarsest
+    /// first), which the groups' initial levels repeat (see [`Periodic::Unwrapped`]).
+    tile_periods: Option<Vec<u32>>,
+}
+
+/// How a planned synthesis treats positions beyond a tileable solid's period.
+#[derive(Clone, Copy)]
+enum Periodic<'a> {
+    /// The infinite solid.
+    No,
+    /// Per level, the period: each level stores exactly one period, and reads wrap around it.
+    Wrapped(&'a [u32]),
+    /// Per level, the period: the levels store a box of the periodic solid with its dependency
+    /// padding, like any box request, and read it unwrapped. Only the initial level's tiling
+    /// and jitter field wrap (they are periodic functions of position); the correction and
+    /// upsampling of a periodic level give a periodic level, so every voxel of the box gets the
+    /// value it has in the [`Periodic::Wrapped`] synthesis.
+    Unwrapped(&'a [u32]),
+}
+
+impl Periodic<'_> {
+    /// The period of the initial level's tiling and jitter field (0: none).
+    fn init_period(self) -> u32 {
+        match self {
+            Periodic::No => 0,
+            Periodic::Wrapped(p) | Periodic::Unwrapped(p) => p[0],
+        }
+    }
+
+    /// The period around which level `l`'s reads wrap (0: none).
+    fn read_period(self, l: usize) -> u32 {
+        match self {
+            Periodic::Wrapped(p) => p[l],
+            Periodic::No | Periodic::Unwrapped(_) => 0,
+        }
+    }
 }
 
 impl Synthesizer {
@@ -239,6 +275,7 @@ impl Synthesizer {
             last_stats: None,
             cache: None,
             usage: None,
+            tile_periods: None,
         })
     }
 
@@ -600,39 +637,62 @@ impl Synthesizer {
     }
 
     /// A tileable solid: the `n`^3 volume of a solid periodic with period `n` along each axis
-    /// (every level periodic with its own size, reads wrapping around), so copies of it tile
-    /// space seamlessly. Its own deterministic definition (same analysis, seed, jitter), not a
-    /// region of the infinite solid. `n` must be a multiple of 32 (each level a whole number of
-    /// bricks and of jitter cells).
+    /// (every level periodic with its own size), so copies of it tile space seamlessly. Its own
+    /// deterministic definition (same analysis, seed, jitter), not a region of the infinite
+    /// solid. `n` must be a multiple of 32 (each level a whole number of bricks and of jitter
+    /// cells). Held whole: see [`Self::synthesize_tileable_slabs`] for large ones.
     pub fn synthesize_tileable(
         &mut self,
         n: u32,
         progress: Progress,
         want_triples: bool,
     ) -> Result<(Volume, Vec<u32>)> {
+        let mut volume = Volume::new(n, n, 0, self.color_channels());
+        let mut triples = Vec::new();
+        self.synthesize_tileable_slabs(n, progress, want_triples, |slab| {
+            volume.data.extend_from_slice(&slab.volume.data);
+            volume.nz += slab.volume.nz;
+            triples.extend_from_slice(slab.triples);
+            Ok(())
+        })?;
+        Ok((volume, triples))
+    }
+
+    /// [`Self::synthesize_tileable`], handed to `sink` in slabs along z like
+    /// [`Self::synthesize_slabs`]. When the periodic state fits one buffer of the backend (and
+    /// the group size, [`Self::set_max_chunk_side`]) it is synthesized in one piece, its reads
+    /// wrapping around the period; otherwise as boxes of the periodic solid, group by group,
+    /// each with its dependency padding (see [`Periodic::Unwrapped`]): the same voxels either
+    /// way (tested), so 256^3 and larger tileable solids work within lavapipe's 128 MiB
+    /// buffers. The coarse-level cache does not apply (it belongs to the infinite solid).
+    pub fn synthesize_tileable_slabs(
+        &mut self,
+        n: u32,
+        progress: Progress,
+        want_triples: bool,
+        mut sink: impl FnMut(Slab) -> Result<()>,
+    ) -> Result<()> {
         if n < 32 || n % 32 != 0 {
             return Err(Error::invalid(
                 format!("--size {n} with --tileable"),
                 "must be a multiple of 32 (every level a whole number of 4-voxel bricks)",
             ));
         }
-        let stride = 3 + self.packs.last().unwrap().pixel_words as u64;
-        let state = (n as u64).pow(3) * stride * 4;
-        if state > self.exec.max_state_bytes() {
-            return Err(Error::invalid(
-                format!("--size {n} with --tileable"),
-                format!(
-                    "the periodic state ({} MiB) exceeds this backend's {} MiB per buffer; a \
-                     tileable solid is synthesized in one piece: use a smaller size or --backend cpu",
-                    state >> 20,
-                    self.exec.max_state_bytes() >> 20
-                ),
-            ));
-        }
-        let levels = bricks::plan_periodic(n, &self.params.passes.levels());
         let periods: Vec<u32> = (0..ANALYSED_LEVELS)
             .map(|l| n >> (ANALYSED_LEVELS - 1 - l))
             .collect();
+        let stride = 3 + self.packs.last().unwrap().pixel_words as u64;
+        let state = (n as u64).pow(3) * stride * 4;
+        let one_piece = state <= self.exec.max_state_bytes()
+            && self.max_chunk_side.is_none_or(|side| side >= n);
+        if !one_piece {
+            self.tile_periods = Some(periods);
+            let whole = Box3::new([0; 3], [n as i32; 3]);
+            let result = self.synthesize_slabs(whole, progress, want_triples, sink);
+            self.tile_periods = None;
+            return result;
+        }
+        let levels = bricks::plan_periodic(n, &self.params.passes.levels());
         let output = levels.last().unwrap().bricks.clone();
         let mut stats = SynthStats {
             voxels_per_level: vec![0; ANALYSED_LEVELS],
@@ -646,7 +706,7 @@ impl Synthesizer {
             0,
             None,
             &output,
-            Some(&periods),
+            Periodic::Wrapped(&periods),
             progress,
             want_triples,
             &mut stats,
@@ -674,7 +734,11 @@ impl Synthesizer {
             }
         }
         progress("done", 1.0);
-        Ok((volume, out_triples))
+        sink(Slab {
+            z0: 0,
+            volume: &volume,
+            triples: &out_triples,
+        })
     }
 
     /// Colours (64 per brick, `group` order) and, when asked, triples of one group of bricks.
@@ -687,14 +751,27 @@ impl Synthesizer {
         want_triples: bool,
         stats: &mut SynthStats,
     ) -> Result<(Vec<u32>, Vec<u32>)> {
-        if self.params.coarse_cache.is_some() {
+        let tile_periods = self.tile_periods.clone();
+        if self.params.coarse_cache.is_some() && tile_periods.is_none() {
             return self.synthesize_group_cached(group, exact, progress, want_triples, stats);
         }
         let timer = std::time::Instant::now();
         let levels = plan_group(group, exact, &self.params.passes.levels());
         tracing::debug!("planned {} bricks in {:.1} ms", group.len(), ms(timer));
-        self.synthesize_group(levels, 0, None, group, None, progress, want_triples, stats)
-            .map(|r| (r.colors, r.triples))
+        let periodic = tile_periods
+            .as_deref()
+            .map_or(Periodic::No, Periodic::Unwrapped);
+        self.synthesize_group(
+            levels,
+            0,
+            None,
+            group,
+            periodic,
+            progress,
+            want_triples,
+            stats,
+        )
+        .map(|r| (r.colors, r.triples))
     }
 
     /// Level L-1 of the coarse cache: a tileable solid of period `coarse_cache / 2` there,
@@ -717,7 +794,7 @@ impl Synthesizer {
                 0,
                 None,
                 &[],
-                Some(&periods),
+                Periodic::Wrapped(&periods),
                 &|_, _| {},
                 false,
                 &mut stats,
@@ -804,7 +881,7 @@ impl Synthesizer {
             parent_pack,
             Some(start),
             group,
-            None,
+            Periodic::No,
             progress,
             want_triples,
             stats,
@@ -813,7 +890,7 @@ impl Synthesizer {
     }
 
     /// Run a planned synthesis: colours (64 per brick, `group` order) and, when asked, triples
-    /// of the output bricks `group`. `periods`: per level, the period of a tileable solid.
+    /// of the output bricks `group`. `periodic`: whether and how the solid is tileable.
     /// `levels` are the packs `first_pack..`; `start`: the first level's state when it does not
     /// come from `init`. An empty `group` skips the colours (the final state is returned).
     #[allow(clippy::too_many_arguments)]
@@ -823,12 +900,11 @@ impl Synthesizer {
         first_pack: usize,
         start: Option<exec::State>,
         group: &[Brick],
-        periods: Option<&[u32]>,
+        periodic: Periodic,
         progress: Progress,
         want_triples: bool,
         stats: &mut SynthStats,
     ) -> Result<GroupResult> {
-        let period = |l: usize| periods.map_or(0, |p| p[l]);
         // Each level's brick index is built when the level starts and dropped after it (with
         // the level's sub-pass plans): a large box's indices are several bytes per voxel.
         let mut levels = levels;
@@ -867,7 +943,7 @@ impl Synthesizer {
             list_offset: layout.storage_list,
             list_count: count0,
             grid_stride: stride_for(count0 as u64 * 64),
-            period: period(0),
+            period: periodic.init_period(),
             _r1: 0,
             _r2: 0,
             ex_width: coarse.width,
@@ -967,7 +1043,7 @@ impl Synthesizer {
                     self.params.candidates,
                 );
                 p.mask_offset = layout.subpass_lists[s].2;
-                p.period = period(level);
+                p.period = periodic.read_period(level);
                 exec::timed(&mut self.exec, &mut self.times, "correct", |e| {
                     e.correct(pack_index, &p, &mut state, &index)
                 })?;

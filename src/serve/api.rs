@@ -143,7 +143,7 @@ fn solid_of(state: &State, id: &str) -> Result<std::sync::Arc<jobs::Solid>, (u16
 
 /// A library error: the caller's input (400) or ours (500).
 fn from_error(e: Error) -> (u16, String) {
-    (if e.is_user_error() { 400 } else { 500 }, e.to_string())
+    (if e.is_user_error() { 400 } else { 500 }, e.report())
 }
 
 fn state_json(state: &State) -> Reply {

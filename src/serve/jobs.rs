@@ -295,10 +295,10 @@ impl State {
                         })
                     }
                     Err(e) => {
-                        tracing::warn!("job failed: {e}");
+                        tracing::warn!("job failed: {}", e.report());
                         job.update(|s| {
                             s.state = "failed";
-                            s.error = Some(e.to_string());
+                            s.error = Some(e.report());
                             s.seconds = seconds;
                         })
                     }
