@@ -986,6 +986,11 @@ fn cuts_equal_the_same_voxels_of_a_region() {
         (vec!["--normal", "0,0,1", "--up", "0,0,2"], "parallel"),
         (vec!["--normal", "0,x,1"], "three numbers"),
         (vec!["--normal", "0,0,1", "--spacing", "0"], "--spacing"),
+        // Over the memory budget (4 GiB in these tests): refused before any synthesis.
+        (
+            vec!["--normal", "0,0,1", "--coarse-cache", "1024"],
+            "needs about",
+        ),
     ] {
         let mut a = vec![
             "cut",
@@ -1003,6 +1008,21 @@ fn cuts_equal_the_same_voxels_of_a_region() {
         a.extend(args);
         assert_user_error(&run(&a), needle, d, &keep);
     }
+    let o = run(&[
+        "cut",
+        s,
+        "--origin",
+        "1,2,3",
+        "--normal",
+        "1,1,1",
+        "--size",
+        "4096",
+        "--spacing",
+        "8",
+        "-o",
+        d.join("bad.png").to_str().unwrap(),
+    ]);
+    assert_user_error(&o, "cut --size 4096 --spacing 8: needs about", d, &keep);
 }
 
 #[test]
@@ -1082,6 +1102,33 @@ fn surface_bakes_the_solid_at_each_texel_and_refuses_bad_meshes() {
         ]);
         assert_user_error(&o, needle, b, &["nan.obj", "empty.obj"]);
     }
+    // Over the memory budget: the bricks the surface passes through, counted before any
+    // synthesis (a one-triangle mesh scaled into a 2^20 box crosses millions of them).
+    std::fs::write(b.join("tri.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
+    let o = bin()
+        .env("SOLIDSYNTH_MEMORY_BUDGET_MIB", "5")
+        .args([
+            "surface",
+            s,
+            "--mesh",
+            b.join("tri.obj").to_str().unwrap(),
+            "--resolution",
+            "1048576",
+            "--texels",
+            "256",
+            "--backend",
+            "cpu",
+            "-o",
+            b.join("o.glb").to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    assert_user_error(
+        &o,
+        "surface --resolution 1048576: needs about",
+        b,
+        &["nan.obj", "empty.obj", "tri.obj"],
+    );
 }
 
 #[test]

@@ -72,6 +72,19 @@ pub fn run(args: CutArgs, quiet: bool) -> anyhow::Result<()> {
     spec.frame()?;
     let params = args.solid.synth_params();
     params.validate()?;
+    // The bricks a cut crosses: its plane's area over a brick face, up to sqrt(3) more for an
+    // oblique plane and a margin for its edges; never more than one per pixel.
+    let extent = args.size as f64 * args.spacing;
+    let pixels = args.size as u64 * args.size as u64;
+    let bricks = ((extent / 4.0 + 2.0).powi(2) * 1.75).min(pixels as f64) as u64;
+    super::synth::check_sparse_memory(
+        &format!("cut --size {} --spacing {}", args.size, args.spacing),
+        bricks,
+        extent,
+        // The image, its PNG and the sample positions.
+        pixels * 24,
+        &args.solid,
+    )?;
     let compute = args.solid.input.backend.open()?;
     let analysis = load_or_analyze(&args.solid.input, &compute, quiet || args.json)?;
     let mut session = CutSession::new(args.solid.synthesizer(&analysis, &compute)?);

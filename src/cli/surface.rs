@@ -82,14 +82,24 @@ pub fn run(args: SurfaceArgs, quiet: bool) -> anyhow::Result<()> {
         )
         .into());
     }
-    let compute = args.solid.input.backend.open()?;
-    let analysis = load_or_analyze(&args.solid.input, &compute, quiet || args.json)?;
     let start = Instant::now();
     // The texel positions are visited twice (for their bricks, then for their colours) rather
     // than listed: at 1024^3 the list is 75 MB.
     let mut wanted = solidsynth::lazy::bricks::BrickSet::default();
     atlas.for_each_texel_voxel(&mesh, &place, |_, p| wanted.add(p));
     let wanted = wanted.finish();
+    super::synth::check_sparse_memory(
+        &format!("surface --resolution {}", args.resolution),
+        wanted.len() as u64,
+        args.resolution as f64,
+        estimate,
+        &args.solid,
+    )?;
+    // The analysis (loaded or computed) is not part of the surface's time.
+    let analysis_start = Instant::now();
+    let compute = args.solid.input.backend.open()?;
+    let analysis = load_or_analyze(&args.solid.input, &compute, quiet || args.json)?;
+    let analysis_time = analysis_start.elapsed();
     let bar = super::progress_bar(quiet || args.json);
     let report = |m: &str, f: f32| {
         bar.set_position((f * 1000.0) as u64);
@@ -105,7 +115,7 @@ pub fn run(args: SurfaceArgs, quiet: bool) -> anyhow::Result<()> {
     });
     drop(result);
     bar.finish_and_clear();
-    let seconds = start.elapsed().as_secs_f64();
+    let seconds = (start.elapsed() - analysis_time).as_secs_f64();
     let image = bake::atlas_image(&atlas, &colors, synth.color_channels()).to_rgba8();
     let png = atomic::png_bytes(&image)?;
     match &extra {

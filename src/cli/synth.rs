@@ -217,14 +217,69 @@ pub fn check_memory(what: &str, b: Box3, args: &SolidArgs) -> solidsynth::Result
         || args.sheet.is_some()
         || args.slices.is_some();
     let whole = if keeps_volume { b.voxels() * 4 } else { 0 };
-    let estimate = Synthesizer::chunk_bytes(group) + slab + whole;
+    let cache = coarse_cache_bytes(&args.solid);
+    let estimate = Synthesizer::chunk_bytes(group) + slab + whole + cache;
+    let available = available_memory();
+    if estimate > available {
+        let gib = |b: u64| b as f64 / (1u64 << 30) as f64;
+        let cache_note = match args.solid.coarse_cache {
+            Some(n) if cache > 0 => {
+                format!(", of which {:.1} GiB for --coarse-cache {n}", gib(cache))
+            }
+            _ => String::new(),
+        };
+        return Err(Error::invalid(
+            what,
+            format!(
+                "needs about {:.1} GiB of memory{cache_note}, {:.1} GiB is available (a \
+                 smaller --max-group bounds the working memory)",
+                gib(estimate),
+                gib(available)
+            ),
+        ));
+    }
+    Ok(estimate)
+}
+
+/// Bytes of the coarse-level cache when one is asked for: its build (a tileable state of
+/// period N/2, two copies on a GPU) and the triples it keeps, copied once per group.
+pub fn coarse_cache_bytes(params: &SolidParams) -> u64 {
+    params.coarse_cache.map_or(0, |n| {
+        let voxels = (n as u64 / 2).pow(3);
+        voxels * (16 * 2 + 12 * 2)
+    })
+}
+
+/// Refuse a sparse request (cut, surface) whose synthesis would not fit in memory, before
+/// allocating for it: the colours and bookkeeping of its `bricks` requested 4^3-voxel bricks
+/// spread over a surface `extent` voxels wide, one group's working set (the group's bricks
+/// with their dependency padding, at most a dense padded cube), the coarse cache and `extra`
+/// bytes of outputs. `what` names the request.
+pub fn check_sparse_memory(
+    what: &str,
+    bricks: u64,
+    extent: f64,
+    extra: u64,
+    params: &SolidParams,
+) -> solidsynth::Result<u64> {
+    // Per requested brick: 64 colours and its list and lookup entries.
+    let requested = bricks * (256 + 32);
+    // A group is a cube of the request: on a surface it holds about (side / extent)^2 of the
+    // bricks, and stores their padding too, about eight times their voxels at the finest
+    // level (13 voxels of padding around a 4-voxel brick layer, the coarser levels halving),
+    // 16 bytes a voxel, two copies on a GPU.
+    let group_side = params.max_group.unwrap_or(512);
+    let share = (group_side as f64 / extent.max(1.0)).powi(2).min(1.0);
+    let group_bricks = ((bricks as f64 * share) as u64).min((group_side as u64 / 4).pow(3));
+    let working = Synthesizer::chunk_bytes(group_side).min(group_bricks * 64 * 16 * 2 * 8);
+    let estimate = requested + working + coarse_cache_bytes(params) + extra;
     let available = available_memory();
     if estimate > available {
         return Err(Error::invalid(
             what,
             format!(
-                "needs about {:.1} GiB of memory, {:.1} GiB is available (a smaller \
-                 --max-group bounds the working memory)",
+                "needs about {:.1} GiB of memory ({bricks} bricks of 4^3 voxels), {:.1} GiB \
+                 is available",
                 estimate as f64 / (1u64 << 30) as f64,
                 available as f64 / (1u64 << 30) as f64
             ),

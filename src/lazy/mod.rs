@@ -780,6 +780,20 @@ impl Synthesizer {
         if self.cache.is_none() {
             let n = self.params.coarse_cache.expect("cache requested") / 2;
             let levels_above = ANALYSED_LEVELS - 1;
+            // Built in one piece (its reads wrap around the period): one buffer must hold it.
+            let stride = 3 + self.packs[levels_above - 1].pixel_words as u64;
+            let state = (n as u64).pow(3) * stride * 4;
+            if state > self.exec.max_state_bytes() {
+                return Err(Error::invalid(
+                    format!("--coarse-cache {}", n * 2),
+                    format!(
+                        "its periodic state ({} MiB) exceeds this backend's {} MiB per buffer: \
+                         use a smaller period",
+                        state >> 20,
+                        self.exec.max_state_bytes() >> 20
+                    ),
+                ));
+            }
             let levels = bricks::plan_periodic(n, &self.params.passes.levels()[..levels_above]);
             let periods: Vec<u32> = (0..levels_above)
                 .map(|l| n >> (levels_above - 1 - l))
