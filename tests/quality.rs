@@ -21,10 +21,22 @@ fn scores_path() -> std::path::PathBuf {
     std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/scores.json")
 }
 
-/// Worst-axis ratios of a 24^3 synthesis of each synthesizable fixture (CPU backend, seed 1),
-/// without a feature channel ("synth/") and with the automatic one the CLI uses by default
-/// ("synth-auto/").
+/// How a fixture is analysed in [`synthesized`].
+#[derive(Clone, Copy, PartialEq)]
+enum Setup {
+    /// One shared exemplar (the cyclic frame), no feature channel: "synth/".
+    Plain,
+    /// The same with the automatic feature channel: "synth-auto/".
+    Auto,
+    /// What the CLI does by default for a square image: the paper's frame (three exemplars,
+    /// Ey transposed) with the automatic feature channel, scored in that frame: "synth-paper/".
+    Paper,
+}
+
+/// Worst-axis ratios of a 24^3 synthesis of each synthesizable fixture (CPU backend, seed 1)
+/// for each [`Setup`].
 fn synthesized() -> BTreeMap<String, serde_json::Value> {
+    use solidsynth::analysis::frame::{to_crate_frame, InputFrame};
     use solidsynth::analysis::{self, AnalysisInput, AnalysisParams};
     use solidsynth::exemplar::{feature, Border};
     use solidsynth::lazy::{Box3, SynthParams, Synthesizer};
@@ -34,18 +46,30 @@ fn synthesized() -> BTreeMap<String, serde_json::Value> {
         "cc0_gravel64.png",
         "cc0_brick64.png",
     ];
-    let runs = names.iter().flat_map(|n| [(*n, false), (*n, true)]);
-    runs.map(|(name, auto)| {
+    let runs = names
+        .iter()
+        .flat_map(|n| [(*n, Setup::Plain), (*n, Setup::Auto), (*n, Setup::Paper)]);
+    runs.map(|(name, setup)| {
         let ex = common::fixture(name);
+        let exemplars = match setup {
+            Setup::Paper => to_crate_frame(vec![ex.clone()], InputFrame::Paper),
+            _ => vec![ex.clone()],
+        };
+        // Masks as the CLI makes them: of the given image, then into the frame.
+        let masks = match setup {
+            Setup::Plain => vec![],
+            Setup::Auto => feature::auto_masks(std::slice::from_ref(&ex)),
+            Setup::Paper => to_crate_frame(
+                feature::auto_masks(std::slice::from_ref(&ex)),
+                InputFrame::Paper,
+            ),
+        };
+        let auto = setup != Setup::Plain;
         let input = AnalysisInput {
-            exemplars: vec![ex.clone()],
-            masks: if auto {
-                feature::auto_masks(std::slice::from_ref(&ex))
-            } else {
-                vec![]
-            },
+            masks,
+            names: exemplars.iter().map(|_| name.to_string()).collect(),
+            exemplars: exemplars.clone(),
             border: Border::Wrap,
-            names: vec![name.to_string()],
         };
         let a = analysis::analyze(
             &input,
@@ -63,9 +87,14 @@ fn synthesized() -> BTreeMap<String, serde_json::Value> {
         let v = s
             .synthesize(Box3::new([0; 3], [24; 3]), &|_, _| {})
             .unwrap();
-        let r = solidsynth::metrics::evaluate(&v, &[ex], &EvalParams::default()).unwrap();
+        let r = solidsynth::metrics::evaluate(&v, &exemplars, &EvalParams::default()).unwrap();
+        let prefix = match setup {
+            Setup::Plain => "synth",
+            Setup::Auto => "synth-auto",
+            Setup::Paper => "synth-paper",
+        };
         (
-            format!("{}/{name}", if auto { "synth-auto" } else { "synth" }),
+            format!("{prefix}/{name}"),
             serde_json::to_value(r.worst_ratio).unwrap(),
         )
     })
@@ -129,11 +158,7 @@ fn floors() -> BTreeMap<String, serde_json::Value> {
 fn fixture_scores_match_the_recorded_ones() {
     let now = floors();
     if std::env::var_os("SOLIDSYNTH_RECORD_SCORES").is_some() {
-        std::fs::write(
-            scores_path(),
-            serde_json::to_string_pretty(&now).unwrap() + "\n",
-        )
-        .unwrap();
+        record(now);
         return;
     }
     let recorded: BTreeMap<String, serde_json::Value> =

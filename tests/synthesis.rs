@@ -210,6 +210,16 @@ mod determinism {
         ] {
             assert_contained(&v, big, &synth(&a, &params, small, None), small);
         }
+        // And random boxes inside it (seeded: the same ones every run), which land across
+        // brick boundaries and on negative coordinates as they fall.
+        let mut rng = solidsynth::util::hash::SeededRng::new(11);
+        for _ in 0..6 {
+            let lo =
+                [0, 1, 2].map(|i| big.lo[i] + rng.below((big.hi[i] - big.lo[i]) as u64) as i32);
+            let hi = [0, 1, 2].map(|i| (lo[i] + 1 + rng.below(9) as i32).min(big.hi[i]));
+            let small = Box3::new(lo, hi);
+            assert_contained(&v, big, &synth(&a, &params, small, None), small);
+        }
         // Grouping (seams at multiples of 12 voxels) changes nothing.
         assert_eq!(synth(&a, &params, big, Some(12)), v);
         // Streamed in slabs of groups (what `synth` writes to its file): the slabs follow each

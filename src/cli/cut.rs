@@ -27,7 +27,7 @@ pub struct CutArgs {
     #[arg(long, default_value_t = 256)]
     pub size: u32,
     /// Voxels per pixel.
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = 1.0, allow_hyphen_values = true)]
     pub spacing: f64,
     /// Run the cut K times through one warm session and print the median and p95 latency.
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=10000))]

@@ -47,7 +47,7 @@ pub struct SolidParams {
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
     /// Jitter magnitude (0 disables the warp).
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = 1.0, allow_hyphen_values = true)]
     pub jitter: f32,
     /// Candidates searched by the correction: the paper's 3D candidates, or 2D (ablation).
     #[arg(long, value_enum, default_value = "3d")]

@@ -8,7 +8,8 @@
 //!
 //! [`CutSession`] keeps a [`Synthesizer`] warm (pipelines, level data) for interactive use. Only
 //! the bricks holding sampled voxels are requested ([`Synthesizer::synthesize_bricks`]), so an
-//! oblique cut costs about what an axis-aligned one does.
+//! oblique cut's cost follows its area too (2-3x an axis-aligned one, whose one-voxel-thick box
+//! of pixels is planned voxel-exactly; see BENCHMARKS.md).
 
 use super::Synthesizer;
 use crate::error::{Error, Result};
