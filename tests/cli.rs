@@ -782,6 +782,19 @@ fn synth_bad_inputs_exit_2_and_write_nothing() {
             &["bad.ssa", "future.ssa", "full"],
         );
     }
+    // A slices directory whose parent is missing: refused before any work, by its flag.
+    let o = run(&[
+        "synth",
+        "--size",
+        "16",
+        "--backend",
+        "cpu",
+        "-o",
+        out_s,
+        "--slices",
+        d.join("no/such").to_str().unwrap(),
+    ]);
+    assert_user_error(&o, "--slices", d, &["bad.ssa", "future.ssa", "full"]);
     // The coarse cache belongs to the infinite solid, not to a tileable one.
     let o = run(&[
         "synth",
@@ -1102,8 +1115,9 @@ fn surface_bakes_the_solid_at_each_texel_and_refuses_bad_meshes() {
         ]);
         assert_user_error(&o, needle, b, &["nan.obj", "empty.obj"]);
     }
-    // Over the memory budget: the bricks the surface passes through, counted before any
-    // synthesis (a one-triangle mesh scaled into a 2^20 box crosses millions of them).
+    // Over the memory budget: the bricks holding the surface's texel positions, counted before
+    // any synthesis (a one-triangle mesh scaled into a 2^20 box: a brick per texel, ~33 K for
+    // its 256 x 256 texels, ~9 MB of colours and bookkeeping against a 5 MiB budget).
     std::fs::write(b.join("tri.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
     let o = bin()
         .env("SOLIDSYNTH_MEMORY_BUDGET_MIB", "5")

@@ -127,8 +127,10 @@ fn recorded() -> BTreeMap<String, serde_json::Value> {
     serde_json::from_str(&std::fs::read_to_string(scores_path()).unwrap()).unwrap()
 }
 
-/// Merge `entries` into the recorded file.
+/// Merge `entries` into the recorded file (one test at a time: both tests record).
 fn record(entries: BTreeMap<String, serde_json::Value>) {
+    static FILE: std::sync::Mutex<()> = std::sync::Mutex::new(());
+    let _guard = FILE.lock().unwrap_or_else(|e| e.into_inner());
     let mut all = std::fs::read_to_string(scores_path())
         .ok()
         .and_then(|s| serde_json::from_str::<BTreeMap<String, serde_json::Value>>(&s).ok())

@@ -154,31 +154,7 @@ fn capture_cmd(a: CaptureArgs, quiet: bool) -> anyhow::Result<()> {
         .into());
     }
     let out = &a.output;
-    if out.exists() {
-        let empty = out.is_dir()
-            && std::fs::read_dir(out)
-                .map_err(|e| Error::io(out, e))?
-                .next()
-                .is_none();
-        if !empty {
-            return Err(Error::invalid(
-                format!("-o {}", out.display()),
-                "exists and is not an empty directory",
-            )
-            .into());
-        }
-    }
-    let parent = out
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    if !parent.is_dir() {
-        return Err(Error::invalid(
-            format!("-o {}", out.display()),
-            format!("directory {} does not exist", parent.display()),
-        )
-        .into());
-    }
+    atomic::check_output_dir(out, "-o")?;
     let start = Instant::now();
     let cap = capture::synthetic(a.size, a.lights as usize, a.seed);
     // Written into a hidden sibling directory, then renamed: the capture appears whole or not

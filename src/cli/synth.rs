@@ -288,23 +288,6 @@ pub fn check_sparse_memory(
     Ok(estimate)
 }
 
-fn check_slices_dir(dir: &Path) -> solidsynth::Result<()> {
-    if dir.exists() {
-        let empty = dir.is_dir()
-            && std::fs::read_dir(dir)
-                .map_err(|e| Error::io(dir, e))?
-                .next()
-                .is_none();
-        if !empty {
-            return Err(Error::invalid(
-                format!("--slices {}", dir.display()),
-                "exists and is not an empty directory (nothing is overwritten)",
-            ));
-        }
-    }
-    Ok(())
-}
-
 /// All z slices in a grid of ceil(sqrt(N)) columns (see [`solidsynth::io::flipbook`]).
 pub fn flipbook(v: &Volume) -> image::RgbaImage {
     solidsynth::io::flipbook::to_image(v)
@@ -407,7 +390,7 @@ fn run_box(args: &SolidArgs, region: Box3, tileable: bool, quiet: bool) -> anyho
         }
     }
     if let Some(d) = &args.slices {
-        check_slices_dir(d)?;
+        atomic::check_output_dir(d, "--slices")?;
     }
     let params = args.solid.synth_params();
     params.validate()?;

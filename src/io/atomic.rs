@@ -5,7 +5,15 @@ use crate::error::{Error, Result};
 use std::io::Write;
 use std::path::Path;
 
-/// Refuse output paths that cannot be a file we write: an existing directory, a missing parent.
+/// The directory an output is staged in: its parent (`.` for a bare file name).
+pub fn parent_dir(path: &Path) -> &Path {
+    path.parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."))
+}
+
+/// Refuse output paths that cannot be a file we write: an existing directory, a missing or
+/// unwritable parent.
 pub fn check_output_path(path: &Path, flag: &str) -> Result<()> {
     if path.is_dir() {
         return Err(Error::invalid(
@@ -13,10 +21,31 @@ pub fn check_output_path(path: &Path, flag: &str) -> Result<()> {
             "is a directory; give a file path",
         ));
     }
-    let parent = path
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
+    check_parent(path, flag)
+}
+
+/// Refuse an output directory that cannot be one we create: anything but a new or an empty
+/// directory at the path (nothing is overwritten), a missing or unwritable parent.
+pub fn check_output_dir(path: &Path, flag: &str) -> Result<()> {
+    if path.exists() {
+        let empty = path.is_dir()
+            && std::fs::read_dir(path)
+                .map_err(|e| Error::io(path, e))?
+                .next()
+                .is_none();
+        if !empty {
+            return Err(Error::invalid(
+                format!("{flag} {}", path.display()),
+                "exists and is not an empty directory (nothing is overwritten)",
+            ));
+        }
+    }
+    check_parent(path, flag)
+}
+
+/// The parent of an output exists and takes new files.
+fn check_parent(path: &Path, flag: &str) -> Result<()> {
+    let parent = parent_dir(path);
     if !parent.is_dir() {
         return Err(Error::invalid(
             format!("{flag} {}", path.display()),
@@ -81,6 +110,7 @@ fn forget_pending(tmp: &Path) {
 /// beside the target that [`PendingFile::commit`] renames over it. Dropped uncommitted (an
 /// error on the way), the temporary is deleted and the target left as it was; an interrupt
 /// deletes it too (see [`discard_pending`]).
+#[must_use = "dropping a PendingFile deletes the output: commit it or stage it in Outputs"]
 pub struct PendingFile {
     path: std::path::PathBuf,
     /// Always Some until committed.
@@ -89,10 +119,7 @@ pub struct PendingFile {
 
 impl PendingFile {
     pub fn create(path: &Path) -> Result<PendingFile> {
-        let parent = path
-            .parent()
-            .filter(|p| !p.as_os_str().is_empty())
-            .unwrap_or(Path::new("."));
+        let parent = parent_dir(path);
         let mut builder = tempfile::Builder::new();
         builder.prefix(".solidsynth-").suffix(".partial");
         // A temporary file is private (0600) by default; an output is an ordinary file: 0666
@@ -162,10 +189,7 @@ struct PendingDir {
 
 impl PendingDir {
     fn create(path: &Path) -> Result<PendingDir> {
-        let parent = path
-            .parent()
-            .filter(|p| !p.as_os_str().is_empty())
-            .unwrap_or(Path::new("."));
+        let parent = parent_dir(path);
         let mut builder = tempfile::Builder::new();
         builder.prefix(".solidsynth-").suffix(".partial");
         // As for files: an ordinary directory (0777 less the umask), not a private one.
@@ -188,6 +212,18 @@ impl PendingDir {
 
     fn staging(&self) -> &Path {
         self.tmp.as_ref().expect("not committed").path()
+    }
+
+    /// Flush the files written into the staging directory to disk.
+    fn sync(&self) -> Result<()> {
+        let dir = self.staging();
+        for entry in std::fs::read_dir(dir).map_err(|e| Error::io(&self.path, e))? {
+            let entry = entry.map_err(|e| Error::io(&self.path, e))?;
+            std::fs::File::open(entry.path())
+                .and_then(|f| f.sync_all())
+                .map_err(|e| Error::io(&self.path, e))?;
+        }
+        Ok(())
     }
 
     fn persist(mut self) -> Result<()> {
@@ -253,16 +289,22 @@ impl Outputs {
         Ok(staging)
     }
 
-    /// Flush every staged file to disk, then rename each into place.
+    /// Flush everything staged to disk, then rename each into place: directories first, since
+    /// their rename is the one that can be refused (the target was given files meanwhile), and
+    /// then no file has replaced its target yet. (An interrupt between the renames of one commit,
+    /// a window of microseconds, can still leave some in place.)
     pub fn commit(self) -> Result<()> {
         for f in &self.files {
             f.sync()?;
         }
-        for f in self.files {
-            f.persist()?;
+        for d in &self.dirs {
+            d.sync()?;
         }
         for d in self.dirs {
             d.persist()?;
+        }
+        for f in self.files {
+            f.persist()?;
         }
         Ok(())
     }
@@ -344,8 +386,10 @@ mod tests {
         assert_eq!(names(d), ["a.bin", "b.bin", "slices"]);
         assert_eq!(std::fs::read(d.join("a.bin")).unwrap(), b"new");
         assert_eq!(std::fs::read(d.join("slices/s0.png")).unwrap(), b"s");
-        // A directory that is not empty is not replaced, and the staged copy goes away.
+        // A directory that is not empty is not replaced, the staged copy goes away, and the
+        // files staged with it are not put in place either.
         let mut outputs = Outputs::new();
+        outputs.write_file(&d.join("c.bin"), b"c").unwrap();
         let staging = outputs.directory(&d.join("slices")).unwrap();
         std::fs::write(staging.join("s1.png"), b"t").unwrap();
         assert!(outputs.commit().is_err());

@@ -182,6 +182,12 @@ impl SynthParams {
     }
 }
 
+/// The periods of `levels` levels of a periodic solid whose last level has period `n`,
+/// coarsest first (each level half its child's).
+fn periods_below(n: u32, levels: usize) -> Vec<u32> {
+    (0..levels).map(|l| n >> (levels - 1 - l)).collect()
+}
+
 /// Consecutive z slices of a synthesized box (see [`Synthesizer::synthesize_slabs`]).
 pub struct Slab<'a> {
     /// First slice's z, relative to the box.
@@ -212,9 +218,6 @@ pub struct Synthesizer {
     /// When counting: per pack (coarsest first), per exemplar, how many stored voxels held each
     /// exemplar pixel after the level's correction (see [`Self::count_usage`]).
     usage: Option<Vec<[Vec<u64>; 3]>>,
-    /// While a tileable solid is synthesized group by group: its period per level (coarsest
-    /// first), which the groups' initial levels repeat (see [`Periodic::Unwrapped`]).
-    tile_periods: Option<Vec<u32>>,
 }
 
 /// How a planned synthesis treats positions beyond a tileable solid's period.
@@ -275,7 +278,6 @@ impl Synthesizer {
             last_stats: None,
             cache: None,
             usage: None,
-            tile_periods: None,
         })
     }
 
@@ -397,6 +399,19 @@ impl Synthesizer {
         out: Box3,
         progress: Progress,
         want_triples: bool,
+        sink: impl FnMut(Slab) -> Result<()>,
+    ) -> Result<()> {
+        self.synthesize_slabs_of(out, Periodic::No, progress, want_triples, sink)
+    }
+
+    /// [`Self::synthesize_slabs`] of the infinite solid ([`Periodic::No`]) or of a periodic one
+    /// ([`Periodic::Unwrapped`]).
+    fn synthesize_slabs_of(
+        &mut self,
+        out: Box3,
+        periodic: Periodic,
+        progress: Progress,
+        want_triples: bool,
         mut sink: impl FnMut(Slab) -> Result<()>,
     ) -> Result<()> {
         let size = out.size();
@@ -418,6 +433,7 @@ impl Synthesizer {
         self.for_each_group(
             &all,
             Some(out),
+            periodic,
             progress,
             want_triples,
             |group, colors, group_triples| {
@@ -518,17 +534,25 @@ impl Synthesizer {
         let grid = BrickColors::lookup(&all);
         let mut colors = vec![0u32; all.len() * 64];
         let mut triples = vec![0u32; if want_triples { all.len() * 64 * 3 } else { 0 }];
-        self.for_each_group(&all, exact, progress, want_triples, |group, c, t| {
-            for (j, b) in group.iter().enumerate() {
-                let slot = BrickColors::slot_in(&all, grid.as_ref(), *b).expect("requested brick");
-                colors[slot * 64..(slot + 1) * 64].copy_from_slice(&c[j * 64..(j + 1) * 64]);
-                if want_triples {
-                    triples[slot * 192..(slot + 1) * 192]
-                        .copy_from_slice(&t[j * 192..(j + 1) * 192]);
+        self.for_each_group(
+            &all,
+            exact,
+            Periodic::No,
+            progress,
+            want_triples,
+            |group, c, t| {
+                for (j, b) in group.iter().enumerate() {
+                    let slot =
+                        BrickColors::slot_in(&all, grid.as_ref(), *b).expect("requested brick");
+                    colors[slot * 64..(slot + 1) * 64].copy_from_slice(&c[j * 64..(j + 1) * 64]);
+                    if want_triples {
+                        triples[slot * 192..(slot + 1) * 192]
+                            .copy_from_slice(&t[j * 192..(j + 1) * 192]);
+                    }
                 }
-            }
-            Ok(())
-        })?;
+                Ok(())
+            },
+        )?;
         Ok(BrickColors {
             bricks: all,
             grid,
@@ -543,10 +567,12 @@ impl Synthesizer {
     /// `exact`: the request is exactly the voxels of this box (`all` the bricks covering it):
     /// each group is then planned voxel-exactly at the finest level
     /// ([`bricks::plan_voxel_box`]), and only its voxels inside the box are meaningful.
+    /// `periodic`: [`Periodic::No`], or [`Periodic::Unwrapped`] for a tileable solid's groups.
     fn for_each_group(
         &mut self,
         all: &[Brick],
         exact: Option<Box3>,
+        periodic: Periodic,
         progress: Progress,
         want_triples: bool,
         mut sink: impl FnMut(&[Brick], &[u32], &[u32]) -> Result<()>,
@@ -571,6 +597,7 @@ impl Synthesizer {
             let (c, t) = self.synthesize_group_of(
                 group,
                 exact,
+                periodic,
                 &|m, f| progress(m, base + scale * f),
                 want_triples,
                 &mut stats,
@@ -617,6 +644,11 @@ impl Synthesizer {
         self.max_chunk_side = Some(side.max(1));
     }
 
+    /// Bytes of a state holding one period `n`^3 of pack `pack`'s level.
+    fn periodic_state_bytes(&self, n: u32, pack: usize) -> u64 {
+        (n as u64).pow(3) * (3 + self.packs[pack].pixel_words as u64) * 4
+    }
+
     /// Split sorted bricks into groups (cubes of bricks) whose working set fits the backend.
     fn groups(&self, all: &[Brick]) -> Vec<Vec<Brick>> {
         let limit = self.exec.max_state_bytes();
@@ -648,7 +680,9 @@ impl Synthesizer {
         want_triples: bool,
     ) -> Result<(Volume, Vec<u32>)> {
         let mut volume = Volume::new(n, n, 0, self.color_channels());
-        let mut triples = Vec::new();
+        let voxels = (n as usize).pow(3);
+        volume.data.reserve(voxels * volume.channels as usize);
+        let mut triples = Vec::with_capacity(if want_triples { voxels * 3 } else { 0 });
         self.synthesize_tileable_slabs(n, progress, want_triples, |slab| {
             volume.data.extend_from_slice(&slab.volume.data);
             volume.nz += slab.volume.nz;
@@ -678,19 +712,20 @@ impl Synthesizer {
                 "must be a multiple of 32 (every level a whole number of 4-voxel bricks)",
             ));
         }
-        let periods: Vec<u32> = (0..ANALYSED_LEVELS)
-            .map(|l| n >> (ANALYSED_LEVELS - 1 - l))
-            .collect();
-        let stride = 3 + self.packs.last().unwrap().pixel_words as u64;
-        let state = (n as u64).pow(3) * stride * 4;
-        let one_piece = state <= self.exec.max_state_bytes()
+        let periods = periods_below(n, ANALYSED_LEVELS);
+        let one_piece = self.periodic_state_bytes(n, ANALYSED_LEVELS - 1)
+            <= self.exec.max_state_bytes()
             && self.max_chunk_side.is_none_or(|side| side >= n);
         if !one_piece {
-            self.tile_periods = Some(periods);
+            if self.usage.is_some() {
+                // Groups store padding voxels too, which would be counted.
+                return Err(Error::Internal(
+                    "usage counting needs a tileable solid synthesized in one piece".into(),
+                ));
+            }
             let whole = Box3::new([0; 3], [n as i32; 3]);
-            let result = self.synthesize_slabs(whole, progress, want_triples, sink);
-            self.tile_periods = None;
-            return result;
+            let periodic = Periodic::Unwrapped(&periods);
+            return self.synthesize_slabs_of(whole, periodic, progress, want_triples, sink);
         }
         let levels = bricks::plan_periodic(n, &self.params.passes.levels());
         let output = levels.last().unwrap().bricks.clone();
@@ -747,20 +782,18 @@ impl Synthesizer {
         &mut self,
         group: &[Brick],
         exact: Option<Box3>,
+        periodic: Periodic,
         progress: Progress,
         want_triples: bool,
         stats: &mut SynthStats,
     ) -> Result<(Vec<u32>, Vec<u32>)> {
-        let tile_periods = self.tile_periods.clone();
-        if self.params.coarse_cache.is_some() && tile_periods.is_none() {
+        // The cache builds the infinite solid's levels; a tileable solid has its own.
+        if self.params.coarse_cache.is_some() && matches!(periodic, Periodic::No) {
             return self.synthesize_group_cached(group, exact, progress, want_triples, stats);
         }
         let timer = std::time::Instant::now();
         let levels = plan_group(group, exact, &self.params.passes.levels());
         tracing::debug!("planned {} bricks in {:.1} ms", group.len(), ms(timer));
-        let periodic = tile_periods
-            .as_deref()
-            .map_or(Periodic::No, Periodic::Unwrapped);
         self.synthesize_group(
             levels,
             0,
@@ -781,8 +814,7 @@ impl Synthesizer {
             let n = self.params.coarse_cache.expect("cache requested") / 2;
             let levels_above = ANALYSED_LEVELS - 1;
             // Built in one piece (its reads wrap around the period): one buffer must hold it.
-            let stride = 3 + self.packs[levels_above - 1].pixel_words as u64;
-            let state = (n as u64).pow(3) * stride * 4;
+            let state = self.periodic_state_bytes(n, levels_above - 1);
             if state > self.exec.max_state_bytes() {
                 return Err(Error::invalid(
                     format!("--coarse-cache {}", n * 2),
@@ -795,9 +827,7 @@ impl Synthesizer {
                 ));
             }
             let levels = bricks::plan_periodic(n, &self.params.passes.levels()[..levels_above]);
-            let periods: Vec<u32> = (0..levels_above)
-                .map(|l| n >> (levels_above - 1 - l))
-                .collect();
+            let periods = periods_below(n, levels_above);
             let top = levels.last().unwrap().clone();
             let mut stats = SynthStats {
                 voxels_per_level: vec![0; ANALYSED_LEVELS],
