@@ -100,6 +100,29 @@ pub fn discard_pending() {
     }
 }
 
+/// Temporaries beside their targets, named so that they are hidden and recognisable. A
+/// temporary is private (0600 / 0700) by default; an output is an ordinary file or directory:
+/// `mode` (0666 / 0777) less the user's umask, as any other tool would create it.
+fn staging_builder(mode: u32) -> tempfile::Builder<'static, 'static> {
+    let mut builder = tempfile::Builder::new();
+    builder.prefix(".solidsynth-").suffix(".partial");
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        builder.permissions(std::fs::Permissions::from_mode(mode));
+    }
+    #[cfg(not(unix))]
+    let _ = mode;
+    builder
+}
+
+/// Note a temporary for [`discard_pending`].
+fn register_pending(tmp: &Path) {
+    if let Ok(mut list) = PENDING.lock() {
+        list.push(tmp.to_path_buf());
+    }
+}
+
 fn forget_pending(tmp: &Path) {
     if let Ok(mut list) = PENDING.lock() {
         list.retain(|p| p != tmp);
@@ -120,21 +143,10 @@ pub struct PendingFile {
 impl PendingFile {
     pub fn create(path: &Path) -> Result<PendingFile> {
         let parent = parent_dir(path);
-        let mut builder = tempfile::Builder::new();
-        builder.prefix(".solidsynth-").suffix(".partial");
-        // A temporary file is private (0600) by default; an output is an ordinary file: 0666
-        // less the user's umask, as any other tool would create it.
-        #[cfg(unix)]
-        {
-            use std::os::unix::fs::PermissionsExt;
-            builder.permissions(std::fs::Permissions::from_mode(0o666));
-        }
-        let tmp = builder
+        let tmp = staging_builder(0o666)
             .tempfile_in(parent)
             .map_err(|e| Error::io(parent, e))?;
-        if let Ok(mut list) = PENDING.lock() {
-            list.push(tmp.path().to_path_buf());
-        }
+        register_pending(tmp.path());
         Ok(PendingFile {
             path: path.to_path_buf(),
             tmp: Some(tmp),
@@ -190,20 +202,10 @@ struct PendingDir {
 impl PendingDir {
     fn create(path: &Path) -> Result<PendingDir> {
         let parent = parent_dir(path);
-        let mut builder = tempfile::Builder::new();
-        builder.prefix(".solidsynth-").suffix(".partial");
-        // As for files: an ordinary directory (0777 less the umask), not a private one.
-        #[cfg(unix)]
-        {
-            use std::os::unix::fs::PermissionsExt;
-            builder.permissions(std::fs::Permissions::from_mode(0o777));
-        }
-        let tmp = builder
+        let tmp = staging_builder(0o777)
             .tempdir_in(parent)
             .map_err(|e| Error::io(parent, e))?;
-        if let Ok(mut list) = PENDING.lock() {
-            list.push(tmp.path().to_path_buf());
-        }
+        register_pending(tmp.path());
         Ok(PendingDir {
             path: path.to_path_buf(),
             tmp: Some(tmp),

@@ -188,6 +188,34 @@ fn periods_below(n: u32, levels: usize) -> Vec<u32> {
     (0..levels).map(|l| n >> (levels - 1 - l)).collect()
 }
 
+/// Slabs of one volume (see [`Slab`]) joined back into the whole volume and its triples.
+struct SlabsJoined {
+    volume: Volume,
+    triples: Vec<u32>,
+}
+
+impl SlabsJoined {
+    fn new(size: [u32; 3], channels: u32, want_triples: bool) -> SlabsJoined {
+        let voxels = size.iter().map(|&d| d as usize).product::<usize>();
+        let mut volume = Volume::new(size[0], size[1], 0, channels);
+        volume.data.reserve(voxels * channels as usize);
+        let triples = Vec::with_capacity(if want_triples { voxels * 3 } else { 0 });
+        SlabsJoined { volume, triples }
+    }
+
+    /// The next slab along z.
+    fn push(&mut self, slab: Slab) -> Result<()> {
+        self.volume.data.extend_from_slice(&slab.volume.data);
+        self.volume.nz += slab.volume.nz;
+        self.triples.extend_from_slice(slab.triples);
+        Ok(())
+    }
+
+    fn finish(self) -> (Volume, Vec<u32>) {
+        (self.volume, self.triples)
+    }
+}
+
 /// Consecutive z slices of a synthesized box (see [`Synthesizer::synthesize_slabs`]).
 pub struct Slab<'a> {
     /// First slice's z, relative to the box.
@@ -371,22 +399,9 @@ impl Synthesizer {
         want_triples: bool,
     ) -> Result<(Volume, Vec<u32>)> {
         let size = out.size();
-        let mut volume = Volume::new(size[0], size[1], 0, self.color_channels());
-        volume
-            .data
-            .reserve(out.voxels() as usize * volume.channels as usize);
-        let mut triples = Vec::with_capacity(if want_triples {
-            out.voxels() as usize * 3
-        } else {
-            0
-        });
-        self.synthesize_slabs(out, progress, want_triples, |slab| {
-            volume.data.extend_from_slice(&slab.volume.data);
-            volume.nz += slab.volume.nz;
-            triples.extend_from_slice(slab.triples);
-            Ok(())
-        })?;
-        Ok((volume, triples))
+        let mut whole = SlabsJoined::new(size, self.color_channels(), want_triples);
+        self.synthesize_slabs(out, progress, want_triples, |slab| whole.push(slab))?;
+        Ok(whole.finish())
     }
 
     /// Synthesize the box `out` and hand it to `sink` in slabs along z, in order: each slab
@@ -679,17 +694,9 @@ impl Synthesizer {
         progress: Progress,
         want_triples: bool,
     ) -> Result<(Volume, Vec<u32>)> {
-        let mut volume = Volume::new(n, n, 0, self.color_channels());
-        let voxels = (n as usize).pow(3);
-        volume.data.reserve(voxels * volume.channels as usize);
-        let mut triples = Vec::with_capacity(if want_triples { voxels * 3 } else { 0 });
-        self.synthesize_tileable_slabs(n, progress, want_triples, |slab| {
-            volume.data.extend_from_slice(&slab.volume.data);
-            volume.nz += slab.volume.nz;
-            triples.extend_from_slice(slab.triples);
-            Ok(())
-        })?;
-        Ok((volume, triples))
+        let mut whole = SlabsJoined::new([n; 3], self.color_channels(), want_triples);
+        self.synthesize_tileable_slabs(n, progress, want_triples, |slab| whole.push(slab))?;
+        Ok(whole.finish())
     }
 
     /// [`Self::synthesize_tileable`], handed to `sink` in slabs along z like
