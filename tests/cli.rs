@@ -742,29 +742,9 @@ fn synth_bad_inputs_exit_2_and_write_nothing() {
     assert_user_error(&o, "does not exist", d, &["bad.ssa", "future.ssa"]);
     std::fs::create_dir(d.join("full")).unwrap();
     std::fs::write(d.join("full/keep.png"), b"x").unwrap();
-    let o = run(&[
-        "synth",
-        "--size",
-        "16",
-        "--backend",
-        "cpu",
-        "-o",
-        out_s,
-        "--slices",
-        d.join("full").to_str().unwrap(),
-    ]);
-    assert_user_error(
-        &o,
-        "not an empty directory",
-        d,
-        &["bad.ssa", "future.ssa", "full"],
-    );
-    assert_eq!(std::fs::read(d.join("full/keep.png")).unwrap(), b"x");
-    // A directory no output can be written in (even by root) is refused before any work,
-    // named by its flag, and the other outputs are not written either.
-    #[cfg(target_os = "linux")]
-    {
-        let o = run(&[
+    // `synth --size 16` into v.nrrd with one more output.
+    let with_output = |flag: &str, path: &str| {
+        run(&[
             "synth",
             "--size",
             "16",
@@ -772,29 +752,24 @@ fn synth_bad_inputs_exit_2_and_write_nothing() {
             "cpu",
             "-o",
             out_s,
-            "--flipbook",
-            "/proc/f.png",
-        ]);
-        assert_user_error(
-            &o,
-            "--flipbook /proc/f.png",
-            d,
-            &["bad.ssa", "future.ssa", "full"],
-        );
+            flag,
+            path,
+        ])
+    };
+    let kept = ["bad.ssa", "future.ssa", "full"];
+    let o = with_output("--slices", d.join("full").to_str().unwrap());
+    assert_user_error(&o, "not an empty directory", d, &kept);
+    assert_eq!(std::fs::read(d.join("full/keep.png")).unwrap(), b"x");
+    // A directory no output can be written in (even by root) is refused before any work,
+    // named by its flag, and the other outputs are not written either.
+    #[cfg(target_os = "linux")]
+    {
+        let o = with_output("--flipbook", "/proc/f.png");
+        assert_user_error(&o, "--flipbook /proc/f.png", d, &kept);
     }
     // A slices directory whose parent is missing: refused before any work, by its flag.
-    let o = run(&[
-        "synth",
-        "--size",
-        "16",
-        "--backend",
-        "cpu",
-        "-o",
-        out_s,
-        "--slices",
-        d.join("no/such").to_str().unwrap(),
-    ]);
-    assert_user_error(&o, "--slices", d, &["bad.ssa", "future.ssa", "full"]);
+    let o = with_output("--slices", d.join("no/such").to_str().unwrap());
+    assert_user_error(&o, "--slices", d, &kept);
     // The coarse cache belongs to the infinite solid, not to a tileable one.
     let o = run(&[
         "synth",
