@@ -767,6 +767,22 @@ fn synth_bad_inputs_exit_2_and_write_nothing() {
         let o = with_output("--flipbook", "/proc/f.png");
         assert_user_error(&o, "--flipbook /proc/f.png", d, &kept);
     }
+    // An output that is also an input, or two outputs on one path: refused, nothing touched.
+    let exemplar = d.join("ex.png");
+    std::fs::copy(fixture_path("cells32.png"), &exemplar).unwrap();
+    let before = std::fs::read(&exemplar).unwrap();
+    let ex = exemplar.to_str().unwrap();
+    let o = run(&["synth", ex, "--size", "16", "--backend", "cpu", "-o", ex]);
+    assert_user_error(
+        &o,
+        "is also given as an input",
+        d,
+        &["bad.ssa", "future.ssa", "full", "ex.png"],
+    );
+    assert_eq!(std::fs::read(&exemplar).unwrap(), before);
+    std::fs::remove_file(&exemplar).unwrap();
+    let o = with_output("--vti", out_s);
+    assert_user_error(&o, "is also given as an input or another output", d, &kept);
     // A slices directory whose parent is missing: refused before any work, by its flag.
     let o = with_output("--slices", d.join("no/such").to_str().unwrap());
     assert_user_error(&o, "--slices", d, &kept);

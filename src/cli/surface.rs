@@ -54,8 +54,8 @@ pub fn run(args: SurfaceArgs, quiet: bool) -> anyhow::Result<()> {
     atomic::check_output_path(&args.output, "-o")?;
     let extra = outputs(&args.output)?;
     if let Some((mtl, png)) = &extra {
-        atomic::check_output_path(mtl, "-o (its .mtl)")?;
-        atomic::check_output_path(png, "-o (its .png)")?;
+        atomic::check_derived_output_path(mtl, "-o (its .mtl)")?;
+        atomic::check_derived_output_path(png, "-o (its .png)")?;
     }
     let params = args.solid.synth_params();
     params.validate()?;

@@ -13,15 +13,66 @@ pub fn parent_dir(path: &Path) -> &Path {
 }
 
 /// Refuse output paths that cannot be a file we write: an existing directory, a missing or
-/// unwritable parent.
+/// unwritable parent, a file the command line names again (an input, or another output: it
+/// would be overwritten or written twice).
 pub fn check_output_path(path: &Path, flag: &str) -> Result<()> {
+    check_file_output(path, flag, 1)
+}
+
+/// [`check_output_path`] for an output the command derives from another one (an OBJ's .mtl
+/// and .png): the command line should not name it at all.
+pub fn check_derived_output_path(path: &Path, flag: &str) -> Result<()> {
+    check_file_output(path, flag, 0)
+}
+
+fn check_file_output(path: &Path, flag: &str, own_mentions: usize) -> Result<()> {
     if path.is_dir() {
         return Err(Error::invalid(
             format!("{flag} {}", path.display()),
             "is a directory; give a file path",
         ));
     }
+    check_not_reused(path, flag, own_mentions)?;
     check_parent(path, flag)
+}
+
+/// Refuse an output that the command line names more often than as that output itself: the
+/// same file given as an input (`synth ex.png -o ex.png` would replace the exemplar) or as two
+/// outputs. Files are compared by their canonical paths (a new file by its directory's).
+fn check_not_reused(path: &Path, flag: &str, own_mentions: usize) -> Result<()> {
+    let Some(key) = file_key(path) else {
+        return Ok(());
+    };
+    let mentions = std::env::args_os()
+        .skip(1)
+        .filter(|arg| {
+            // `--flag=PATH` names PATH.
+            let text = arg.to_string_lossy();
+            let value = match text.split_once('=') {
+                Some((name, value)) if name.starts_with("--") => Path::new(value).to_path_buf(),
+                _ => Path::new(arg).to_path_buf(),
+            };
+            file_key(&value).as_ref() == Some(&key)
+        })
+        .count();
+    if mentions > own_mentions {
+        return Err(Error::invalid(
+            format!("{flag} {}", path.display()),
+            "is also given as an input or another output of this command; nothing a command \
+             reads is overwritten: choose another output path",
+        ));
+    }
+    Ok(())
+}
+
+/// A path's identity: the canonical path of an existing file, or of a new file's directory
+/// joined with its name; None when neither resolves (not a path of this file system).
+fn file_key(path: &Path) -> Option<std::path::PathBuf> {
+    if let Ok(p) = path.canonicalize() {
+        return Some(p);
+    }
+    let name = path.file_name()?;
+    Some(parent_dir(path).canonicalize().ok()?.join(name))
 }
 
 /// Refuse an output directory that cannot be one we create: anything but a new or an empty
@@ -40,6 +91,7 @@ pub fn check_output_dir(path: &Path, flag: &str) -> Result<()> {
             ));
         }
     }
+    check_not_reused(path, flag, 1)?;
     check_parent(path, flag)
 }
 
