@@ -1,0 +1,65 @@
+#!/usr/bin/env bash
+# A newer lavapipe for benchmarks, without touching the system: Debian 12's own Mesa (22.3) runs
+# our kernels 2-2.5x slower than Mesa 26, whose llvmpipe keeps uniform values scalar (divergence
+# analysis, Mesa 25.1) and reads storage buffers with masked gathers instead of a loop with a
+# branch per lane. Debian sid's Mesa needs sid's glibc, so this fetches sid's lavapipe with its
+# whole dependency closure (glibc and LLVM included: ~70 MB to download, ~330 MB unpacked) into target/lavapipe-sid/ and runs a
+# command under sid's dynamic loader with that lavapipe as the only Vulkan driver. The command's
+# outputs are the same bytes as under any other driver (the kernels are integer-exact).
+#
+#   scripts/lavapipe-sid.sh fetch              download and unpack (needs Debian's apt, network)
+#   scripts/lavapipe-sid.sh run CMD [ARGS...]  run CMD (a dynamically linked binary) under it
+#   scripts/lavapipe-sid.sh version            the Mesa version fetched
+#
+# sid changes daily and keeps only its latest packages: `fetch` takes whatever is there and
+# records the version, so name it with any number measured this way (BENCHMARKS.md does).
+# The tests and CI use the system's lavapipe (.ci/run).
+set -euo pipefail
+root="$(cd "$(dirname "$0")/.." && pwd)/target/lavapipe-sid"
+libs="$root/usr/lib/x86_64-linux-gnu"
+
+fetch() {
+    rm -rf "$root"
+    mkdir -p "$root/apt/lists/partial" "$root/apt/cache/archives/partial" "$root/debs"
+    echo "deb http://deb.debian.org/debian sid main" > "$root/apt/sources.list"
+    local apt_options=(
+        -o Dir::Etc::sourcelist="$root/apt/sources.list" -o Dir::Etc::sourceparts=/dev/null
+        -o Dir::State::Lists="$root/apt/lists" -o Dir::Cache="$root/apt/cache"
+        -o Dir::State::status=/dev/null -o APT::Sandbox::User="$(id -un)"
+    )
+    apt-get "${apt_options[@]}" -qq update
+    # The closure of hard dependencies, real packages only (virtual ones print as <name>).
+    local packages
+    packages=$(apt-cache "${apt_options[@]}" depends --recurse --no-recommends --no-suggests \
+        --no-conflicts --no-breaks --no-replaces --no-enhances mesa-vulkan-drivers libvulkan1 |
+        grep -v '^[ <]' | sort -u)
+    (cd "$root/debs" && apt-get "${apt_options[@]}" -qq download $packages)
+    for deb in "$root"/debs/*.deb; do
+        dpkg-deb -x "$deb" "$root"
+    done
+    # The ICD manifest names the driver by file name; point it at the unpacked one.
+    sed "s#\"libvulkan_lvp.so\"#\"$libs/libvulkan_lvp.so\"#" \
+        "$root/usr/share/vulkan/icd.d/lvp_icd.json" > "$root/lvp_icd.json"
+    dpkg-deb -f "$root"/debs/mesa-vulkan-drivers_*.deb Version > "$root/VERSION"
+    rm -rf "$root/debs" "$root/apt"
+    echo "lavapipe from Debian sid's Mesa $(cat "$root/VERSION") in $root"
+}
+
+case "${1:-}" in
+fetch) fetch ;;
+version) cat "$root/VERSION" ;;
+run)
+    shift
+    [ -f "$root/lvp_icd.json" ] || { echo "run '$0 fetch' first" >&2; exit 2; }
+    (($#)) || { echo "usage: $0 run CMD [ARGS...]" >&2; exit 2; }
+    cmd="$(command -v "$1")" || { echo "$1: not found" >&2; exit 2; }
+    shift
+    export VK_ICD_FILENAMES="$root/lvp_icd.json"
+    export XDG_RUNTIME_DIR="${XDG_RUNTIME_DIR:-$(mktemp -d)}"
+    exec "$libs/ld-linux-x86-64.so.2" --library-path "$libs" "$cmd" "$@"
+    ;;
+*)
+    sed -n '2,16p' "$0" | sed 's/^# \{0,1\}//'
+    exit 2
+    ;;
+esac
