@@ -1,11 +1,12 @@
 #!/usr/bin/env bash
 # A newer lavapipe for benchmarks, without touching the system: Debian 12's own Mesa (22.3) runs
-# our kernels 2-2.5x slower than Mesa 26, whose llvmpipe keeps uniform values scalar (divergence
+# our kernels 2.2-3x slower than Mesa 26, whose llvmpipe keeps uniform values scalar (divergence
 # analysis, Mesa 25.1) and reads storage buffers with masked gathers instead of a loop with a
 # branch per lane. Debian sid's Mesa needs sid's glibc, so this fetches sid's lavapipe with its
-# whole dependency closure (glibc and LLVM included: ~70 MB to download, ~330 MB unpacked) into target/lavapipe-sid/ and runs a
-# command under sid's dynamic loader with that lavapipe as the only Vulkan driver. The command's
-# outputs are the same bytes as under any other driver (the kernels are integer-exact).
+# whole dependency closure (glibc and LLVM included: ~70 MB to download, ~330 MB unpacked) into
+# target/lavapipe-sid/, and runs a command as a patched copy linked against sid's loader and
+# libraries, with that lavapipe as the only Vulkan driver. The command's outputs are the same
+# bytes as under any other driver (the kernels are integer-exact).
 #
 #   scripts/lavapipe-sid.sh fetch              download and unpack (needs Debian's apt, network)
 #   scripts/lavapipe-sid.sh run CMD [ARGS...]  run CMD (a dynamically linked binary) under it
@@ -33,6 +34,8 @@ fetch() {
     packages=$(apt-cache "${apt_options[@]}" depends --recurse --no-recommends --no-suggests \
         --no-conflicts --no-breaks --no-replaces --no-enhances mesa-vulkan-drivers libvulkan1 |
         grep -v '^[ <]' | sort -u)
+    # patchelf (sid's, run by sid's loader) gives `run` its patched copies.
+    packages="$packages patchelf"
     (cd "$root/debs" && apt-get "${apt_options[@]}" -qq download $packages)
     for deb in "$root"/debs/*.deb; do
         dpkg-deb -x "$deb" "$root"
@@ -52,14 +55,27 @@ run)
     shift
     [ -f "$root/lvp_icd.json" ] || { echo "run '$0 fetch' first" >&2; exit 2; }
     (($#)) || { echo "usage: $0 run CMD [ARGS...]" >&2; exit 2; }
-    cmd="$(command -v "$1")" || { echo "$1: not found" >&2; exit 2; }
+    cmd="$(realpath "$(command -v "$1")")" || { echo "$1: not found" >&2; exit 2; }
     shift
-    export VK_ICD_FILENAMES="$root/lvp_icd.json"
+    # A copy of CMD whose ELF interpreter and library path are sid's, so that it, and any copy of
+    # itself it spawns (as `bench` does), starts on sid's glibc; remade when CMD is newer. Named
+    # by CMD's path, so target/debug and target/release binaries stay apart. The libraries that
+    # lavapipe loads come through LD_LIBRARY_PATH (an RPATH does not reach libraries that carry
+    # their own RUNPATH, as LLVM does), so do not let the command start system programs.
+    copy="$root/bin/$(echo "$cmd" | md5sum | cut -c1-12)-$(basename "$cmd")"
+    if [ ! -e "$copy" ] || [ "$cmd" -nt "$copy" ]; then
+        mkdir -p "$root/bin"
+        cp "$cmd" "$copy.partial"
+        "$libs/ld-linux-x86-64.so.2" --library-path "$libs" "$root/usr/bin/patchelf" \
+            --set-interpreter "$libs/ld-linux-x86-64.so.2" --force-rpath --set-rpath "$libs" "$copy.partial"
+        mv "$copy.partial" "$copy"
+    fi
+    export VK_ICD_FILENAMES="$root/lvp_icd.json" LD_LIBRARY_PATH="$libs"
     export XDG_RUNTIME_DIR="${XDG_RUNTIME_DIR:-$(mktemp -d)}"
-    exec "$libs/ld-linux-x86-64.so.2" --library-path "$libs" "$cmd" "$@"
+    exec "$copy" "$@"
     ;;
 *)
-    sed -n '2,16p' "$0" | sed 's/^# \{0,1\}//'
+    sed -n '2,17p' "$0" | sed 's/^# \{0,1\}//'
     exit 2
     ;;
 esac
