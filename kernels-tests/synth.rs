@@ -196,6 +196,16 @@ fn synthesis_kernels_bit_exact_on_gpu_and_cpu() {
         s.set_max_chunk_side(16);
         s.synthesize_tileable(32, &|_, _| {}, false).unwrap().0
     });
+    // One colour source per channel, the matched table among them.
+    let params = SynthParams {
+        seed: 4,
+        color: "z,matched,x".parse().unwrap(),
+        ..Default::default()
+    };
+    let b = Box3::new([-5, -1, 2], [6, 8, 9]);
+    same_on_both("per-channel colours", &a, &params, &gpu, |s| {
+        s.synthesize(b, &|_, _| {}).unwrap()
+    });
     // The coarse-level cache: level L-1 built once from a tileable solid, uploaded per request.
     let params = SynthParams {
         seed: 8,
@@ -206,6 +216,65 @@ fn synthesis_kernels_bit_exact_on_gpu_and_cpu() {
     same_on_both("coarse cache", &a, &params, &gpu, |s| {
         s.synthesize(b, &|_, _| {}).unwrap()
     });
+}
+
+/// Spatial determinism on the GPU backend itself (the CPU backend's is tested in
+/// tests/synthesis.rs, and GPU = CPU above): seeded random boxes, on negative coordinates and
+/// across brick boundaries as they fall, equal the same voxels of a larger box, and the larger box
+/// synthesized in groups (seams every 12 voxels, each group with its own dependency padding)
+/// equals the box in one piece.
+#[test]
+fn gpu_boxes_are_windows_of_larger_gpu_boxes() {
+    let _serial = crate::serial();
+    let Some(_) = crate::gpu() else { return };
+    let gpu = Compute::open(BackendChoice::Gpu, &GpuOptions::from_env()).unwrap();
+    let a = analysis(false, Border::Wrap);
+    let params = SynthParams {
+        seed: 21,
+        ..Default::default()
+    };
+    let synth = |b: Box3, max_group: Option<u32>| {
+        let mut s = Synthesizer::new(&a, params.clone(), &gpu).unwrap();
+        if let Some(g) = max_group {
+            s.set_max_chunk_side(g);
+        }
+        s.synthesize(b, &|_, _| {}).unwrap()
+    };
+    let big = Box3::new([-9, -6, -7], [9, 10, 5]);
+    let whole = synth(big, None);
+    let mut rng = solidsynth::util::hash::SeededRng::new(19);
+    for _ in 0..6 {
+        let lo = [0, 1, 2].map(|i| big.lo[i] + rng.below((big.hi[i] - big.lo[i]) as u64) as i32);
+        let hi = [0, 1, 2].map(|i| (lo[i] + 1 + rng.below(7) as i32).min(big.hi[i]));
+        let small = Box3::new(lo, hi);
+        let part = synth(small, None);
+        for z in lo[2]..hi[2] {
+            for y in lo[1]..hi[1] {
+                for x in lo[0]..hi[0] {
+                    let at = |v: &solidsynth::volume::Volume, b: Box3| {
+                        v.at(
+                            (x - b.lo[0]) as u32,
+                            (y - b.lo[1]) as u32,
+                            (z - b.lo[2]) as u32,
+                        )
+                        .to_vec()
+                    };
+                    assert_eq!(
+                        at(&part, small),
+                        at(&whole, big),
+                        "voxel ({x},{y},{z}) of {small:?} differs inside {big:?}"
+                    );
+                }
+            }
+        }
+    }
+    let grouped = synth(big, Some(12));
+    words_equal(
+        "grouped on the GPU",
+        &bytes_to_words(&whole.data),
+        &bytes_to_words(&grouped.data),
+    )
+    .unwrap();
 }
 
 /// Run `f` on a fresh synthesizer of each backend and require byte-identical volumes.

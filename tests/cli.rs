@@ -699,6 +699,21 @@ fn synth_bad_inputs_exit_2_and_write_nothing() {
     }
     let o = run(&["synth", "--size", "16", "--jitter", "100", "-o", out_s]);
     assert_user_error(&o, "--jitter", d, &[]);
+    // A colour source per channel: as many as the exemplar's colour channels (3), known names.
+    let o = run(&[
+        "synth",
+        "--size",
+        "16",
+        "--backend",
+        "cpu",
+        "--color",
+        "x,y",
+        "-o",
+        out_s,
+    ]);
+    assert_user_error(&o, "--color x,y", d, &[]);
+    let o = run(&["synth", "--size", "16", "--color", "x,red,z", "-o", out_s]);
+    assert_user_error(&o, "--color", d, &[]);
     std::fs::write(d.join("bad.ssa"), b"SOLIDSSA\x01\x00\x00\x00").unwrap();
     let o = run(&[
         "synth",

@@ -517,6 +517,47 @@ fn matched_colours_restore_the_exemplar_contrast() {
     }
 }
 
+/// `--color x,matched,average`: each colour channel is that channel of the solid coloured by its
+/// own source, and a list whose length is not the colour channel count is refused.
+#[test]
+fn per_channel_colours_take_each_channel_from_its_source() {
+    use solidsynth::backend::Compute;
+    use solidsynth::lazy::{Box3, ColorSource, SynthParams, Synthesizer};
+    let a = common::analyze(vec![common::fixture("cells32.png")], Border::Wrap);
+    let synth = |color: ColorSource| {
+        let params = SynthParams {
+            seed: 9,
+            color,
+            ..Default::default()
+        };
+        Synthesizer::new(&a, params, &Compute::Cpu)?
+            .synthesize(Box3::new([-3, 2, 0], [9, 11, 6]), &|_, _| {})
+    };
+    let per: ColorSource = "x,matched,average".parse().unwrap();
+    assert_eq!(per.to_string(), "x,matched,average");
+    let mixed = synth(per).unwrap();
+    let sources = [ColorSource::X, ColorSource::Matched, ColorSource::Average];
+    let singles: Vec<_> = sources.iter().map(|&c| synth(c).unwrap()).collect();
+    for (k, p) in mixed.data.chunks_exact(3).enumerate() {
+        for (ch, single) in singles.iter().enumerate() {
+            assert_eq!(p[ch], single.data[k * 3 + ch], "voxel {k}, channel {ch}");
+        }
+    }
+    // The sources differ, so the comparison above could fail.
+    assert_ne!(singles[0].data, singles[2].data);
+    // Two sources for three colour channels: refused, naming the flag.
+    let err = synth("x,y".parse().unwrap()).unwrap_err().to_string();
+    assert!(
+        err.contains("--color x,y") && err.contains("3 colour channels"),
+        "{err}"
+    );
+    // Parsing: single names, lists of 2 to 4, nothing else.
+    assert_eq!("z".parse::<ColorSource>().unwrap(), ColorSource::Z);
+    for bad in ["", "q", "x,q", "x,y,z,x,y", "x,,y"] {
+        assert!(bad.parse::<ColorSource>().is_err(), "{bad:?} parsed");
+    }
+}
+
 /// A tileable solid wraps around: the difference across the wrap (last slice to first) is like
 /// the difference between neighbouring slices inside, unlike in a box of the infinite solid.
 #[test]

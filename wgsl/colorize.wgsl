@@ -1,7 +1,8 @@
-// Voxel colours of an output box, colour channels packed into one u32: the voxel's cached value
-// (the rounded mean of its three exemplar pixels), or, on request, the pixel of one exemplar at
-// the voxel's coordinate in it, or the cached value mapped channel by channel through the
-// `--color matched` table (src/lazy/color_match.rs). CPU reference: src/cpu/colorize.rs.
+// Voxel colours of an output box, colour channels packed into one u32. Each channel c comes from
+// the source in bits 4c..4c+3 of params.source: 0 the voxel's cached value (the rounded mean of
+// its three exemplar pixels), a + 1 the pixel of exemplar a at the voxel's coordinate in it, 4 the
+// cached value mapped through the `--color matched` table (src/lazy/color_match.rs).
+// CPU reference: src/cpu/colorize.rs.
 
 struct ColorizeParams {
     grid_lo_x: i32, grid_lo_y: i32, grid_lo_z: i32,
@@ -39,20 +40,21 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (params.color_channels < 4u) {
         mask = (1u << (params.color_channels * 8u)) - 1u;
     }
-    var word = state[i + 3u];
-    if (params.source == 4u) {
-        // Byte c of table word k: channel c's output for value k.
-        var mapped = 0u;
-        for (var c = 0u; c < 4u; c++) {
-            let k = (word >> (c * 8u)) & 0xFFu;
-            mapped |= level[params.match_table + k] & (0xFFu << (c * 8u));
+    let value = state[i + 3u];
+    let pixels = array<u32, 3>(params.pixels0, params.pixels1, params.pixels2);
+    var word = 0u;
+    for (var c = 0u; c < 4u; c++) {
+        let code = (params.source >> (c * 4u)) & 0xFu;
+        var picked = value;
+        if (code == 4u) {
+            // Byte c of table word k: channel c's output for value k.
+            picked = level[params.match_table + ((value >> (c * 8u)) & 0xFFu)];
+        } else if (code != 0u) {
+            let a = code - 1u;
+            let t = state[i + a];
+            picked = level[pixels[a] + (u32(coord_y(t)) * params.ex_width + u32(coord_x(t))) * params.pixel_words];
         }
-        word = mapped;
-    } else if (params.source != 0u) {
-        let a = params.source - 1u;
-        let pixels = array<u32, 3>(params.pixels0, params.pixels1, params.pixels2);
-        let c = state[i + a];
-        word = level[pixels[a] + (u32(coord_y(c)) * params.ex_width + u32(coord_x(c))) * params.pixel_words];
+        word |= picked & (0xFFu << (c * 8u));
     }
     colors[tid] = word & mask;
 }

@@ -59,8 +59,9 @@ pub struct SolidParams {
     /// Output colour: the mean of the voxel's three exemplar pixels (the paper's rule);
     /// `matched`: that mean with the exemplar's mean colour and contrast restored (a table from
     /// a probe solid synthesized when the session starts; better histogram and sharpness
-    /// scores); or one exemplar's pixel (x, y, z).
-    #[arg(long, value_enum, default_value = "average")]
+    /// scores); or one exemplar's pixel (x, y, z). Or one of these per colour channel, red
+    /// first, separated by commas (`x,y,z`: red from Ex, green from Ey, blue from Ez).
+    #[arg(long, default_value = "average", value_name = "SOURCE[,SOURCE...]")]
     pub color: ColorSource,
     /// Coarse-level cache (paper 6.2): the levels above the finest come from one tileable solid
     /// of period N (a multiple of 64), synthesized once and read through the jitter warp; each

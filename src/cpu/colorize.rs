@@ -1,7 +1,8 @@
 //! CPU reference of `wgsl/colorize.wgsl`: the colour channels of each output voxel, packed into
-//! one u32: its cached value (the rounded mean of its three exemplar pixels), or, on request, the
-//! pixel of one exemplar at the voxel's coordinate in it, or the cached value mapped channel by
-//! channel through the `--color matched` table (`lazy::color_match`).
+//! one u32, channel c from the source in bits 4c..4c+3 of `source`: 0 its cached value (the
+//! rounded mean of its three exemplar pixels), a + 1 the pixel of exemplar a at the voxel's
+//! coordinate in it, 4 the cached value mapped through the `--color matched` table
+//! (`lazy::color_match`).
 
 use super::synth_common::{brick_at, voxel_index};
 use crate::kernel_types::ColorizeParams;
@@ -28,20 +29,20 @@ pub fn colorize(p: &ColorizeParams, level: &[u32], state: &[u32], bricks: &[u32]
                 continue;
             };
             let i = slot * stride;
-            let value = if p.source == 0 {
-                state[i + 3]
-            } else if p.source == 4 {
-                let value = state[i + 3];
-                (0..4).fold(0, |mapped, c| {
-                    let k = (value >> (c * 8)) & 0xFF;
-                    mapped | (level[(p.match_table + k) as usize] & (0xFF << (c * 8)))
-                })
-            } else {
-                let a = (p.source - 1) as usize;
+            let value = state[i + 3];
+            let pixel = |a: usize| {
                 let (x, y) = crate::analysis::frame::unpack(state[i + a]);
                 let pixels = [p.pixels0, p.pixels1, p.pixels2][a];
                 level[(pixels + (y * p.ex_width + x) * p.pixel_words) as usize]
             };
+            let value = (0..4).fold(0, |out, c| {
+                let from = match (p.source >> (4 * c)) & 0xF {
+                    0 => value,
+                    4 => level[(p.match_table + ((value >> (c * 8)) & 0xFF)) as usize],
+                    code => pixel(code as usize - 1),
+                };
+                out | (from & (0xFF << (c * 8)))
+            });
             *word = value & mask;
         }
     });

@@ -1,14 +1,20 @@
-//! The flipbook layout of a volume: all z slices in one image, a grid of ceil(sqrt(nz)) columns,
-//! row-major (slice z at column z % cols, row z / cols), x along each tile's rows. This is the
-//! layout Unity and Unreal import as a 3D texture. [`from_image`] reads it back, so the layout is
-//! round-trip tested rather than only described.
+//! The flipbook layout of a volume: all z slices in one image, a grid of [`columns`] x
+//! nz / [`columns`] tiles, row-major (slice z at column z % cols, row z / cols), x along each
+//! tile's rows. This is the layout Unity and Unreal import as a 3D texture: both take the depth
+//! as columns x rows, so the grid holds exactly nz tiles (an empty tile would import as an extra
+//! slice). [`from_image`] reads it back, so the layout is round-trip tested rather than only
+//! described.
 
 use crate::error::{Error, Result};
 use crate::volume::Volume;
 
-/// Columns of the grid for `nz` slices.
+/// Columns of the grid for `nz` slices: the smallest divisor of nz that is at least its square
+/// root, so the grid is as square as nz's factors allow and never wider than tall by choice
+/// (64 slices: 8 x 8; 32: 8 x 4; 128: 16 x 8; a prime count: one row).
 pub fn columns(nz: u32) -> u32 {
-    (nz as f64).sqrt().ceil().max(1.0) as u32
+    (1..=nz.max(1))
+        .find(|&c| nz.is_multiple_of(c) && u64::from(c) * u64::from(c) >= u64::from(nz))
+        .unwrap_or(1)
 }
 
 fn rgba(p: &[u8]) -> image::Rgba<u8> {
@@ -23,7 +29,7 @@ fn rgba(p: &[u8]) -> image::Rgba<u8> {
 /// All z slices in one RGBA image (gray volumes are replicated to RGB, opaque).
 pub fn to_image(v: &Volume) -> image::RgbaImage {
     let cols = columns(v.nz);
-    let rows = v.nz.div_ceil(cols);
+    let rows = v.nz / cols;
     let mut img = image::RgbaImage::new(cols * v.nx, rows * v.ny);
     for z in 0..v.nz {
         let (ox, oy) = ((z % cols) * v.nx, (z / cols) * v.ny);
@@ -52,7 +58,7 @@ pub fn from_image(img: &image::RgbaImage, nz: u32, channels: u32) -> Result<Volu
         ));
     }
     let cols = columns(nz);
-    let rows = nz.div_ceil(cols);
+    let rows = nz / cols;
     if !img.width().is_multiple_of(cols) || !img.height().is_multiple_of(rows) || img.width() == 0 {
         return Err(Error::invalid(
             "flipbook",
@@ -95,21 +101,43 @@ mod tests {
             let v = volume(nx, ny, nz, c);
             let img = to_image(&v);
             let cols = columns(nz);
-            assert_eq!(img.dimensions(), (cols * nx, nz.div_ceil(cols) * ny));
+            assert_eq!(img.dimensions(), (cols * nx, nz / cols * ny));
             assert_eq!(from_image(&img, nz, c).unwrap(), v, "{nx}x{ny}x{nz}x{c}");
         }
     }
 
     #[test]
     fn slice_z_is_the_tile_at_column_z_mod_cols() {
-        let v = volume(4, 4, 5, 3);
+        let v = volume(4, 4, 6, 3);
         let img = to_image(&v);
-        // 5 slices: 3 columns; slice 4 is at column 1, row 1.
+        // 6 slices: 3 columns, 2 rows; slice 4 is at column 1, row 1.
+        assert_eq!(img.dimensions(), (12, 8));
         assert_eq!(&img.get_pixel(4 + 2, 4 + 1).0[..3], v.at(2, 1, 4));
         // A perturbed image no longer reads back equal (the comparison can fail).
         let mut bad = img.clone();
         bad.get_pixel_mut(0, 0).0[0] ^= 1;
-        assert_ne!(from_image(&bad, 5, 3).unwrap(), v);
+        assert_ne!(from_image(&bad, 6, 3).unwrap(), v);
         assert!(from_image(&img, 7, 3).is_err());
+    }
+
+    #[test]
+    fn the_grid_holds_exactly_one_tile_per_slice() {
+        for (nz, cols) in [
+            (1, 1),
+            (5, 5),
+            (12, 4),
+            (32, 8),
+            (64, 8),
+            (128, 16),
+            (256, 16),
+            (512, 32),
+        ] {
+            assert_eq!(columns(nz), cols, "{nz} slices");
+        }
+        for nz in 1..600u32 {
+            let c = columns(nz);
+            assert_eq!(nz % c, 0, "{nz} slices in {c} columns");
+            assert!(c * c >= nz && (nz / c) <= c, "{nz}: {c} columns");
+        }
     }
 }

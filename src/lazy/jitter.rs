@@ -1,7 +1,13 @@
 //! The jitter field (paper 5.1): a continuous random warp made of Gaussians, defined everywhere in
 //! Z^3 so that it does not depend on which box is synthesized. One Gaussian per 4^3 cell of the
-//! l_start lattice, placed, sized and oriented by a hash of (seed, cell); the paper's "about 200 per
-//! unit volume" with larger amplitude at smaller width. All in fixed point, so GPU and CPU agree.
+//! l_start lattice, placed, sized and oriented by a hash of (seed, cell), with larger amplitude at
+//! smaller width, as in the paper. The paper's numbers (about 200 Gaussians per unit volume, sigma
+//! 0.01-0.05, amplitude 0.1-0.3) are not these: taking an exemplar-sized cube as the unit, a 128^2
+//! exemplar's l_start cube is 16^3 voxels, which holds 64 Gaussians here, of sigma 1-2.5 voxels
+//! (0.06-0.16) and amplitude 0.8-2 voxels (0.05-0.125) times --jitter. The paper's narrowest
+//! Gaussians would be a fraction of an l_start voxel, a perturbation the correction undoes (the
+//! paper: small-scale distortions are corrected by synthesis); --jitter scales the warp.
+//! All in fixed point, so GPU and CPU agree.
 
 use crate::util::hash::hash32;
 

@@ -93,8 +93,9 @@ pub enum CandidateMode {
     TwoD,
 }
 
-/// Where an output voxel's colour comes from (the solid itself, its triples, is the same).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+/// Where an output voxel's colour comes from (the solid itself, its triples, is the same): one
+/// source for every colour channel, or one per channel ([`ColorSource::PerChannel`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
 pub enum ColorSource {
     /// The mean of the voxel's three exemplar pixels (the paper's rule).
     #[default]
@@ -108,18 +109,132 @@ pub enum ColorSource {
     /// narrows them) by a per-channel table from a probe solid ([`color_match`]). Starting a
     /// session then synthesizes the probe (64^3 to 128^3, tileable).
     Matched,
+    /// One of the above per colour channel, red first (`--color x,y,z`: red from Ex, green from
+    /// Ey, blue from Ez); as many as the exemplars have colour channels.
+    PerChannel(ChannelSources),
+}
+
+/// One colour channel's source in [`ColorSource::PerChannel`]: the single sources of
+/// [`ColorSource`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+pub enum ChannelSource {
+    Average,
+    X,
+    Y,
+    Z,
+    Matched,
+}
+
+impl ChannelSource {
+    const NAMES: [(&'static str, ChannelSource); 5] = [
+        ("average", ChannelSource::Average),
+        ("matched", ChannelSource::Matched),
+        ("x", ChannelSource::X),
+        ("y", ChannelSource::Y),
+        ("z", ChannelSource::Z),
+    ];
+
+    fn name(self) -> &'static str {
+        Self::NAMES.iter().find(|(_, s)| *s == self).unwrap().0
+    }
+
+    fn parse(name: &str) -> std::result::Result<ChannelSource, String> {
+        Self::NAMES
+            .iter()
+            .find(|(n, _)| *n == name.trim())
+            .map(|&(_, source)| source)
+            .ok_or_else(|| {
+                format!(
+                    "unknown colour source {name:?}: average, matched, x, y or z, or one per \
+                     colour channel separated by commas"
+                )
+            })
+    }
+
+    /// Its code in `ColorizeParams::source`: 0 the mean, a + 1 exemplar a's pixel, 4 the
+    /// matched mean.
+    fn code(self) -> u32 {
+        match self {
+            ChannelSource::Average => 0,
+            ChannelSource::X => 1,
+            ChannelSource::Y => 2,
+            ChannelSource::Z => 3,
+            ChannelSource::Matched => 4,
+        }
+    }
+}
+
+/// The sources of [`ColorSource::PerChannel`], red first: `len` of them, the rest unused.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+pub struct ChannelSources {
+    pub sources: [ChannelSource; 4],
+    pub len: u8,
 }
 
 impl ColorSource {
-    /// `ColorizeParams::source`: 0 the mean, a + 1 exemplar a's pixel, 4 the matched mean.
-    pub fn kernel_code(self) -> u32 {
+    /// The source of colour channel `c`.
+    pub fn channel(self, c: usize) -> ChannelSource {
         match self {
-            ColorSource::Average => 0,
-            ColorSource::X => 1,
-            ColorSource::Y => 2,
-            ColorSource::Z => 3,
-            ColorSource::Matched => 4,
+            ColorSource::Average => ChannelSource::Average,
+            ColorSource::X => ChannelSource::X,
+            ColorSource::Y => ChannelSource::Y,
+            ColorSource::Z => ChannelSource::Z,
+            ColorSource::Matched => ChannelSource::Matched,
+            ColorSource::PerChannel(list) => list.sources[c],
         }
+    }
+
+    /// Whether a channel needs the `matched` table (and so the probe solid).
+    pub fn needs_matching(self) -> bool {
+        (0..4).any(|c| self.channel(c) == ChannelSource::Matched)
+    }
+
+    /// `ColorizeParams::source`: colour channel c's [`ChannelSource`] code in bits 4c..4c+3.
+    pub fn kernel_code(self) -> u32 {
+        (0..4).fold(0, |code, c| code | self.channel(c).code() << (4 * c))
+    }
+}
+
+impl std::str::FromStr for ColorSource {
+    type Err = String;
+
+    /// `average`, `matched`, `x`, `y` or `z`, or 2 to 4 of them separated by commas, one per
+    /// colour channel.
+    fn from_str(text: &str) -> std::result::Result<ColorSource, String> {
+        let names: Vec<&str> = text.split(',').collect();
+        match names.len() {
+            1 => Ok(match ChannelSource::parse(names[0])? {
+                ChannelSource::Average => ColorSource::Average,
+                ChannelSource::X => ColorSource::X,
+                ChannelSource::Y => ColorSource::Y,
+                ChannelSource::Z => ColorSource::Z,
+                ChannelSource::Matched => ColorSource::Matched,
+            }),
+            2..=4 => {
+                let mut sources = [ChannelSource::Average; 4];
+                for (slot, name) in sources.iter_mut().zip(&names) {
+                    *slot = ChannelSource::parse(name)?;
+                }
+                Ok(ColorSource::PerChannel(ChannelSources {
+                    sources,
+                    len: names.len() as u8,
+                }))
+            }
+            n => Err(format!(
+                "{n} colour sources: at most 4, one per colour channel"
+            )),
+        }
+    }
+}
+
+impl std::fmt::Display for ColorSource {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let len = match self {
+            ColorSource::PerChannel(list) => list.len as usize,
+            _ => 1,
+        };
+        let names: Vec<&str> = (0..len).map(|c| self.channel(c).name()).collect();
+        write!(f, "{}", names.join(","))
     }
 }
 
@@ -288,7 +403,19 @@ impl Synthesizer {
             .rev()
             .map(|l| LevelPack::new(analysis, l))
             .collect();
-        if params.color == ColorSource::Matched {
+        if let ColorSource::PerChannel(list) = params.color {
+            let channels = analysis.color_channels;
+            if u32::from(list.len) != channels {
+                return Err(Error::invalid(
+                    format!("--color {}", params.color),
+                    format!(
+                        "names {} channel sources; the exemplars have {channels} colour channels",
+                        list.len
+                    ),
+                ));
+            }
+        }
+        if params.color.needs_matching() {
             let table = Self::matching_table(analysis, &params, compute)?;
             let finest = packs.last_mut().unwrap();
             let at = finest.offsets.color_match as usize;
