@@ -62,8 +62,11 @@ fn whole_analysis(c: &mut Criterion) {
     group.finish();
 }
 
-/// End-to-end synthesis of a 24^3 box (every kernel) on the CPU backend and on the GPU adapter;
-/// `solidsynth bench synth` has the per-kernel split.
+/// End-to-end synthesis of a 24^3 box (every kernel) on the CPU backend and on the GPU adapter,
+/// then each kernel's share of it ("synthesis kernels 24^3/KERNEL BACKEND": the kernel's total
+/// time per synthesis, from the synthesizer's profiling, which waits for the device after every
+/// kernel; on the GPU `correct` includes its `scatter`). `solidsynth bench synth` prints the same
+/// split with CPU/GPU ratios for larger volumes.
 fn synthesis(c: &mut Criterion) {
     use solidsynth::lazy::{Box3, SynthParams, Synthesizer};
     let input = AnalysisInput {
@@ -94,6 +97,36 @@ fn synthesis(c: &mut Criterion) {
         group.bench_function("gpu", |bench| {
             bench.iter(|| g.synthesize(b, &|_, _| {}).unwrap())
         });
+        group.finish();
+        per_kernel(c, b, [("cpu", &mut cpu), ("gpu", &mut g)]);
+    } else {
+        group.finish();
+        per_kernel(c, b, [("cpu", &mut cpu)]);
+    }
+}
+
+/// Each synthesis kernel's time per synthesis of box `b`, per backend.
+fn per_kernel<const N: usize>(
+    c: &mut Criterion,
+    b: solidsynth::lazy::Box3,
+    synths: [(&str, &mut solidsynth::lazy::Synthesizer); N],
+) {
+    let mut group = c.benchmark_group("synthesis kernels 24^3");
+    group.sample_size(10);
+    for (backend, s) in synths {
+        for kernel in ["init", "upsample", "correct", "colorize"] {
+            group.bench_function(format!("{kernel} {backend}"), |bench| {
+                bench.iter_custom(|iterations| {
+                    let mut total = std::time::Duration::ZERO;
+                    for _ in 0..iterations {
+                        s.enable_profiling();
+                        s.synthesize(b, &|_, _| {}).unwrap();
+                        total += s.kernel_times().unwrap()[kernel].0;
+                    }
+                    total
+                })
+            });
+        }
     }
     group.finish();
 }
