@@ -151,6 +151,16 @@ fn synthesis_kernels_bit_exact_on_gpu_and_cpu() {
         same_on_both(&format!("feature, rgba={rgba}"), &a, &params, &gpu, |s| {
             s.synthesize(b, &|_, _| {}).unwrap()
         });
+        if rgba {
+            // A source per channel for all four colour channels (two value words per voxel).
+            let params = SynthParams {
+                color: "x,matched,average,z".parse().unwrap(),
+                ..params
+            };
+            same_on_both("feature, rgba, per channel", &a, &params, &gpu, |s| {
+                s.synthesize(b, &|_, _| {}).unwrap()
+            });
+        }
     }
     // Odd exemplar sizes (27, 14, 7, 4: children one pixel wider than twice their parent's
     // coordinates reach, so upsampling resolves past the edge) on both borders.
@@ -196,14 +206,16 @@ fn synthesis_kernels_bit_exact_on_gpu_and_cpu() {
         s.set_max_chunk_side(16);
         s.synthesize_tileable(32, &|_, _| {}, false).unwrap().0
     });
-    // One colour source per channel, the matched table among them.
+    // One colour source per channel, the matched table among them, on three different
+    // exemplars (each channel's pixel from its own exemplar's data).
+    let three = analysis(true, Border::Wrap);
     let params = SynthParams {
         seed: 4,
         color: "z,matched,x".parse().unwrap(),
         ..Default::default()
     };
     let b = Box3::new([-5, -1, 2], [6, 8, 9]);
-    same_on_both("per-channel colours", &a, &params, &gpu, |s| {
+    same_on_both("per-channel colours", &three, &params, &gpu, |s| {
         s.synthesize(b, &|_, _| {}).unwrap()
     });
     // The coarse-level cache: level L-1 built once from a tileable solid, uploaded per request.

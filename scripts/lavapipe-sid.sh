@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # A newer lavapipe for benchmarks, without touching the system: Debian 12's own Mesa (22.3) runs
-# our kernels 2.2-3x slower than Mesa 26, whose llvmpipe keeps uniform values scalar (divergence
+# our kernels 2.0-2.4x slower than Mesa 26, whose llvmpipe keeps uniform values scalar (divergence
 # analysis, Mesa 25.1) and reads storage buffers with masked gathers instead of a loop with a
 # branch per lane. Debian sid's Mesa needs sid's glibc, so this fetches sid's lavapipe with its
 # whole dependency closure (glibc and LLVM included: ~70 MB to download, ~330 MB unpacked) into
@@ -20,12 +20,15 @@ root="$(cd "$(dirname "$0")/.." && pwd)/target/lavapipe-sid"
 libs="$root/usr/lib/x86_64-linux-gnu"
 
 fetch() {
-    rm -rf "$root"
-    mkdir -p "$root/apt/lists/partial" "$root/apt/cache/archives/partial" "$root/debs"
-    echo "deb http://deb.debian.org/debian sid main" > "$root/apt/sources.list"
+    # Unpacked beside the install and moved into place at the end: a failed fetch (network, a
+    # package gone from sid) leaves a working install as it was.
+    local new="$root.new"
+    rm -rf "$new"
+    mkdir -p "$new/apt/lists/partial" "$new/apt/cache/archives/partial" "$new/debs"
+    echo "deb http://deb.debian.org/debian sid main" > "$new/apt/sources.list"
     local apt_options=(
-        -o Dir::Etc::sourcelist="$root/apt/sources.list" -o Dir::Etc::sourceparts=/dev/null
-        -o Dir::State::Lists="$root/apt/lists" -o Dir::Cache="$root/apt/cache"
+        -o Dir::Etc::sourcelist="$new/apt/sources.list" -o Dir::Etc::sourceparts=/dev/null
+        -o Dir::State::Lists="$new/apt/lists" -o Dir::Cache="$new/apt/cache"
         -o Dir::State::status=/dev/null -o APT::Sandbox::User="$(id -un)"
     )
     apt-get "${apt_options[@]}" -qq update
@@ -36,15 +39,25 @@ fetch() {
         grep -v '^[ <]' | sort -u)
     # patchelf (sid's, run by sid's loader) gives `run` its patched copies.
     packages="$packages patchelf"
-    (cd "$root/debs" && apt-get "${apt_options[@]}" -qq download $packages)
-    for deb in "$root"/debs/*.deb; do
-        dpkg-deb -x "$deb" "$root"
+    # Package names are single words: split on whitespace on purpose.
+    # shellcheck disable=SC2086
+    (cd "$new/debs" && apt-get "${apt_options[@]}" -qq download $packages)
+    for deb in "$new"/debs/*.deb; do
+        dpkg-deb -x "$deb" "$new"
     done
-    # The ICD manifest names the driver by file name; point it at the unpacked one.
-    sed "s#\"libvulkan_lvp.so\"#\"$libs/libvulkan_lvp.so\"#" \
-        "$root/usr/share/vulkan/icd.d/lvp_icd.json" > "$root/lvp_icd.json"
-    dpkg-deb -f "$root"/debs/mesa-vulkan-drivers_*.deb Version > "$root/VERSION"
-    rm -rf "$root/debs" "$root/apt"
+    # Point the ICD manifest's library_path, whatever it holds, at the unpacked driver, and
+    # refuse a manifest that would still load another lavapipe.
+    local driver="$libs/libvulkan_lvp.so"
+    sed -E "s#\"library_path\": *\"[^\"]*\"#\"library_path\": \"$driver\"#" \
+        "$new/usr/share/vulkan/icd.d/lvp_icd.json" > "$new/lvp_icd.json"
+    grep -q "\"$driver\"" "$new/lvp_icd.json" ||
+        { echo "cannot rewrite $new/usr/share/vulkan/icd.d/lvp_icd.json" >&2; exit 1; }
+    [ -f "$new/usr/lib/x86_64-linux-gnu/libvulkan_lvp.so" ] ||
+        { echo "no libvulkan_lvp.so in sid's mesa-vulkan-drivers" >&2; exit 1; }
+    dpkg-deb -f "$new"/debs/mesa-vulkan-drivers_*.deb Version > "$new/VERSION"
+    rm -rf "$new/debs" "$new/apt"
+    rm -rf "$root"
+    mv "$new" "$root"
     echo "lavapipe from Debian sid's Mesa $(cat "$root/VERSION") in $root"
 }
 
@@ -65,13 +78,18 @@ run)
     copy="$root/bin/$(echo "$cmd" | md5sum | cut -c1-12)-$(basename "$cmd")"
     if [ ! -e "$copy" ] || [ "$cmd" -nt "$copy" ]; then
         mkdir -p "$root/bin"
-        cp "$cmd" "$copy.partial"
+        partial="$(mktemp "$copy.XXXXXX")"
+        cp "$cmd" "$partial"
         "$libs/ld-linux-x86-64.so.2" --library-path "$libs" "$root/usr/bin/patchelf" \
-            --set-interpreter "$libs/ld-linux-x86-64.so.2" --force-rpath --set-rpath "$libs" "$copy.partial"
-        mv "$copy.partial" "$copy"
+            --set-interpreter "$libs/ld-linux-x86-64.so.2" --force-rpath --set-rpath "$libs" "$partial"
+        chmod +x "$partial"
+        mv "$partial" "$copy"
     fi
     export VK_ICD_FILENAMES="$root/lvp_icd.json" LD_LIBRARY_PATH="$libs"
-    export XDG_RUNTIME_DIR="${XDG_RUNTIME_DIR:-$(mktemp -d)}"
+    if [ -z "${XDG_RUNTIME_DIR:-}" ]; then
+        mkdir -p -m 700 "$root/xdg"
+        export XDG_RUNTIME_DIR="$root/xdg"
+    fi
     exec "$copy" "$@"
     ;;
 *)

@@ -714,6 +714,9 @@ fn synth_bad_inputs_exit_2_and_write_nothing() {
     assert_user_error(&o, "--color x,y", d, &[]);
     let o = run(&["synth", "--size", "16", "--color", "x,red,z", "-o", out_s]);
     assert_user_error(&o, "--color", d, &[]);
+    // serve takes uploads of any channel count: one source only, refused before listening.
+    let o = run(&["serve", "--port", "0", "--color", "x,y,z"]);
+    assert_user_error(&o, "--color x,y,z", d, &[]);
     std::fs::write(d.join("bad.ssa"), b"SOLIDSSA\x01\x00\x00\x00").unwrap();
     let o = run(&[
         "synth",

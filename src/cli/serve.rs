@@ -59,6 +59,15 @@ fn config(args: &ServeArgs) -> ServeConfig {
 pub fn run(args: ServeArgs, quiet: bool) -> anyhow::Result<()> {
     let config = config(&args);
     config.validate()?;
+    if let solidsynth::lazy::ColorSource::PerChannel(_) = config.params.color {
+        // Uploads may have 1, 3 or 4 colour channels: one list cannot fit them all.
+        return Err(Error::invalid(
+            format!("--color {}", config.params.color),
+            "serve takes one colour source for every solid (average, matched, x, y or z), \
+             not one per channel",
+        )
+        .into());
+    }
     let compute = args.solid.input.backend.open()?;
     // An INPUT is analysed (or loaded, or taken from the analysis cache) before listening, with
     // the terminal's progress bar; without one the built-in exemplar is analysed in a job the

@@ -289,7 +289,7 @@ pub fn check_sparse_memory(
     Ok(estimate)
 }
 
-/// All z slices in a grid of ceil(sqrt(N)) columns (see [`solidsynth::io::flipbook`]).
+/// All z slices in a grid of exactly N tiles (see [`solidsynth::io::flipbook`]).
 pub fn flipbook(v: &Volume) -> image::RgbaImage {
     solidsynth::io::flipbook::to_image(v)
 }

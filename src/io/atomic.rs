@@ -1,5 +1,8 @@
 //! Outputs appear complete or not at all: written to a temporary file beside the target, then
-//! renamed over it. An existing directory at the target is refused before any work.
+//! renamed over it. An existing directory at the target is refused before any work. A symbolic
+//! link is followed (the file it names is replaced, the link kept), and an existing target that
+//! is not a regular file (`/dev/null`, a named pipe) is written in place: renaming over it would
+//! replace the device or pipe with a file.
 
 use crate::error::{Error, Result};
 use std::io::Write;
@@ -95,9 +98,15 @@ pub fn check_output_dir(path: &Path, flag: &str) -> Result<()> {
     check_parent(path, flag)
 }
 
-/// The parent of an output exists and takes new files.
+/// The parent of an output exists and takes new files (where the output is staged: beside the
+/// file a symbolic link names). A device or pipe is written in place, not staged (opening a pipe
+/// here would wait for its reader).
 fn check_parent(path: &Path, flag: &str) -> Result<()> {
-    let parent = parent_dir(path);
+    let resolved = std::fs::canonicalize(path).unwrap_or_else(|_| path.to_path_buf());
+    if std::fs::metadata(&resolved).is_ok_and(|m| !m.is_file()) {
+        return Ok(());
+    }
+    let parent = parent_dir(&resolved);
     if !parent.is_dir() {
         return Err(Error::invalid(
             format!("{flag} {}", path.display()),
@@ -187,26 +196,47 @@ fn forget_pending(tmp: &Path) {
 /// deletes it too (see [`discard_pending`]).
 #[must_use = "dropping a PendingFile deletes the output: commit it or stage it in Outputs"]
 pub struct PendingFile {
+    /// The file to replace (a symbolic link's target, resolved).
     path: std::path::PathBuf,
     /// Always Some until committed.
     tmp: Option<tempfile::NamedTempFile>,
+    /// Instead of `tmp`: an existing target that is not a regular file, written in place.
+    direct: Option<std::fs::File>,
 }
 
 impl PendingFile {
     pub fn create(path: &Path) -> Result<PendingFile> {
-        let parent = parent_dir(path);
+        // Follow symbolic links: the file they name is the output, and the link stays.
+        let path = std::fs::canonicalize(path).unwrap_or_else(|_| path.to_path_buf());
+        if std::fs::metadata(&path).is_ok_and(|m| !m.is_file()) {
+            // A device or pipe: nothing partial can be left in it, and a rename would replace it.
+            let file = std::fs::OpenOptions::new()
+                .write(true)
+                .open(&path)
+                .map_err(|e| Error::io(&path, e))?;
+            return Ok(PendingFile {
+                path,
+                tmp: None,
+                direct: Some(file),
+            });
+        }
+        let parent = parent_dir(&path);
         let tmp = staging_builder(0o666)
             .tempfile_in(parent)
             .map_err(|e| Error::io(parent, e))?;
         register_pending(tmp.path());
         Ok(PendingFile {
-            path: path.to_path_buf(),
+            path,
             tmp: Some(tmp),
+            direct: None,
         })
     }
 
     pub fn file_mut(&mut self) -> &mut std::fs::File {
-        self.tmp.as_mut().expect("not committed").as_file_mut()
+        match &mut self.direct {
+            Some(file) => file,
+            None => self.tmp.as_mut().expect("not committed").as_file_mut(),
+        }
     }
 
     /// Append bytes (callers batch them: each call is a system call).
@@ -223,8 +253,11 @@ impl PendingFile {
         self.persist()
     }
 
-    /// Flush the temporary to disk.
+    /// Flush the temporary to disk (a device or pipe written in place has nothing to sync).
     fn sync(&self) -> Result<()> {
+        if self.direct.is_some() {
+            return Ok(());
+        }
         let tmp = self.tmp.as_ref().expect("not committed");
         tmp.as_file()
             .sync_all()
@@ -233,6 +266,9 @@ impl PendingFile {
 
     /// Rename the temporary over the target.
     fn persist(mut self) -> Result<()> {
+        if self.direct.take().is_some() {
+            return Ok(());
+        }
         let tmp = self.tmp.take().expect("committed once");
         forget_pending(tmp.path());
         tmp.persist(&self.path)
@@ -389,6 +425,58 @@ pub fn png_bytes(img: &image::RgbaImage) -> Result<Vec<u8>> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A named pipe (like /dev/null, not a regular file) is written in place and stays a pipe:
+    /// renaming a staged file over it would replace it. (`synth -o /dev/null` run as root did.)
+    #[test]
+    #[cfg(unix)]
+    fn a_pipe_or_device_is_written_in_place_not_replaced() {
+        use std::io::Read;
+        use std::os::unix::fs::FileTypeExt;
+        let dir = tempfile::tempdir().unwrap();
+        let pipe = dir.path().join("pipe");
+        let c_path = std::ffi::CString::new(pipe.to_str().unwrap()).unwrap();
+        assert_eq!(unsafe { libc::mkfifo(c_path.as_ptr(), 0o600) }, 0);
+        let reader = {
+            let pipe = pipe.clone();
+            std::thread::spawn(move || {
+                let mut got = Vec::new();
+                std::fs::File::open(pipe)
+                    .unwrap()
+                    .read_to_end(&mut got)
+                    .unwrap();
+                got
+            })
+        };
+        check_output_path(&pipe, "-o").unwrap();
+        write_file(&pipe, b"through the pipe").unwrap();
+        // Checked before waiting for the reader, which a replaced pipe would leave blocked.
+        assert!(std::fs::symlink_metadata(&pipe)
+            .unwrap()
+            .file_type()
+            .is_fifo());
+        assert_eq!(reader.join().unwrap(), b"through the pipe");
+        // Nothing was staged beside it.
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+    }
+
+    /// A symbolic link is followed: the file it names gets the output, and the link stays.
+    #[test]
+    #[cfg(unix)]
+    fn a_symbolic_link_keeps_pointing_at_the_replaced_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let real = dir.path().join("real.bin");
+        let link = dir.path().join("link.bin");
+        std::fs::write(&real, b"old").unwrap();
+        std::os::unix::fs::symlink(&real, &link).unwrap();
+        check_output_path(&link, "-o").unwrap();
+        write_file(&link, b"new").unwrap();
+        assert!(std::fs::symlink_metadata(&link)
+            .unwrap()
+            .file_type()
+            .is_symlink());
+        assert_eq!(std::fs::read(&real).unwrap(), b"new");
+    }
 
     #[test]
     #[cfg(unix)]

@@ -9,8 +9,9 @@ use crate::error::{Error, Result};
 use crate::volume::Volume;
 
 /// Columns of the grid for `nz` slices: the smallest divisor of nz that is at least its square
-/// root, so the grid is as square as nz's factors allow and never wider than tall by choice
-/// (64 slices: 8 x 8; 32: 8 x 4; 128: 16 x 8; a prime count: one row).
+/// root, so the grid is as square as nz's factors allow and never taller than wide (64 slices:
+/// 8 x 8; 32: 8 x 4; 128: 16 x 8; a prime count: one row, nz^2 pixels wide, past the 16384
+/// pixels a game engine imports once nz > 128).
 pub fn columns(nz: u32) -> u32 {
     (1..=nz.max(1))
         .find(|&c| nz.is_multiple_of(c) && u64::from(c) * u64::from(c) >= u64::from(nz))
