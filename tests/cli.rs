@@ -1101,6 +1101,65 @@ fn surface_bakes_the_solid_at_each_texel_and_refuses_bad_meshes() {
     let bytes = std::fs::read(&glb).unwrap();
     assert_eq!(&bytes[..4], b"glTF");
 
+    // The default layout: cells fitted to the triangles at one voxel per texel.
+    let fitted = d.join("fitted.obj");
+    let o = run(&[
+        "surface",
+        s,
+        "--mesh",
+        mesh_path.to_str().unwrap(),
+        "--seed",
+        "3",
+        "--backend",
+        "cpu",
+        "--resolution",
+        "16",
+        "--json",
+        "-o",
+        fitted.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let summary: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(summary["texel_size"], 1.0);
+    let place = Placement::fit(&mesh, 16);
+    let atlas = Atlas::fitted(&mesh, &place, 1.0).unwrap();
+    let img = image::open(d.join("fitted.png")).unwrap().to_rgba8();
+    assert_eq!(
+        summary["atlas"],
+        serde_json::json!([atlas.width, atlas.height])
+    );
+    assert_eq!((img.width(), img.height()), (atlas.width, atlas.height));
+    for (k, p) in atlas.texel_voxels(&mesh, &place).iter().enumerate() {
+        let (x, y) = (k as u32 % atlas.width, k as u32 / atlas.width);
+        let want = v.at(p[0] as u32, p[1] as u32, p[2] as u32);
+        assert_eq!(&img.get_pixel(x, y).0[..3], want, "fitted texel {x},{y}");
+    }
+    // Its cells follow the triangles: the right-angled faces' 16-voxel legs get 17 texels, the
+    // slanted face's 22.6-voxel edges 24.
+    let sides: Vec<_> = atlas.cells.iter().map(|c| (c.width, c.height)).collect();
+    assert_eq!(sides, [(17, 17), (17, 17), (17, 17), (24, 24)]);
+    for (flags, needle) in [
+        (vec!["--texel-size", "0"], "--texel-size 0"),
+        (vec!["--texel-size", "inf"], "--texel-size inf"),
+        (
+            vec!["--texel-size", "2", "--texels", "4"],
+            "cannot be used with",
+        ),
+    ] {
+        let mut args = vec!["surface", s, "--mesh", mesh_path.to_str().unwrap()];
+        args.extend_from_slice(&flags);
+        let bad_out = d.join("bad.glb");
+        args.extend_from_slice(&["--backend", "cpu", "-o", bad_out.to_str().unwrap()]);
+        let o = run(&args);
+        assert_eq!(o.status.code(), Some(2), "{flags:?}");
+        assert!(
+            String::from_utf8_lossy(&o.stderr).contains(needle),
+            "{flags:?}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        assert!(!bad_out.exists());
+    }
+
     // Bad input: non-finite coordinates, an empty mesh, an unknown output type.
     let bad = tempfile::tempdir().unwrap();
     let b = bad.path();

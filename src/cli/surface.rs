@@ -19,8 +19,12 @@ pub struct SurfaceArgs {
     /// The mesh is scaled so its longest side spans this many finest-level voxels.
     #[arg(long, default_value_t = 256, value_parser = clap::value_parser!(u32).range(1..=1048576))]
     pub resolution: u32,
-    /// Texels per triangle cell side in the atlas (default: about one texel per voxel along the
-    /// median edge).
+    /// Voxels per texel step along a triangle's edges: each triangle's atlas cell is sized to
+    /// the triangle (default 1, grown only when the atlas would not fit 16384^2 or memory).
+    #[arg(long, conflicts_with = "texels")]
+    pub texel_size: Option<f64>,
+    /// Instead of cells sized to their triangles, the same square cell of T x T texels for every
+    /// triangle (2..=256).
     #[arg(long)]
     pub texels: Option<u32>,
     /// Output: .glb (texture embedded) or .obj (writes .mtl and .png beside it).
@@ -61,19 +65,38 @@ pub fn run(args: SurfaceArgs, quiet: bool) -> anyhow::Result<()> {
     params.validate()?;
     let mesh = mesh::load(&args.mesh)?;
     let place = Placement::fit(&mesh, args.resolution);
-    let texels = args
-        .texels
-        .unwrap_or_else(|| bake::auto_texels(&mesh, &place));
-    let atlas = bake::Atlas::new(mesh.triangles.len(), texels)?;
     // Per texel: its voxel (12 bytes), colour (4), image pixel (4) and PNG buffers, plus the
     // requested bricks' bookkeeping: refuse before allocating when that cannot fit.
-    let estimate = atlas.width as u64 * atlas.height as u64 * 40;
+    let bytes_per_texel = 40;
     let available = super::synth::available_memory();
+    // The layout, how to say it, and the flag that chose it (for errors).
+    let (atlas, texel_size, layout, flag) = match args.texels {
+        Some(texels) => (
+            bake::Atlas::new(mesh.triangles.len(), texels)?,
+            None,
+            format!("{texels} x {texels} texels per triangle"),
+            format!("--texels {texels}"),
+        ),
+        None => {
+            let (atlas, size) =
+                bake::Atlas::fitted_within(&mesh, &place, args.texel_size, |atlas| {
+                    atlas.texel_count() * bytes_per_texel <= available
+                })?;
+            (
+                atlas,
+                Some(size),
+                format!("cells fitted at {size} voxels per texel"),
+                format!("--texel-size {size}"),
+            )
+        }
+    };
+    let estimate = atlas.texel_count() * bytes_per_texel;
     if estimate > available {
         return Err(Error::invalid(
-            format!("--texels {texels}"),
+            flag,
             format!(
-                "a {}x{} atlas needs about {:.1} GiB, {:.1} GiB is available; use fewer texels",
+                "a {}x{} atlas needs about {:.1} GiB, {:.1} GiB is available; use fewer texels \
+                 (a larger --texel-size)",
                 atlas.width,
                 atlas.height,
                 estimate as f64 / (1u64 << 30) as f64,
@@ -141,7 +164,8 @@ pub fn run(args: SurfaceArgs, quiet: bool) -> anyhow::Result<()> {
             "{}",
             serde_json::json!({
                 "output": args.output, "triangles": mesh.triangles.len(), "resolution": args.resolution,
-                "texels": texels, "atlas": [atlas.width, atlas.height],
+                "texels": args.texels, "texel_size": texel_size, "atlas": [atlas.width, atlas.height],
+                "max_texel_step_voxels": atlas.max_texel_step(&mesh, &place),
                 "synthesis_seconds": seconds, "stats": stats,
                 "finest_fraction_of_volume": fraction,
                 "peak_rss_bytes": solidsynth::util::memory::peak_rss_bytes(),
@@ -150,14 +174,15 @@ pub fn run(args: SurfaceArgs, quiet: bool) -> anyhow::Result<()> {
         );
     } else if !quiet {
         eprintln!(
-            "surface of {} triangles at {}^3: atlas {}x{} ({} texels per cell) in {seconds:.2} s; \
+            "surface of {} triangles at {}^3: atlas {}x{} ({layout}, longest texel step {:.2} \
+             voxels) in {seconds:.2} s; \
              finest voxels synthesized {finest} ({:.3}% of the volume), per level {:?}, peak state \
              {:.1} MiB -> {}",
             mesh.triangles.len(),
             args.resolution,
             atlas.width,
             atlas.height,
-            texels,
+            atlas.max_texel_step(&mesh, &place),
             fraction * 100.0,
             stats.voxels_per_level,
             stats.peak_state_bytes as f64 / (1 << 20) as f64,

@@ -2,11 +2,16 @@
 //! the solid at its 3D point (paper 6.2: only the voxels the surface passes through, with their
 //! dependencies, are synthesized).
 //!
-//! Atlas layout: triangle k owns a square cell of `texels` x `texels` texels, cell (k mod cols,
-//! k / cols). Its corners a, b, c sit at the centres of the cell's texels (0, 0), (T-1, 0) and
-//! (0, T-1); texel (i, j) is the point a + i/(T-1) (b - a) + j/(T-1) (c - a). Texels beyond the
-//! hypotenuse (i + j > T - 1) take the nearest point on it, so bilinear filtering inside the
-//! triangle never reads another triangle's texels.
+//! Atlas layout: triangle k owns a rectangular cell of `width` x `height` texels. One of its
+//! corners, a (the cell's `first`), and the two that follow it cyclically, b and c, sit at the
+//! centres of the cell's texels (0, 0), (W-1, 0) and (0, H-1); texel (i, j) is the point
+//! a + i/(W-1) (b - a) + j/(H-1) (c - a). Texels beyond the hypotenuse (i/(W-1) + j/(H-1) > 1)
+//! take the nearest point on it, so bilinear filtering inside the triangle never reads another
+//! triangle's texels.
+//!
+//! Two layouts: [`Atlas::fitted`] sizes each cell to its triangle (steps of at most one texel
+//! size along both edges, so no triangle is sampled more coarsely than asked, whatever its
+//! size) and shelf-packs the cells; [`Atlas::new`] gives every triangle the same square cell.
 
 use super::{Mesh, Placement};
 use crate::error::{Error, Result};
@@ -16,18 +21,63 @@ use glam::DVec3;
 /// Largest atlas side accepted.
 pub const MAX_ATLAS_SIDE: u32 = 16384;
 
-#[derive(Clone, Debug)]
-pub struct Atlas {
-    pub texels: u32,
-    pub cols: u32,
+/// One triangle's rectangle of the atlas.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Cell {
+    /// The cell's top-left texel.
+    pub x: u32,
+    pub y: u32,
+    /// Texels along the a -> b edge (columns) and the a -> c edge (rows); at least 2 each.
     pub width: u32,
     pub height: u32,
-    /// Per triangle, its corners' texture coordinates in [0, 1] (u right, v down: row 0 first).
+    /// Which of the triangle's corners (0, 1, 2) is a; b and c follow it cyclically.
+    pub first: u8,
+}
+
+impl Cell {
+    /// The triangle's corners in the cell's order (a, b, c).
+    fn ordered<T: Copy>(&self, corners: [T; 3]) -> [T; 3] {
+        let f = self.first as usize;
+        [corners[f], corners[(f + 1) % 3], corners[(f + 2) % 3]]
+    }
+
+    /// The point of texel (i, j) of the cell on the triangle `corners` (in the triangle's own
+    /// corner order).
+    fn point(&self, corners: &[DVec3; 3], i: u32, j: u32) -> DVec3 {
+        let [a, b, c] = self.ordered(*corners);
+        let (mut s, mut t) = (
+            i as f64 / (self.width - 1) as f64,
+            j as f64 / (self.height - 1) as f64,
+        );
+        if s + t > 1.0 {
+            // Nearest point of the hypotenuse s + t = 1 (in the cell's parameter space).
+            let d = (s + t - 1.0) / 2.0;
+            s = (s - d).clamp(0.0, 1.0);
+            t = (t - d).clamp(0.0, 1.0);
+        }
+        let p = a + s * (b - a) + t * (c - a);
+        // Rounding must not push a point off its triangle's box (a coordinate of -1e-15 would
+        // sample voxel -1).
+        let lo = a.min(b).min(c);
+        let hi = a.max(b).max(c);
+        p.clamp(lo, hi)
+    }
+}
+
+#[derive(Clone, Debug)]
+pub struct Atlas {
+    pub width: u32,
+    pub height: u32,
+    /// Per triangle, its cell.
+    pub cells: Vec<Cell>,
+    /// Per triangle, its corners' texture coordinates in [0, 1] (u right, v down: row 0 first),
+    /// in the triangle's own corner order.
     pub uvs: Vec<[[f32; 2]; 3]>,
 }
 
 impl Atlas {
-    /// Lay out `triangles` cells of `texels`^2.
+    /// Every one of `triangles` gets a square cell of `texels`^2, in a grid of ceil(sqrt(n))
+    /// columns (`--texels`).
     pub fn new(triangles: usize, texels: u32) -> Result<Atlas> {
         if !(2..=256).contains(&texels) {
             return Err(Error::invalid(
@@ -47,126 +97,279 @@ impl Atlas {
                 ),
             ));
         }
-        let (width, height) = (width as u32, height as u32);
-        let t = texels as f32;
-        let uvs = (0..triangles as u32)
-            .map(|k| {
-                let (cx, cy) = ((k % cols) as f32 * t, (k / cols) as f32 * t);
-                let at = |i: f32, j: f32| {
-                    [
-                        (cx + i + 0.5) / width as f32,
-                        (cy + j + 0.5) / height as f32,
-                    ]
-                };
-                [at(0.0, 0.0), at(t - 1.0, 0.0), at(0.0, t - 1.0)]
+        let cells = (0..triangles as u32)
+            .map(|k| Cell {
+                x: (k % cols) * texels,
+                y: (k / cols) * texels,
+                width: texels,
+                height: texels,
+                first: 0,
             })
             .collect();
-        Ok(Atlas {
-            texels,
-            cols,
+        Ok(Atlas::with_cells(width as u32, height as u32, cells))
+    }
+
+    /// Cells sized to their triangles: a step of at most `texel_size` voxels along both of a
+    /// cell's edges (so every point of the triangle lies within one texel size of a texel's
+    /// point), each triangle's right-angle corner put where its cell is smallest, the cells
+    /// shelf-packed (tallest first) into a near-square atlas. `None` when the atlas would pass
+    /// [`MAX_ATLAS_SIDE`].
+    pub fn fitted(mesh: &Mesh, place: &Placement, texel_size: f64) -> Option<Atlas> {
+        assert!(texel_size > 0.0 && texel_size.is_finite());
+        let texels_along = |from: DVec3, to: DVec3| {
+            // At least 2 (the cell's corners); beyond the limit stays beyond it.
+            let steps = ((to - from).length() / texel_size).ceil();
+            (steps + 1.0).clamp(2.0, MAX_ATLAS_SIDE as f64 + 1.0) as u32
+        };
+        let sizes: Vec<(u32, u32, u8)> = mesh
+            .triangles
+            .iter()
+            .map(|t| {
+                let p = t.map(|i| place.to_voxels(mesh.positions[i as usize]));
+                (0..3u8)
+                    .map(|f| {
+                        let cell = Cell {
+                            x: 0,
+                            y: 0,
+                            width: 0,
+                            height: 0,
+                            first: f,
+                        };
+                        let [a, b, c] = cell.ordered(p);
+                        (texels_along(a, b), texels_along(a, c), f)
+                    })
+                    .min_by_key(|&(w, h, f)| (w as u64 * h as u64, f))
+                    .expect("three corners")
+            })
+            .collect();
+        if sizes
+            .iter()
+            .any(|&(w, h, _)| w > MAX_ATLAS_SIDE || h > MAX_ATLAS_SIDE)
+        {
+            return None;
+        }
+        let (width, height, corners) =
+            shelf_pack(&sizes.iter().map(|&(w, h, _)| [w, h]).collect::<Vec<_>>())?;
+        let cells = sizes
+            .iter()
+            .zip(corners)
+            .map(|(&(width, height, first), [x, y])| Cell {
+                x,
+                y,
+                width,
+                height,
+                first,
+            })
+            .collect();
+        Some(Atlas::with_cells(width, height, cells))
+    }
+
+    /// [`Self::fitted`] at `texel_size`, or when given none, at one voxel per texel grown by
+    /// 1.25x until the atlas fits [`MAX_ATLAS_SIDE`] and `fits` (a memory check); returns the
+    /// atlas and the texel size used.
+    pub fn fitted_within(
+        mesh: &Mesh,
+        place: &Placement,
+        texel_size: Option<f64>,
+        fits: impl Fn(&Atlas) -> bool,
+    ) -> Result<(Atlas, f64)> {
+        if let Some(size) = texel_size {
+            if !(size > 0.0 && size.is_finite()) {
+                return Err(Error::invalid(
+                    format!("--texel-size {size}"),
+                    "must be a positive number of voxels",
+                ));
+            }
+            return match Atlas::fitted(mesh, place, size) {
+                Some(atlas) => Ok((atlas, size)),
+                None => Err(Error::invalid(
+                    format!("--texel-size {size}"),
+                    format!(
+                        "the atlas would pass {MAX_ATLAS_SIDE} texels on a side; use a larger \
+                         texel size"
+                    ),
+                )),
+            };
+        }
+        // Beyond the mesh's diagonal every cell is at its smallest (2 x 2): no use growing.
+        let (lo, hi) = mesh.bounds();
+        let diagonal = (hi - lo).length() * place.scale;
+        let mut size = 1.0f64;
+        loop {
+            if let Some(atlas) = Atlas::fitted(mesh, place, size) {
+                if fits(&atlas) {
+                    return Ok((atlas, size));
+                }
+            }
+            if size > diagonal {
+                return Err(Error::invalid(
+                    "the mesh",
+                    format!(
+                        "its {} triangles do not fit an atlas even at 2 x 2 texels each",
+                        mesh.triangles.len()
+                    ),
+                ));
+            }
+            size *= 1.25;
+        }
+    }
+
+    fn with_cells(width: u32, height: u32, cells: Vec<Cell>) -> Atlas {
+        let uvs = cells
+            .iter()
+            .map(|cell| {
+                let at = |i: u32, j: u32| {
+                    [
+                        ((cell.x + i) as f32 + 0.5) / width as f32,
+                        ((cell.y + j) as f32 + 0.5) / height as f32,
+                    ]
+                };
+                // The cell's a, b, c back in the triangle's corner order.
+                let ordered = [at(0, 0), at(cell.width - 1, 0), at(0, cell.height - 1)];
+                let f = cell.first as usize;
+                let mut uv = [[0.0; 2]; 3];
+                for (k, c) in ordered.into_iter().enumerate() {
+                    uv[(f + k) % 3] = c;
+                }
+                uv
+            })
+            .collect();
+        Atlas {
             width,
             height,
+            cells,
             uvs,
-        })
-    }
-
-    /// The voxel-space point of texel (i, j) of triangle `corners`' cell.
-    fn point(&self, corners: &[DVec3; 3], i: u32, j: u32) -> DVec3 {
-        let n = (self.texels - 1) as f64;
-        let (mut s, mut t) = (i as f64 / n, j as f64 / n);
-        if s + t > 1.0 {
-            // Nearest point of the hypotenuse s + t = 1 (in the cell's parameter space).
-            let d = (s + t - 1.0) / 2.0;
-            s = (s - d).clamp(0.0, 1.0);
-            t = (t - d).clamp(0.0, 1.0);
         }
-        let p = corners[0] + s * (corners[1] - corners[0]) + t * (corners[2] - corners[0]);
-        // Rounding must not push a point off its triangle's box (a coordinate of -1e-15 would
-        // sample voxel -1).
-        let lo = corners[0].min(corners[1]).min(corners[2]);
-        let hi = corners[0].max(corners[1]).max(corners[2]);
-        p.clamp(lo, hi)
     }
 
-    /// The voxel every atlas texel samples (row-major; texels of unused cells sample voxel of
-    /// the first triangle's corner so the request stays local).
+    /// Texels in the atlas.
+    pub fn texel_count(&self) -> u64 {
+        self.width as u64 * self.height as u64
+    }
+
+    /// The longest step, in voxels, between neighbouring texels along any cell's edges: at most
+    /// the texel size for [`Self::fitted`]; for square cells, the longest edge over T - 1.
+    pub fn max_texel_step(&self, mesh: &Mesh, place: &Placement) -> f64 {
+        mesh.triangles
+            .iter()
+            .zip(&self.cells)
+            .map(|(tri, cell)| {
+                let [a, b, c] =
+                    cell.ordered(tri.map(|i| place.to_voxels(mesh.positions[i as usize])));
+                ((b - a).length() / (cell.width - 1) as f64)
+                    .max((c - a).length() / (cell.height - 1) as f64)
+            })
+            .fold(0.0, f64::max)
+    }
+
+    /// The voxel every atlas texel samples (row-major; texels outside every cell sample the
+    /// voxel of the first triangle's corner so the request stays local).
     pub fn texel_voxels(&self, mesh: &Mesh, place: &Placement) -> Vec<[i32; 3]> {
-        let mut out = vec![[0i32; 3]; self.width as usize * self.height as usize];
+        let mut out = vec![[0i32; 3]; self.texel_count() as usize];
         self.for_each_texel_voxel(mesh, place, |i, p| out[i] = p);
         out
     }
 
     /// [`Self::texel_voxels`] without the list: `visit(texel index, voxel)`, every texel first
-    /// with the fallback voxel, then each used texel again with its own (large atlases: the
-    /// list is 75 MB at 1024^3).
+    /// with the fallback voxel, then each texel of a cell again with its own (large atlases:
+    /// the list is 75 MB at 1024^3).
     pub fn for_each_texel_voxel(
         &self,
         mesh: &Mesh,
         place: &Placement,
         mut visit: impl FnMut(usize, [i32; 3]),
     ) {
-        let t = self.texels;
         let fallback = place
             .to_voxels(mesh.positions[mesh.triangles[0][0] as usize])
             .floor();
         let fallback = [fallback.x as i32, fallback.y as i32, fallback.z as i32];
-        for i in 0..self.width as usize * self.height as usize {
+        for i in 0..self.texel_count() as usize {
             visit(i, fallback);
         }
-        for (k, tri) in mesh.triangles.iter().enumerate() {
+        for (tri, cell) in mesh.triangles.iter().zip(&self.cells) {
             let corners = tri.map(|i| place.to_voxels(mesh.positions[i as usize]));
-            let (cx, cy) = ((k as u32 % self.cols) * t, (k as u32 / self.cols) * t);
-            for j in 0..t {
-                for i in 0..t {
-                    let p = self.point(&corners, i, j).floor();
+            for j in 0..cell.height {
+                for i in 0..cell.width {
+                    let p = cell.point(&corners, i, j).floor();
                     visit(
-                        ((cy + j) * self.width + cx + i) as usize,
+                        self.texel_index(cell, i, j),
                         [p.x as i32, p.y as i32, p.z as i32],
                     );
                 }
             }
         }
     }
-}
 
-impl Atlas {
     /// Every texel's point in the mesh's own coordinates, with its triangle (row-major; texels
-    /// of unused cells get `u32::MAX` and the first corner of triangle 0).
+    /// outside every cell get `u32::MAX` and the first corner of triangle 0).
     pub fn texel_points(&self, mesh: &Mesh) -> Vec<(u32, DVec3)> {
         let p = |i: u32| {
             let v = mesh.positions[i as usize];
             DVec3::new(v[0] as f64, v[1] as f64, v[2] as f64)
         };
         let fallback = (u32::MAX, p(mesh.triangles[0][0]));
-        let mut out = vec![fallback; self.width as usize * self.height as usize];
-        let t = self.texels;
-        for (k, tri) in mesh.triangles.iter().enumerate() {
+        let mut out = vec![fallback; self.texel_count() as usize];
+        for (k, (tri, cell)) in mesh.triangles.iter().zip(&self.cells).enumerate() {
             let corners = tri.map(p);
-            let (cx, cy) = ((k as u32 % self.cols) * t, (k as u32 / self.cols) * t);
-            for j in 0..t {
-                for i in 0..t {
-                    out[((cy + j) * self.width + cx + i) as usize] =
-                        (k as u32, self.point(&corners, i, j));
+            for j in 0..cell.height {
+                for i in 0..cell.width {
+                    out[self.texel_index(cell, i, j)] = (k as u32, cell.point(&corners, i, j));
                 }
             }
         }
         out
     }
+
+    fn texel_index(&self, cell: &Cell, i: u32, j: u32) -> usize {
+        (cell.y + j) as usize * self.width as usize + (cell.x + i) as usize
+    }
 }
 
-/// Texels per triangle giving about one texel per voxel along the median edge (2..=64).
-pub fn auto_texels(mesh: &Mesh, place: &Placement) -> u32 {
-    let mut edges: Vec<f64> = mesh
-        .triangles
+/// Shelf packing: rectangles `sizes` (width, height), tallest first (then widest, then by
+/// index: deterministic), placed left to right in rows as wide as a square of their total area
+/// would be, widened once to make the result near-square. Returns the atlas width and height
+/// and each rectangle's top-left corner; `None` when a side passes [`MAX_ATLAS_SIDE`].
+fn shelf_pack(sizes: &[[u32; 2]]) -> Option<(u32, u32, Vec<[u32; 2]>)> {
+    let mut order: Vec<usize> = (0..sizes.len()).collect();
+    order.sort_by_key(|&k| {
+        (
+            std::cmp::Reverse(sizes[k][1]),
+            std::cmp::Reverse(sizes[k][0]),
+            k,
+        )
+    });
+    let widest = sizes.iter().map(|s| s[0] as u64).max().unwrap_or(1);
+    let area: u64 = sizes.iter().map(|s| s[0] as u64 * s[1] as u64).sum();
+    let pack = |row_width: u64| {
+        let mut corners = vec![[0u32; 2]; sizes.len()];
+        let (mut x, mut y, mut shelf) = (0u64, 0u64, 0u64);
+        for &k in &order {
+            let [w, h] = sizes[k].map(u64::from);
+            if x + w > row_width {
+                (x, y, shelf) = (0, y + shelf, 0);
+            }
+            corners[k] = [x as u32, y as u32];
+            x += w;
+            shelf = shelf.max(h);
+        }
+        (y + shelf, corners)
+    };
+    let first_width = widest.max((area as f64).sqrt().ceil() as u64);
+    let (first_height, _) = pack(first_width);
+    // Shelves waste the space above their shorter cells; widen the rows so the atlas comes
+    // out about square.
+    let width = widest.max(((first_width * first_height) as f64).sqrt().ceil() as u64);
+    let (height, corners) = pack(width);
+    if width > MAX_ATLAS_SIDE as u64 || height > MAX_ATLAS_SIDE as u64 {
+        return None;
+    }
+    let used = corners
         .iter()
-        .map(|t| {
-            let p = t.map(|i| place.to_voxels(mesh.positions[i as usize]));
-            ((p[1] - p[0]).length() + (p[2] - p[0]).length()) / 2.0
-        })
-        .collect();
-    edges.sort_by(f64::total_cmp);
-    let median = edges[edges.len() / 2];
-    (median.ceil() as u32 + 1).clamp(2, 64)
+        .zip(sizes)
+        .map(|(c, s)| c[0] as u64 + s[0] as u64)
+        .max()
+        .unwrap_or(1);
+    Some((used.max(1) as u32, height.max(1) as u32, corners))
 }
 
 /// The baked atlas image from the packed colours of its texels.
@@ -241,7 +444,7 @@ mod tests {
         let mesh = tetra();
         let place = Placement::fit(&mesh, 64);
         let atlas = Atlas::new(4, 8).unwrap();
-        assert_eq!((atlas.cols, atlas.width, atlas.height), (2, 16, 16));
+        assert_eq!((atlas.width, atlas.height), (16, 16));
         let voxels = atlas.texel_voxels(&mesh, &place);
         // Triangle 1 (cell (1, 0)), vertices 0, 1, 3, lies in the plane y = 0.
         for j in 0..8 {
@@ -267,5 +470,160 @@ mod tests {
     fn oversized_atlases_are_refused() {
         assert!(Atlas::new(10_000_000, 64).is_err());
         assert!(Atlas::new(10, 1).is_err());
+    }
+
+    /// A mesh of very unequal triangles in voxel units (placement scale 1): a large one (200
+    /// voxels on a side), a thin obtuse sliver, tiny ones and a degenerate one.
+    fn unequal() -> (Mesh, Placement) {
+        let mesh = Mesh {
+            positions: vec![
+                [0.0, 0.0, 0.0],
+                [200.0, 0.0, 0.0],
+                [0.0, 0.0, 200.0],
+                [0.0, 150.0, 0.0],
+                [90.0, 151.5, 3.0],
+                [180.0, 150.0, 0.0],
+                [10.0, 10.0, 10.0],
+                [10.6, 10.1, 10.0],
+                [10.0, 10.7, 10.3],
+            ],
+            triangles: vec![[0, 1, 2], [3, 4, 5], [6, 7, 8], [8, 6, 7], [6, 6, 7]],
+        };
+        let place = Placement {
+            origin: DVec3::ZERO,
+            scale: 1.0,
+        };
+        (mesh, place)
+    }
+
+    #[test]
+    fn fitted_cells_sample_every_point_of_their_triangle_within_a_texel_size() {
+        let (mesh, place) = unequal();
+        for size in [1.0, 2.5] {
+            let atlas = Atlas::fitted(&mesh, &place, size).unwrap();
+            // The large triangle gets a cell of its own size (square cells of the median edge
+            // sampled it 30 times more coarsely).
+            let big = atlas.cells[0];
+            assert_eq!(
+                (big.width, big.height),
+                (
+                    (200.0 / size as f64).ceil() as u32 + 1,
+                    (200.0 / size).ceil() as u32 + 1
+                )
+            );
+            let points = atlas.texel_points(&mesh);
+            let mut seed = 12345u64;
+            let mut next = || {
+                seed = seed
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                (seed >> 11) as f64 / (1u64 << 53) as f64
+            };
+            for (k, (tri, cell)) in mesh.triangles.iter().zip(&atlas.cells).enumerate() {
+                let corners = tri.map(|i| place.to_voxels(mesh.positions[i as usize]));
+                let texels: Vec<DVec3> = (0..cell.height)
+                    .flat_map(|j| (0..cell.width).map(move |i| (i, j)))
+                    .map(|(i, j)| points[atlas.texel_index(cell, i, j)])
+                    .inspect(|&(t, _)| assert_eq!(t, k as u32))
+                    .map(|(_, p)| p)
+                    .collect();
+                for _ in 0..300 {
+                    let (mut s, mut t) = (next(), next());
+                    if s + t > 1.0 {
+                        (s, t) = (1.0 - s, 1.0 - t);
+                    }
+                    let q =
+                        corners[0] + s * (corners[1] - corners[0]) + t * (corners[2] - corners[0]);
+                    let nearest = texels
+                        .iter()
+                        .map(|p| (*p - q).length())
+                        .fold(f64::INFINITY, f64::min);
+                    assert!(
+                        nearest <= size + 1e-9,
+                        "triangle {k}, size {size}: {nearest}"
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn fitted_cells_are_disjoint_inside_the_atlas_and_their_uvs_hit_the_corners() {
+        let (mesh, place) = unequal();
+        let atlas = Atlas::fitted(&mesh, &place, 1.0).unwrap();
+        let mut owner = vec![usize::MAX; atlas.texel_count() as usize];
+        for (k, cell) in atlas.cells.iter().enumerate() {
+            assert!(cell.width >= 2 && cell.height >= 2);
+            assert!(cell.x + cell.width <= atlas.width && cell.y + cell.height <= atlas.height);
+            for j in 0..cell.height {
+                for i in 0..cell.width {
+                    let t = atlas.texel_index(cell, i, j);
+                    assert_eq!(owner[t], usize::MAX, "texel of cells {} and {k}", owner[t]);
+                    owner[t] = k;
+                }
+            }
+        }
+        // Each corner's uv is the centre of the texel whose point is that corner.
+        let points = atlas.texel_points(&mesh);
+        for (k, tri) in mesh.triangles.iter().enumerate() {
+            for (corner, uv) in tri.iter().zip(atlas.uvs[k]) {
+                let x = (uv[0] * atlas.width as f32 - 0.5).round() as usize;
+                let y = (uv[1] * atlas.height as f32 - 0.5).round() as usize;
+                let want = place.to_voxels(mesh.positions[*corner as usize]);
+                let (_, got) = points[y * atlas.width as usize + x];
+                assert!(
+                    (got - want).length() < 1e-9,
+                    "triangle {k}: {got} vs {want}"
+                );
+            }
+        }
+        // The sliver's cell runs along its long edges (its obtuse corner first), not 180 x 180.
+        let sliver = atlas.cells[1];
+        assert!(
+            sliver.width as u64 * sliver.height as u64 <= 95 * 95,
+            "{sliver:?}"
+        );
+    }
+
+    #[test]
+    fn shelf_packing_is_disjoint_and_near_square() {
+        let mut seed = 7u32;
+        let sizes: Vec<[u32; 2]> = (0..500)
+            .map(|_| {
+                seed = seed.wrapping_mul(1664525).wrapping_add(1013904223);
+                [2 + (seed >> 8) % 40, 2 + (seed >> 20) % 40]
+            })
+            .collect();
+        let (w, h, corners) = shelf_pack(&sizes).unwrap();
+        let mut used = vec![false; w as usize * h as usize];
+        for (c, s) in corners.iter().zip(&sizes) {
+            assert!(c[0] + s[0] <= w && c[1] + s[1] <= h);
+            for y in c[1]..c[1] + s[1] {
+                for x in c[0]..c[0] + s[0] {
+                    assert!(!std::mem::replace(&mut used[(y * w + x) as usize], true));
+                }
+            }
+        }
+        let area: u64 = sizes.iter().map(|s| s[0] as u64 * s[1] as u64).sum();
+        let fill = area as f64 / (w as f64 * h as f64);
+        assert!(fill > 0.7, "{w}x{h}: {fill}");
+        assert!(w <= 2 * h && h <= 2 * w, "{w}x{h}");
+    }
+
+    #[test]
+    fn the_default_texel_size_grows_until_the_atlas_fits() {
+        let (mesh, place) = unequal();
+        let (atlas, size) =
+            Atlas::fitted_within(&mesh, &place, None, |a| a.texel_count() <= 100 * 100).unwrap();
+        assert!(size > 1.0 && atlas.texel_count() <= 100 * 100, "{size}");
+        let smaller = Atlas::fitted(&mesh, &place, size / 1.25).unwrap();
+        assert!(smaller.texel_count() > 100 * 100);
+        // A given texel size is kept or refused, never changed.
+        let (_, kept) = Atlas::fitted_within(&mesh, &place, Some(1.0), |_| false).unwrap();
+        assert_eq!(kept, 1.0);
+        assert!(Atlas::fitted_within(&mesh, &place, Some(0.001), |_| true).is_err());
+        assert!(Atlas::fitted_within(&mesh, &place, Some(f64::NAN), |_| true).is_err());
+        // Nothing fits: an error, not a loop.
+        assert!(Atlas::fitted_within(&mesh, &place, None, |_| false).is_err());
     }
 }
