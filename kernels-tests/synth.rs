@@ -287,6 +287,19 @@ fn gpu_boxes_are_windows_of_larger_gpu_boxes() {
         &bytes_to_words(&grouped.data),
     )
     .unwrap();
+    // The same groups sharing their coarse levels: each level above the finest synthesized
+    // once (itself in groups), its triples read back and uploaded as the groups' parents.
+    let mut s = Synthesizer::new(&a, params.clone(), &gpu).unwrap();
+    s.set_max_chunk_side(12);
+    s.set_shared_coarse_levels(true);
+    let shared = s.synthesize(big, &|_, _| {}).unwrap();
+    assert!(s.last_stats().unwrap().groups > 1);
+    words_equal(
+        "grouped, coarse levels shared, on the GPU",
+        &bytes_to_words(&whole.data),
+        &bytes_to_words(&shared.data),
+    )
+    .unwrap();
 }
 
 /// Run `f` on a fresh synthesizer of each backend and require byte-identical volumes.

@@ -220,8 +220,26 @@ mod determinism {
             let small = Box3::new(lo, hi);
             assert_contained(&v, big, &synth(&a, &params, small, None), small);
         }
-        // Grouping (seams at multiples of 12 voxels) changes nothing.
-        assert_eq!(synth(&a, &params, big, Some(12)), v);
+        // Grouping (seams at multiples of 12 voxels) changes nothing, whether each group
+        // synthesizes its own coarse levels or all share them (each level above the finest
+        // synthesized once, itself in groups of 12 down to l_start).
+        let mut own = Synthesizer::new(&a, params.clone(), &Compute::Cpu).unwrap();
+        own.set_max_chunk_side(12);
+        assert_eq!(own.synthesize(big, &|_, _| {}).unwrap(), v);
+        let mut shared = Synthesizer::new(&a, params.clone(), &Compute::Cpu).unwrap();
+        shared.set_max_chunk_side(12);
+        shared.set_shared_coarse_levels(true);
+        assert_eq!(shared.synthesize(big, &|_, _| {}).unwrap(), v);
+        let (own, shared) = (own.last_stats().unwrap(), shared.last_stats().unwrap());
+        assert!(shared.groups > 1);
+        // Fewer coarse voxels than the groups' own coarse levels hold (groups this small still
+        // pad every level's own groups: 1.4 M against 2.1 M at l_start).
+        for l in 0..3 {
+            assert!(
+                shared.voxels_per_level[l] < own.voxels_per_level[l],
+                "{shared:?} vs {own:?}"
+            );
+        }
         // Streamed in slabs of groups (what `synth` writes to its file): the slabs follow each
         // other along z, span the box in x and y, and together are the volume.
         let mut s = Synthesizer::new(&a, params.clone(), &Compute::Cpu).unwrap();
@@ -253,6 +271,13 @@ mod determinism {
             })
             .collect();
         let colors = s.sample(&points, &|_, _| {}).unwrap();
+        // The same points in groups of 8 sharing their coarse levels (a sparse request's
+        // parents: scattered bricks, not a box).
+        let mut shared = Synthesizer::new(&a, params.clone(), &Compute::Cpu).unwrap();
+        shared.set_max_chunk_side(8);
+        shared.set_shared_coarse_levels(true);
+        assert_eq!(shared.sample(&points, &|_, _| {}).unwrap(), colors);
+        assert!(shared.last_stats().unwrap().groups > 1);
         for (p, c) in points.iter().zip(&colors) {
             let want = v.at(
                 (p[0] - big.lo[0]) as u32,
@@ -646,6 +671,29 @@ fn tileable_solids_in_groups_equal_the_one_piece_solid() {
         "grouped tileable solid differs"
     );
     assert!(group_triples == one_piece_triples, "grouped triples differ");
+    // The same groups sharing their coarse levels (each synthesized once, as boxes of the
+    // periodic solid whose initial level wraps).
+    let mut shared = Synthesizer::new(
+        &a,
+        SynthParams {
+            seed: 3,
+            ..Default::default()
+        },
+        &Compute::Cpu,
+    )
+    .unwrap();
+    shared.set_max_chunk_side(16);
+    shared.set_shared_coarse_levels(true);
+    let (in_shared, shared_triples) = shared.synthesize_tileable(n, &|_, _| {}, true).unwrap();
+    assert_eq!(shared.last_stats().unwrap().groups, 8);
+    assert!(
+        in_shared.data == one_piece.data,
+        "shared-level tileable solid differs"
+    );
+    assert!(
+        shared_triples == one_piece_triples,
+        "shared-level triples differ"
+    );
 }
 
 /// With the coarse-level cache the solid is another deterministic function of space: any box

@@ -70,7 +70,8 @@ pub struct SolidParams {
     pub coarse_cache: Option<u32>,
     /// Largest group of the request synthesized at once: a cube of this edge in voxels (a
     /// multiple of 4; default 512). Smaller groups bound the working memory of large boxes and
-    /// surfaces, at the cost of each group recomputing its own dependency padding; the output is
+    /// surfaces, at the cost of each group recomputing its own dependency padding (coarse
+    /// levels included: without this flag, groups share their coarse levels); the output is
     /// the same whatever the grouping.
     #[arg(long, value_name = "VOXELS", value_parser = clap::value_parser!(u32).range(4..=512))]
     pub max_group: Option<u32>,
