@@ -70,6 +70,11 @@ pub fn run(args: SurfaceArgs, quiet: bool) -> anyhow::Result<()> {
     let bytes_per_texel = 40;
     let available = super::synth::available_memory();
     // The layout, how to say it, and the flag that chose it (for errors).
+    let fewer = if args.texels.is_some() {
+        "a smaller --texels"
+    } else {
+        "a larger --texel-size"
+    };
     let (atlas, texel_size, layout, flag) = match args.texels {
         Some(texels) => (
             bake::Atlas::new(mesh.triangles.len(), texels)?,
@@ -96,7 +101,7 @@ pub fn run(args: SurfaceArgs, quiet: bool) -> anyhow::Result<()> {
             flag,
             format!(
                 "a {}x{} atlas needs about {:.1} GiB, {:.1} GiB is available; use fewer texels \
-                 (a larger --texel-size)",
+                 ({fewer})",
                 atlas.width,
                 atlas.height,
                 estimate as f64 / (1u64 << 30) as f64,

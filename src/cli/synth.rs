@@ -220,7 +220,12 @@ pub fn check_memory(what: &str, b: Box3, args: &SolidArgs) -> solidsynth::Result
         || args.slices.is_some();
     let whole = if keeps_volume { b.voxels() * 4 } else { 0 };
     let cache = coarse_cache_bytes(&args.solid);
-    let estimate = Synthesizer::chunk_bytes(group) + slab + whole + cache;
+    let padded: u64 = size
+        .iter()
+        .map(|&d| d + 2 * solidsynth::lazy::PADDING_ESTIMATE as u64)
+        .product();
+    let shared = shared_levels_bytes(&args.solid, padded, Synthesizer::chunk_bytes(group));
+    let estimate = Synthesizer::chunk_bytes(group) + slab + whole + cache + shared;
     let available = available_memory();
     if estimate > available {
         let gib = |b: u64| b as f64 / (1u64 << 30) as f64;
@@ -241,6 +246,20 @@ pub fn check_memory(what: &str, b: Box3, args: &SolidArgs) -> solidsynth::Result
         ));
     }
     Ok(estimate)
+}
+
+/// Bytes of the shared coarse levels (see `Synthesizer::set_shared_coarse_levels`) of a
+/// request of `finest_voxels` finest-level voxels (padding included) whose groups' working sets
+/// are `group_working` bytes: held only when the request takes several groups, counted
+/// whenever it may (without `--max-group` or the coarse cache). The parent level's triples (12
+/// bytes per voxel, an eighth of the finest voxels, and the level below it while it is built:
+/// 1.7 bytes per finest voxel, rounded up) and one group's parent state built on the host (an
+/// eighth of its voxels, one copy: a sixteenth of its working set).
+pub fn shared_levels_bytes(params: &SolidParams, finest_voxels: u64, group_working: u64) -> u64 {
+    if params.max_group.is_some() || params.coarse_cache.is_some() {
+        return 0;
+    }
+    finest_voxels * 2 + group_working / 16
 }
 
 /// Bytes of the coarse-level cache when one is asked for: its build (a tileable state of
@@ -274,7 +293,9 @@ pub fn check_sparse_memory(
     let share = (group_side as f64 / extent.max(1.0)).powi(2).min(1.0);
     let group_bricks = ((bricks as f64 * share) as u64).min((group_side as u64 / 4).pow(3));
     let working = Synthesizer::chunk_bytes(group_side).min(group_bricks * 64 * 16 * 2 * 8);
-    let estimate = requested + working + coarse_cache_bytes(params) + extra;
+    // Shared coarse levels: the stored finest voxels, about eight per requested voxel.
+    let shared = shared_levels_bytes(params, bricks * 64 * 8, working);
+    let estimate = requested + working + coarse_cache_bytes(params) + shared + extra;
     let available = available_memory();
     if estimate > available {
         return Err(Error::invalid(

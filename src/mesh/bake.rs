@@ -6,8 +6,9 @@
 //! corners, a (the cell's `first`), and the two that follow it cyclically, b and c, sit at the
 //! centres of the cell's texels (0, 0), (W-1, 0) and (0, H-1); texel (i, j) is the point
 //! a + i/(W-1) (b - a) + j/(H-1) (c - a). Texels beyond the hypotenuse (i/(W-1) + j/(H-1) > 1)
-//! take the nearest point on it, so bilinear filtering inside the triangle never reads another
-//! triangle's texels.
+//! take the point of the hypotenuse nearest to them in texel space, so bilinear filtering
+//! inside the triangle never reads another triangle's texels and near the long edge blends
+//! points of that edge.
 //!
 //! Two layouts: [`Atlas::fitted`] sizes each cell to its triangle (steps of at most one texel
 //! size along both edges, so no triangle is sampled more coarsely than asked, whatever its
@@ -50,10 +51,17 @@ impl Cell {
             j as f64 / (self.height - 1) as f64,
         );
         if s + t > 1.0 {
-            // Nearest point of the hypotenuse s + t = 1 (in the cell's parameter space).
-            let d = (s + t - 1.0) / 2.0;
-            s = (s - d).clamp(0.0, 1.0);
-            t = (t - d).clamp(0.0, 1.0);
+            // The nearest point of the hypotenuse s + t = 1 in texel space (x = s (W-1),
+            // y = t (H-1)), where bilinear filtering blends texels: moving along the line's
+            // normal (1/(W-1), 1/(H-1)) there gives these shares of the excess (for a square
+            // cell, half each).
+            let (a2, b2) = (
+                ((self.width - 1) as f64).powi(2),
+                ((self.height - 1) as f64).powi(2),
+            );
+            let excess = s + t - 1.0;
+            s = (s - excess * (b2 / (a2 + b2))).clamp(0.0, 1.0);
+            t = (t - excess * (a2 / (a2 + b2))).clamp(0.0, 1.0);
         }
         let p = a + s * (b - a) + t * (c - a);
         // Rounding must not push a point off its triangle's box (a coordinate of -1e-15 would
@@ -113,9 +121,11 @@ impl Atlas {
     /// cell's edges (so every point of the triangle lies within one texel size of a texel's
     /// point), each triangle's right-angle corner put where its cell is smallest, the cells
     /// shelf-packed (tallest first) into a near-square atlas. `None` when the atlas would pass
-    /// [`MAX_ATLAS_SIDE`].
+    /// [`MAX_ATLAS_SIDE`] (or the texel size is not a positive number).
     pub fn fitted(mesh: &Mesh, place: &Placement, texel_size: f64) -> Option<Atlas> {
-        assert!(texel_size > 0.0 && texel_size.is_finite());
+        if !(texel_size > 0.0 && texel_size.is_finite()) {
+            return None;
+        }
         let texels_along = |from: DVec3, to: DVec3| {
             // At least 2 (the cell's corners); beyond the limit stays beyond it.
             let steps = ((to - from).length() / texel_size).ceil();
@@ -201,11 +211,14 @@ impl Atlas {
                     return Ok((atlas, size));
                 }
             }
-            if size > diagonal {
+            // (Also ends the loop for a mesh without finite bounds.)
+            if !(size <= diagonal) {
                 return Err(Error::invalid(
                     "the mesh",
                     format!(
-                        "its {} triangles do not fit an atlas even at 2 x 2 texels each",
+                        "its {} triangles do not fit an atlas of at most {MAX_ATLAS_SIDE} \
+                         texels on a side within the memory available, even at 2 x 2 texels \
+                         each",
                         mesh.triangles.len()
                     ),
                 ));
@@ -473,7 +486,7 @@ mod tests {
     }
 
     /// A mesh of very unequal triangles in voxel units (placement scale 1): a large one (200
-    /// voxels on a side), a thin obtuse sliver, tiny ones and a degenerate one.
+    /// voxels on a side), a thin obtuse sliver, tiny ones, a degenerate one and two needles.
     fn unequal() -> (Mesh, Placement) {
         let mesh = Mesh {
             positions: vec![
@@ -486,8 +499,24 @@ mod tests {
                 [10.0, 10.0, 10.0],
                 [10.6, 10.1, 10.0],
                 [10.0, 10.7, 10.3],
+                [0.0, 300.0, 0.0],
+                [100.0, 300.0, 0.0],
+                [0.0, 301.0, 0.0],
+                [0.0, 400.0, 0.0],
+                [40.0, 400.0, 0.0],
+                [0.0, 410.0, 0.0],
             ],
-            triangles: vec![[0, 1, 2], [3, 4, 5], [6, 7, 8], [8, 6, 7], [6, 6, 7]],
+            // The last two: right-angled needles (100 x 1 and 40 x 10 voxels), whose cells are
+            // long rectangles.
+            triangles: vec![
+                [0, 1, 2],
+                [3, 4, 5],
+                [6, 7, 8],
+                [8, 6, 7],
+                [6, 6, 7],
+                [9, 10, 11],
+                [12, 13, 14],
+            ],
         };
         let place = Placement {
             origin: DVec3::ZERO,
@@ -541,6 +570,60 @@ mod tests {
                     assert!(
                         nearest <= size + 1e-9,
                         "triangle {k}, size {size}: {nearest}"
+                    );
+                }
+            }
+        }
+    }
+
+    /// What a renderer shows: the bilinear blend of the four texels around a point's texel
+    /// coordinates is that point, to within half a texel size, also next to the long edge of
+    /// a needle's rectangle (where texels beyond the hypotenuse take points of the edge).
+    #[test]
+    fn bilinear_filtering_of_fitted_cells_reproduces_the_surface() {
+        let (mesh, place) = unequal();
+        for size in [1.0, 2.5] {
+            let atlas = Atlas::fitted(&mesh, &place, size).unwrap();
+            assert_eq!(
+                (atlas.cells[5].width, atlas.cells[5].height),
+                ((100.0 / size).ceil() as u32 + 1, 2)
+            );
+            assert_eq!(
+                (atlas.cells[6].width, atlas.cells[6].height),
+                (
+                    (40.0 / size).ceil() as u32 + 1,
+                    (10.0 / size).ceil() as u32 + 1
+                )
+            );
+            let points = atlas.texel_points(&mesh);
+            let mut seed = 99u64;
+            let mut next = || {
+                seed = seed
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                (seed >> 11) as f64 / (1u64 << 53) as f64
+            };
+            for (k, (tri, cell)) in mesh.triangles.iter().zip(&atlas.cells).enumerate() {
+                let corners = tri.map(|i| place.to_voxels(mesh.positions[i as usize]));
+                let [a, b, c] = cell.ordered(corners);
+                let texel = |i: u32, j: u32| points[atlas.texel_index(cell, i, j)].1;
+                for _ in 0..500 {
+                    let (mut s, mut t) = (next(), next());
+                    if s + t > 1.0 {
+                        (s, t) = (1.0 - s, 1.0 - t);
+                    }
+                    let want = a + s * (b - a) + t * (c - a);
+                    let x = s * (cell.width - 1) as f64;
+                    let y = t * (cell.height - 1) as f64;
+                    let (i, j) = (x.floor() as u32, y.floor() as u32);
+                    let (i1, j1) = ((i + 1).min(cell.width - 1), (j + 1).min(cell.height - 1));
+                    let (fx, fy) = (x - i as f64, y - j as f64);
+                    let got = (texel(i, j) * (1.0 - fx) + texel(i1, j) * fx) * (1.0 - fy)
+                        + (texel(i, j1) * (1.0 - fx) + texel(i1, j1) * fx) * fy;
+                    let error = (got - want).length();
+                    assert!(
+                        error <= 0.5 * size,
+                        "triangle {k}, size {size}: {error} at s {s} t {t}"
                     );
                 }
             }
