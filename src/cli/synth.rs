@@ -251,9 +251,10 @@ pub fn check_memory(what: &str, b: Box3, args: &SolidArgs) -> solidsynth::Result
 /// Bytes of the shared coarse levels (see `Synthesizer::set_shared_coarse_levels`) of a
 /// request of `finest_voxels` finest-level voxels (padding included) whose groups' working sets
 /// are `group_working` bytes: held only when the request takes several groups, counted
-/// whenever it may (without `--max-group` or the coarse cache). The parent level's triples (12
-/// bytes per voxel, an eighth of the finest voxels, and the level below it while it is built:
-/// 1.7 bytes per finest voxel, rounded up) and one group's parent state built on the host (an
+/// whenever it may (without `--max-group` or the coarse cache). The parent level's triples (6
+/// or, for exemplars over 512 pixels, 12 bytes per voxel, an eighth of the finest voxels, and
+/// the level below it while it is built: at most 1.7 bytes per finest voxel, 2 with the
+/// padding) and one group's parent state built on the host (an
 /// eighth of its voxels, one copy: a sixteenth of its working set).
 pub fn shared_levels_bytes(params: &SolidParams, finest_voxels: u64, group_working: u64) -> u64 {
     if params.max_group.is_some() || params.coarse_cache.is_some() {

@@ -871,7 +871,7 @@ impl Synthesizer {
         } else {
             None
         };
-        let mut out = LevelTriples::new(wanted);
+        let mut out = LevelTriples::new(wanted, self.packs[top].width, self.packs[top].height);
         let stride = 3 + self.packs[top].pixel_words as usize;
         for (g, group) in groups.iter().enumerate() {
             let f = g as f32 / groups.len() as f32;
@@ -912,14 +912,14 @@ impl Synthesizer {
                 }
             };
             for &b in group {
-                let dst = out.brick_mut(b);
-                for l in 0..bricks::BRICK_VOXELS {
+                let triples = (0..bricks::BRICK_VOXELS).flat_map(|l| {
                     let i = grid
                         .voxel_index(bricks::voxel_of(b, l))
                         .expect("wanted bricks are stored")
                         * stride;
-                    dst[l as usize * 3..l as usize * 3 + 3].copy_from_slice(&state[i..i + 3]);
-                }
+                    state[i..i + 3].iter().copied()
+                });
+                out.set_brick(b, triples)?;
             }
         }
         Ok(out)
@@ -967,7 +967,8 @@ impl Synthesizer {
     /// is large) and their triples held on the host until every group has read its parents,
     /// instead of once per group with the group's padding. Shared levels save the coarse
     /// levels' repeated padding (a quarter of the time of a 256^3 box in eight groups on
-    /// lavapipe) for about 1.7 bytes of host memory per finest-level voxel, and each group's
+    /// lavapipe) for about 0.9 bytes of host memory per finest-level voxel (1.7 for exemplars
+    /// over 512 pixels), and each group's
     /// parent state built on the host. Default: shared, unless the
     /// groups were capped with [`Self::set_max_chunk_side`]. The result is the same either way.
     pub fn set_shared_coarse_levels(&mut self, shared: bool) {
@@ -1527,19 +1528,26 @@ fn parent_level(level: &SparseLevel) -> SparseLevel {
 }
 
 /// The triples of a set of bricks of one level, held on the host: 64 per brick in
-/// [`bricks::voxel_of`] order, 3 words each.
+/// [`bricks::voxel_of`] order. A level whose exemplars fit 256 x 256 pixels (every analysed
+/// level of an exemplar up to 512 pixels) keeps each packed coordinate (x | y << 16) in 16 bits
+/// as x | y << 8: 6 bytes a voxel instead of 12, the shared levels' host memory halved.
 struct LevelTriples {
     /// Sorted as [`bricks::normalize`] sorts them.
     bricks: Vec<Brick>,
     grid: Option<BrickGrid>,
-    triples: Vec<u32>,
+    /// 16-bit units per coordinate: 1 (narrow) or 2 (the low and high halves of the word).
+    units: usize,
+    coords: Vec<u16>,
 }
 
 impl LevelTriples {
-    fn new(bricks: Vec<Brick>) -> LevelTriples {
+    /// Room for `bricks`' triples at a level whose exemplars are `width` x `height` pixels.
+    fn new(bricks: Vec<Brick>, width: u32, height: u32) -> LevelTriples {
+        let units = if width <= 256 && height <= 256 { 1 } else { 2 };
         LevelTriples {
             grid: BrickColors::lookup(&bricks),
-            triples: vec![0; bricks.len() * BRICK_WORDS],
+            coords: vec![0; bricks.len() * BRICK_COORDS * units],
+            units,
             bricks,
         }
     }
@@ -1548,29 +1556,60 @@ impl LevelTriples {
         BrickColors::slot_in(&self.bricks, self.grid.as_ref(), b).expect("brick held")
     }
 
-    fn brick_mut(&mut self, b: Brick) -> &mut [u32] {
+    /// Store brick `b`'s triples: 64 voxels of 3 packed coordinates.
+    fn set_brick(&mut self, b: Brick, triples: impl Iterator<Item = u32>) -> Result<()> {
+        let n = BRICK_COORDS * self.units;
         let s = self.slot(b);
-        &mut self.triples[s * BRICK_WORDS..(s + 1) * BRICK_WORDS]
+        let dst = &mut self.coords[s * n..(s + 1) * n];
+        let mut stored = 0;
+        for (k, c) in triples.enumerate() {
+            if self.units == 1 {
+                let (x, y) = crate::analysis::frame::unpack(c);
+                if x > 255 || y > 255 {
+                    return Err(Error::Internal(format!(
+                        "coordinate ({x}, {y}) beyond a 256-pixel level"
+                    )));
+                }
+                dst[k] = (x | y << 8) as u16;
+            } else {
+                dst[2 * k] = c as u16;
+                dst[2 * k + 1] = (c >> 16) as u16;
+            }
+            stored += 1;
+        }
+        debug_assert_eq!(stored, BRICK_COORDS);
+        Ok(())
     }
 
     /// A state of `level`'s bricks (every one held here), `pixel_words` value words per voxel
     /// left zero: upsampling reads only the triples.
     fn state_words(&self, level: &SparseLevel, pixel_words: u32) -> Vec<u32> {
         let stride = 3 + pixel_words as usize;
+        let n = BRICK_COORDS * self.units;
         let mut words = vec![0u32; level.bricks.len() * 64 * stride];
         for (chunk, &b) in words.chunks_mut(64 * stride).zip(&level.bricks) {
             let s = self.slot(b);
-            let src = &self.triples[s * BRICK_WORDS..(s + 1) * BRICK_WORDS];
-            for (voxel, t) in chunk.chunks_mut(stride).zip(src.chunks_exact(3)) {
-                voxel[..3].copy_from_slice(t);
+            let src = &self.coords[s * n..(s + 1) * n];
+            for (voxel, t) in chunk
+                .chunks_mut(stride)
+                .zip(src.chunks_exact(3 * self.units))
+            {
+                for (k, word) in voxel[..3].iter_mut().enumerate() {
+                    *word = if self.units == 1 {
+                        let c = t[k] as u32;
+                        crate::analysis::frame::pack(c & 0xFF, c >> 8)
+                    } else {
+                        t[2 * k] as u32 | (t[2 * k + 1] as u32) << 16
+                    };
+                }
             }
         }
         words
     }
 }
 
-/// Triple words per brick.
-const BRICK_WORDS: usize = bricks::BRICK_VOXELS as usize * 3;
+/// Coordinates (three per voxel) per brick.
+const BRICK_COORDS: usize = bricks::BRICK_VOXELS as usize * 3;
 
 /// The box `voxels` fill exactly (each of its voxels once, in any order), if they do.
 fn voxel_box(voxels: &[[i32; 3]]) -> Option<Box3> {
@@ -1847,3 +1886,56 @@ pub fn correct_params(
 
 /// Padding per side assumed when sizing chunks (the plan's exact padding is at most this).
 pub const PADDING_ESTIMATE: u32 = 14;
+
+#[cfg(test)]
+mod level_triples_tests {
+    use super::*;
+
+    #[test]
+    fn stored_triples_come_back_as_the_state_words_narrow_or_wide() {
+        let bricks_held = vec![[0, 0, 0], [1, 0, 0], [-1, 2, 3]];
+        for (width, max) in [(256, 255u32), (300, 299)] {
+            let mut store = LevelTriples::new(bricks_held.clone(), width, 64);
+            assert_eq!(store.units, if width <= 256 { 1 } else { 2 });
+            let triple = |b: usize, l: u32, k: u32| {
+                let x = (b as u32 * 97 + l * 13 + k * 5) % (max + 1);
+                frame_pack(x, (l * 7 + k) % 64)
+            };
+            for (i, &b) in bricks_held.iter().enumerate() {
+                store
+                    .set_brick(
+                        b,
+                        (0..64).flat_map(|l| (0..3).map(move |k| triple(i, l, k))),
+                    )
+                    .unwrap();
+            }
+            // A level of two of the bricks, in its own order, with one value word per voxel.
+            let level = parent_level(&SparseLevel {
+                bricks: vec![[-2, 4, 6], [0, 0, 0]],
+                grid: BrickGrid::new(&[[-2, 4, 6], [0, 0, 0]]),
+                subpasses: Vec::new(),
+                deliver: Vec::new(),
+            });
+            assert_eq!(level.bricks, vec![[0, 0, 0], [-1, 2, 3]]);
+            let words = store.state_words(&level, 1);
+            for (j, chunk) in words.chunks(64 * 4).enumerate() {
+                let i = if j == 0 { 0 } else { 2 };
+                for l in 0..64u32 {
+                    for k in 0..3u32 {
+                        assert_eq!(chunk[l as usize * 4 + k as usize], triple(i, l, k));
+                    }
+                    assert_eq!(chunk[l as usize * 4 + 3], 0);
+                }
+            }
+        }
+        // A coordinate a narrow store cannot hold is an error, not a wrong solid.
+        let mut store = LevelTriples::new(vec![[0, 0, 0]], 256, 256);
+        assert!(store
+            .set_brick([0, 0, 0], (0..192).map(|_| frame_pack(256, 0)))
+            .is_err());
+    }
+
+    fn frame_pack(x: u32, y: u32) -> u32 {
+        crate::analysis::frame::pack(x, y)
+    }
+}
