@@ -787,17 +787,7 @@ impl Synthesizer {
                 .pop()
                 .expect("one level")
         };
-        let mut wanted = Vec::new();
-        for group in groups {
-            let mut parents: Vec<Brick> = plan_finest(group)
-                .bricks
-                .iter()
-                .map(|b| b.map(|v| v >> 1))
-                .collect();
-            bricks::normalize(&mut parents);
-            wanted.extend(parents);
-        }
-        bricks::normalize(&mut wanted);
+        let wanted = parents_of_groups(groups, plan_finest);
         // The coarse levels hold about a seventh of the voxels.
         let coarse_share = 0.15;
         let parents = self.level_triples(
@@ -850,17 +840,7 @@ impl Synthesizer {
                 .expect("one level")
         };
         let parents = if top > 0 && groups.len() > 1 {
-            let mut below = Vec::new();
-            for group in &groups {
-                let mut parents: Vec<Brick> = plan_top(group)
-                    .bricks
-                    .iter()
-                    .map(|b| b.map(|v| v >> 1))
-                    .collect();
-                bricks::normalize(&mut parents);
-                below.extend(parents);
-            }
-            bricks::normalize(&mut below);
+            let below = parents_of_groups(&groups, plan_top);
             Some(self.level_triples(
                 below,
                 top - 1,
@@ -1512,6 +1492,17 @@ fn group_part(exact: Option<Box3>, group: &[Brick]) -> Option<Box3> {
             [0, 1, 2].map(|i| b.hi[i].min((hi[i] + 1) * bricks::BRICK)),
         )
     })
+}
+
+/// The parent bricks that the levels `plan` gives `groups` read, all groups together (sorted
+/// once per group and once at the end, not once per group over the growing whole).
+fn parents_of_groups(groups: &[Vec<Brick>], plan: impl Fn(&[Brick]) -> SparseLevel) -> Vec<Brick> {
+    let mut all = Vec::new();
+    for group in groups {
+        all.extend(parent_level(&plan(group)).bricks);
+    }
+    bricks::normalize(&mut all);
+    all
 }
 
 /// The parent level that `level`'s upsampling reads, as a level given whole (no corrections):

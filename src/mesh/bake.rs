@@ -485,6 +485,17 @@ mod tests {
         assert!(Atlas::new(10, 1).is_err());
     }
 
+    /// Seeded uniform numbers in [0, 1) (the same every run).
+    fn uniform(seed: u64) -> impl FnMut() -> f64 {
+        let mut state = seed;
+        move || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        }
+    }
+
     /// A mesh of very unequal triangles in voxel units (placement scale 1): a large one (200
     /// voxels on a side), a thin obtuse sliver, tiny ones, a degenerate one and two needles.
     fn unequal() -> (Mesh, Placement) {
@@ -541,13 +552,7 @@ mod tests {
                 )
             );
             let points = atlas.texel_points(&mesh);
-            let mut seed = 12345u64;
-            let mut next = || {
-                seed = seed
-                    .wrapping_mul(6364136223846793005)
-                    .wrapping_add(1442695040888963407);
-                (seed >> 11) as f64 / (1u64 << 53) as f64
-            };
+            let mut next = uniform(12345);
             for (k, (tri, cell)) in mesh.triangles.iter().zip(&atlas.cells).enumerate() {
                 let corners = tri.map(|i| place.to_voxels(mesh.positions[i as usize]));
                 let texels: Vec<DVec3> = (0..cell.height)
@@ -596,13 +601,7 @@ mod tests {
                 )
             );
             let points = atlas.texel_points(&mesh);
-            let mut seed = 99u64;
-            let mut next = || {
-                seed = seed
-                    .wrapping_mul(6364136223846793005)
-                    .wrapping_add(1442695040888963407);
-                (seed >> 11) as f64 / (1u64 << 53) as f64
-            };
+            let mut next = uniform(99);
             for (k, (tri, cell)) in mesh.triangles.iter().zip(&atlas.cells).enumerate() {
                 let corners = tri.map(|i| place.to_voxels(mesh.positions[i as usize]));
                 let [a, b, c] = cell.ordered(corners);
