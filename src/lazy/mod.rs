@@ -856,41 +856,30 @@ impl Synthesizer {
         for (g, group) in groups.iter().enumerate() {
             let f = g as f32 / groups.len() as f32;
             let group_progress = |m: &str, _: f32| progress(m, 0.15 + 0.85 * f);
-            let (state, grid) = match &parents {
-                None => {
-                    let levels = bricks::plan_sparse(group, &passes[..=top]);
-                    let grid = levels.last().expect("levels").grid.clone();
-                    let r = self.synthesize_group(
-                        levels,
-                        0,
-                        None,
-                        &[],
-                        periodic,
-                        &group_progress,
-                        false,
-                        stats,
-                    )?;
-                    (r.state, grid)
-                }
+            // From l_start, or from the shared parent level.
+            let (levels, first_pack, start) = match &parents {
+                None => (bricks::plan_sparse(group, &passes[..=top]), 0, None),
                 Some(parents) => {
                     let level = plan_top(group);
                     let parent = parent_level(&level);
                     let words = parents.state_words(&parent, self.packs[top - 1].pixel_words);
                     let start = self.exec.upload_state(words)?;
-                    let grid = level.grid.clone();
-                    let r = self.synthesize_group(
-                        vec![parent, level],
-                        top - 1,
-                        Some(start),
-                        &[],
-                        periodic,
-                        &group_progress,
-                        false,
-                        stats,
-                    )?;
-                    (r.state, grid)
+                    (vec![parent, level], top - 1, Some(start))
                 }
             };
+            let grid = levels.last().expect("levels").grid.clone();
+            let state = self
+                .synthesize_group(
+                    levels,
+                    first_pack,
+                    start,
+                    &[],
+                    periodic,
+                    &group_progress,
+                    false,
+                    stats,
+                )?
+                .state;
             for &b in group {
                 let triples = (0..bricks::BRICK_VOXELS).flat_map(|l| {
                     let i = grid
