@@ -382,13 +382,13 @@ fn each_synthesis_kernel_matches_its_reference() {
         pixels2: o.pixels[2],
         ..Default::default()
     };
-    let cpu_init = solidsynth::cpu::init::init(&init, &table, &pack.words, &parent_index);
+    let cpu_init = solidsynth::cpu::init::init(&init, &table, &pack.words, &parent_index, &[]);
     let ctx = solidsynth::gpu::GpuContext::new(&GpuOptions::from_env()).unwrap();
     let mut g =
         solidsynth::gpu::synth::GpuSynth::new(std::sync::Arc::new(ctx), &[pack.clone()], &table)
             .unwrap();
     let gpu_parent_index = g.upload_index(&parent_index);
-    let gpu_state = g.init(0, &init, &gpu_parent_index).unwrap();
+    let gpu_state = g.init(0, &init, &gpu_parent_index, None).unwrap();
     words_equal("init", &cpu_init, &g.read_state(&gpu_state).unwrap()).unwrap();
     // The jitter moves voxels: with it off, the same box differs.
     let flat = solidsynth::cpu::init::init(
@@ -399,8 +399,38 @@ fn each_synthesis_kernel_matches_its_reference() {
         &table,
         &pack.words,
         &parent_index,
+        &[],
     );
     assert!(words_equal("jitter matters", &cpu_init, &flat).is_err());
+    // Level L-1 from the coarse-level cache: the same bricks read from a periodic cube of
+    // triples (valid coordinates of this level) at the warped position plus the tile offset.
+    let n = 8u32;
+    let cache: Vec<u32> = (0..n.pow(3) * 3)
+        .map(|i| {
+            let h = solidsynth::util::hash::hash32(i ^ 0xCAC4E);
+            solidsynth::analysis::frame::pack(h % pack.width, (h >> 16) % pack.height)
+        })
+        .collect();
+    let cached = InitParams {
+        cache_period: n,
+        tile_x: 5,
+        tile_y: 1,
+        tile_z: 7,
+        ..init
+    };
+    let cpu_cached =
+        solidsynth::cpu::init::init(&cached, &table, &pack.words, &parent_index, &cache);
+    let gpu_cache = g.upload_index(&cache);
+    let gpu_cached = g
+        .init(0, &cached, &gpu_parent_index, Some(&gpu_cache))
+        .unwrap();
+    words_equal(
+        "init from the cache",
+        &cpu_cached,
+        &g.read_state(&gpu_cached).unwrap(),
+    )
+    .unwrap();
+    assert!(words_equal("the cache is read", &cpu_init, &cpu_cached).is_err());
 
     // Upsampling into a child box (the same level's data serves for the values).
     // The child bricks: some of the parents' children, and one whose parent is absent (reads as

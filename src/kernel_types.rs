@@ -51,11 +51,16 @@ gpu_struct! {
         list_offset: u32, list_count: u32, grid_stride: u32,
         /// Tileable solids: the level's period in voxels (a multiple of 4; 0: not periodic).
         period: u32,
-        _r1: u32, _r2: u32,
+        /// The source of the triples: 0, exemplar 0's candidate slab (the l_start level); n > 0,
+        /// the coarse-level cache, a periodic n^3 volume of triples (binding 5, x fastest), read
+        /// at the warped position plus the tile offset, modulo n (`--coarse-cache`, level L-1).
+        cache_period: u32,
+        _r2: u32,
         ex_width: u32, ex_height: u32, border: u32,
         seed_lo: u32, seed_hi: u32,
         /// 0: no jitter.
         jitter_on: u32,
+        /// Offset added to the warped position before the lookup (slab tiling or cache).
         tile_x: u32, tile_y: u32, tile_z: u32,
         /// Word offset of exemplar 0's slab triples in the level data.
         slab_offset: u32,

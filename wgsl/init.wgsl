@@ -1,9 +1,11 @@
 // Initialization of the l_start level: tiling of exemplar 0's candidate slab (5 voxels thick
-// along x), warped by the jitter field. CPU reference: src/cpu/init.rs and src/lazy/jitter.rs.
+// along x), warped by the jitter field; or, with `cache_period` n > 0, level L-1 read from the
+// coarse-level cache (a periodic n^3 volume of triples) at the warped position. CPU reference:
+// src/cpu/init.rs and src/lazy/jitter.rs.
 
 struct InitParams {
     list_offset: u32, list_count: u32, grid_stride: u32,
-    period: u32, _r1: u32, _r2: u32,
+    period: u32, cache_period: u32, _r2: u32,
     ex_width: u32, ex_height: u32, border: u32,
     seed_lo: u32, seed_hi: u32,
     jitter_on: u32,
@@ -25,6 +27,8 @@ const WEIGHT_ENTRIES: i32 = 144;
 @group(0) @binding(2) var<storage, read> table: array<u32>;
 @group(0) @binding(3) var<storage, read_write> out_state: array<u32>;
 // (binding 4: the level's brick index, declared by the prelude)
+// The coarse-level cache's triples, 3 words per voxel, x fastest (any buffer when not used).
+@group(0) @binding(5) var<storage, read> cache: array<u32>;
 
 fn cell_hash(cell: vec3<i32>) -> u32 {
     // Tileable solids: cells repeat with the period, so the field does too.
@@ -115,6 +119,22 @@ fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) 
         warp = jitter_offset(pos);
     }
     var q = pos + warp + vec3<i32>(i32(params.tile_x), i32(params.tile_y), i32(params.tile_z));
+    let stride = 3u + params.pixel_words;
+    let i = tid * stride;
+    let pixels = vec3<u32>(params.pixels0, params.pixels1, params.pixels2);
+    if (params.cache_period != 0u) {
+        let n = i32(params.cache_period);
+        let c = vec3<u32>(vec3<i32>(rem_euclid(q.x, n), rem_euclid(q.y, n), rem_euclid(q.z, n)));
+        let src = ((c.z * u32(n) + c.y) * u32(n) + c.x) * 3u;
+        let t = vec3<u32>(cache[src], cache[src + 1u], cache[src + 2u]);
+        out_state[i] = t.x;
+        out_state[i + 1u] = t.y;
+        out_state[i + 2u] = t.z;
+        for (var wd = 0u; wd < params.pixel_words; wd++) {
+            out_state[i + 3u + wd] = value_word(t, wd, pixels, params.ex_width, params.pixel_words, params.channels);
+        }
+        return;
+    }
     if (params.period != 0u) {
         let n = i32(params.period);
         q = vec3<i32>(rem_euclid(q.x, n), rem_euclid(q.y, n), rem_euclid(q.z, n));
@@ -135,12 +155,9 @@ fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) 
         pack_resolved(coord_x(c1), coord_y(c1) + depth, w, h, params.border),
         pack_resolved(coord_x(c2) + depth, coord_y(c2), w, h, params.border),
     );
-    let stride = 3u + params.pixel_words;
-    let i = tid * stride;
     out_state[i] = t.x;
     out_state[i + 1u] = t.y;
     out_state[i + 2u] = t.z;
-    let pixels = vec3<u32>(params.pixels0, params.pixels1, params.pixels2);
     for (var wd = 0u; wd < params.pixel_words; wd++) {
         out_state[i + 3u + wd] = value_word(t, wd, pixels, w, params.pixel_words, params.channels);
     }

@@ -10,8 +10,19 @@ use crate::util::hash::hash32;
 use rayon::prelude::*;
 
 /// The state (triple and value per voxel, 64 voxels per brick in list order) of the bricks of
-/// the list in `p` (brick index `bricks`).
-pub fn init(p: &InitParams, table: &[u32], level: &[u32], bricks: &[u32]) -> Vec<u32> {
+/// the list in `p` (brick index `bricks`). `cache`: the coarse-level cache's triples when
+/// `p.cache_period` is set (3 words per voxel of the periodic cube, x fastest).
+pub fn init(
+    p: &InitParams,
+    table: &[u32],
+    level: &[u32],
+    bricks: &[u32],
+    cache: &[u32],
+) -> Vec<u32> {
+    assert!(
+        p.cache_period == 0 || cache.len() >= (p.cache_period as usize).pow(3) * 3,
+        "a coarse-level cache of the period's size"
+    );
     let stride = 3 + p.pixel_words as usize;
     let pixels = [p.pixels0, p.pixels1, p.pixels2];
     let mut out = vec![0u32; p.list_count as usize * 64 * stride];
@@ -30,7 +41,11 @@ pub fn init(p: &InitParams, table: &[u32], level: &[u32], bricks: &[u32]) -> Vec
             for local in 0..64usize {
                 let pos = voxel_of(brick, local as u32);
                 let warp = warps.map_or([0; 3], |w| w[local]);
-                let t = init_voxel(p, level, pos, warp);
+                let t = if p.cache_period != 0 {
+                    cached_voxel(p, cache, pos, warp)
+                } else {
+                    init_voxel(p, level, pos, warp)
+                };
                 let voxel = &mut dst[local * stride..(local + 1) * stride];
                 write_voxel(
                     voxel,
@@ -50,6 +65,16 @@ const _: () = assert!(jitter::CELL == crate::lazy::bricks::BRICK);
 
 fn brick_origin(b: [i32; 3]) -> [i32; 3] {
     b.map(|v| v * crate::lazy::bricks::BRICK)
+}
+
+/// The cached triple of voxel `pos`, warped by `warp`: the periodic cache read at the warped
+/// position plus the tile offset (a hashed per-seed shift).
+fn cached_voxel(p: &InitParams, cache: &[u32], pos: [i32; 3], warp: [i32; 3]) -> [u32; 3] {
+    let n = p.cache_period as i32;
+    let tile = [p.tile_x, p.tile_y, p.tile_z];
+    let q = [0, 1, 2].map(|i| (pos[i] + warp[i] + tile[i] as i32).rem_euclid(n) as usize);
+    let src = ((q[2] * n as usize + q[1]) * n as usize + q[0]) * 3;
+    [cache[src], cache[src + 1], cache[src + 2]]
 }
 
 /// The initial triple of voxel `pos`, warped by `warp` (the jitter field there).

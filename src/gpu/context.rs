@@ -73,6 +73,26 @@ fn new_instance() -> wgpu::Instance {
 }
 
 /// Every adapter wgpu can see (name, type, backend), for `--list-adapters` and error messages.
+/// Kernel `name`'s WGSL: the embedded source, or, for kernel development (timing variants on a
+/// device without rebuilding), `$SOLIDSYNTH_SHADER_DIR/NAME.wgsl` when that variable is set and
+/// the file exists. An override must be the complete source (prelude included); it is logged as
+/// a warning, since its results are only as exact as the file.
+fn shader_source(name: &'static str) -> Result<std::borrow::Cow<'static, str>> {
+    if let Some(dir) = std::env::var_os("SOLIDSYNTH_SHADER_DIR") {
+        let path = std::path::Path::new(&dir).join(format!("{name}.wgsl"));
+        if path.exists() {
+            tracing::warn!(
+                "kernel {name} from {} (SOLIDSYNTH_SHADER_DIR)",
+                path.display()
+            );
+            return std::fs::read_to_string(&path)
+                .map(std::borrow::Cow::Owned)
+                .map_err(|e| Error::io(&path, e));
+        }
+    }
+    Ok(std::borrow::Cow::Borrowed(super::shaders::source(name)))
+}
+
 pub fn list_adapters() -> Vec<wgpu::AdapterInfo> {
     let instance = new_instance();
     pollster::block_on(instance.enumerate_adapters(wgpu::Backends::VULKAN))
@@ -197,13 +217,13 @@ impl GpuContext {
         if let Some(p) = self.pipelines.lock().unwrap().get(&key) {
             return Ok(p.clone());
         }
-        let source = super::shaders::source(name);
+        let source = shader_source(name)?;
         let scope = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
         let module = self
             .device
             .create_shader_module(wgpu::ShaderModuleDescriptor {
                 label: Some(name),
-                source: wgpu::ShaderSource::Wgsl(source.into()),
+                source: wgpu::ShaderSource::Wgsl(source),
             });
         let pipeline = self
             .device

@@ -240,7 +240,8 @@ impl GpuSynth {
     }
 
     /// Run a kernel that fills a fresh state of `bricks` bricks: uniform at binding 0, level data
-    /// at 1, `input` at 2, the new state at 3, the brick index at 4 (`init` and `upsample`).
+    /// at 1, `input` at 2, the new state at 3, the brick index at 4, `extra` at 5 when given
+    /// (`init` and `upsample`).
     #[allow(clippy::too_many_arguments)]
     fn fill_state<T: bytemuck::Pod>(
         &self,
@@ -249,6 +250,7 @@ impl GpuSynth {
         level: usize,
         input: &wgpu::Buffer,
         index: &wgpu::Buffer,
+        extra: Option<&wgpu::Buffer>,
         bricks: u32,
         pixel_words: u32,
     ) -> Result<GpuState> {
@@ -256,13 +258,14 @@ impl GpuSynth {
         let words = voxels * (3 + pixel_words as u64);
         let out = self.state_buffer(words);
         let uniform = self.ctx.uniform_buffer(kernel, params);
-        let buffers = [
+        let mut buffers = vec![
             (0, &uniform),
             (1, &self.levels[level]),
             (2, input),
             (3, &out),
             (4, index),
         ];
+        buffers.extend(extra.map(|b| (5, b)));
         self.run(kernel, &[], &buffers, groups(voxels))?;
         Ok(GpuState {
             current: out,
@@ -271,13 +274,27 @@ impl GpuSynth {
         })
     }
 
-    pub fn init(&mut self, level: usize, p: &InitParams, index: &wgpu::Buffer) -> Result<GpuState> {
+    /// `cache`: the coarse-level cache's triples when `p.cache_period` is set.
+    pub fn init(
+        &mut self,
+        level: usize,
+        p: &InitParams,
+        index: &wgpu::Buffer,
+        cache: Option<&wgpu::Buffer>,
+    ) -> Result<GpuState> {
+        if p.cache_period != 0 && cache.is_none() {
+            return Err(Error::Gpu(
+                "init from the coarse cache without its buffer".into(),
+            ));
+        }
+        // (Binding 5 is declared whether or not the cache is read: the table stands in.)
         self.fill_state(
             "init",
             p,
             level,
             &self.table,
             index,
+            Some(cache.unwrap_or(&self.table)),
             p.list_count,
             p.pixel_words,
         )
@@ -297,6 +314,7 @@ impl GpuSynth {
             level,
             &parent.current,
             index,
+            None,
             p.list_count,
             p.pixel_words,
         )

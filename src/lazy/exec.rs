@@ -89,15 +89,29 @@ impl Executor {
         }
     }
 
-    pub fn init(&mut self, level: usize, p: &InitParams, index: &IndexBuf) -> Result<State> {
+    /// `cache`: the coarse-level cache's triples (uploaded with [`Self::upload_index`]) when
+    /// `p.cache_period` is set.
+    pub fn init(
+        &mut self,
+        level: usize,
+        p: &InitParams,
+        index: &IndexBuf,
+        cache: Option<&IndexBuf>,
+    ) -> Result<State> {
         match self {
             Executor::Cpu { levels, table, .. } => Ok(State::Cpu(crate::cpu::init::init(
                 p,
                 table,
                 &levels[level],
                 index.cpu(),
+                cache.map_or(&[][..], |c| c.cpu()),
             ))),
-            Executor::Gpu(g) => Ok(State::Gpu(g.init(level, p, index.gpu())?)),
+            Executor::Gpu(g) => Ok(State::Gpu(g.init(
+                level,
+                p,
+                index.gpu(),
+                cache.map(|c| c.gpu()),
+            )?)),
         }
     }
 

@@ -25,7 +25,6 @@ use crate::volume::Volume;
 pub use bricks::{Brick, BrickGrid, SparseLevel};
 use pack::LevelPack;
 pub use plan::Box3;
-use rayon::prelude::*;
 
 /// Order of the parity classes (bit 0 = x, 1 = y, 2 = z) within a pass. Chosen (exhaustively,
 /// over all 8! orders) to minimize the dependency padding: 13 voxels per level for two passes,
@@ -361,6 +360,8 @@ pub struct Synthesizer {
     last_stats: Option<SynthStats>,
     /// The coarse-level cache once built: level L-1 triples of one period, x fastest.
     cache: Option<Vec<u32>>,
+    /// The cache's triples on the backend (uploaded at its first use).
+    cache_buf: Option<exec::IndexBuf>,
     /// When counting: per pack (coarsest first), per exemplar, how many stored voxels held each
     /// exemplar pixel after the level's correction (see [`Self::count_usage`]).
     usage: Option<Vec<[Vec<u64>; 3]>>,
@@ -436,6 +437,7 @@ impl Synthesizer {
             times: None,
             last_stats: None,
             cache: None,
+            cache_buf: None,
             usage: None,
         })
     }
@@ -604,49 +606,15 @@ impl Synthesizer {
                 });
                 debug_assert!(z.start >= range.start && z.end <= range.end);
                 let timer = std::time::Instant::now();
-                let (sx, sy) = (size[0] as usize, size[1] as usize);
-                for (j, &b) in group.iter().enumerate() {
-                    let lo = b.map(|v| v * bricks::BRICK);
-                    if (0..3).all(|i| lo[i] >= out.lo[i] && lo[i] + bricks::BRICK <= out.hi[i]) {
-                        // A brick inside the box (all of them when it is brick-aligned): its
-                        // 16 rows of 4 voxels are consecutive in the slab.
-                        let o = [lo[0] - out.lo[0], lo[1] - out.lo[1], lo[2] - range.start]
-                            .map(|c| c as usize);
-                        for row in 0..16 {
-                            let first = ((o[2] + row / 4) * sy + o[1] + row % 4) * sx + o[0];
-                            let src = j * 64 + row * 4;
-                            let dst = &mut slab.data[first * channels..(first + 4) * channels];
-                            for (x, color) in colors[src..src + 4].iter().enumerate() {
-                                dst[x * channels..(x + 1) * channels]
-                                    .copy_from_slice(&color.to_le_bytes()[..channels]);
-                            }
-                            if want_triples {
-                                slab_triples[first * 3..(first + 4) * 3]
-                                    .copy_from_slice(&group_triples[src * 3..(src + 4) * 3]);
-                            }
-                        }
-                        continue;
-                    }
-                    for local in 0..64 {
-                        let p = bricks::voxel_of(b, local);
-                        if !(0..3).all(|i| (out.lo[i]..out.hi[i]).contains(&p[i])) {
-                            continue;
-                        }
-                        let v = [p[0] - out.lo[0], p[1] - out.lo[1], p[2] - range.start]
-                            .map(|c| c as u32);
-                        let src = j * 64 + local as usize;
-                        slab.at_mut(v[0], v[1], v[2])
-                            .copy_from_slice(&colors[src].to_le_bytes()[..channels]);
-                        if want_triples {
-                            let dst = ((v[2] as usize * size[1] as usize + v[1] as usize)
-                                * size[0] as usize
-                                + v[0] as usize)
-                                * 3;
-                            slab_triples[dst..dst + 3]
-                                .copy_from_slice(&group_triples[src * 3..src * 3 + 3]);
-                        }
-                    }
-                }
+                place_group(
+                    group,
+                    colors,
+                    group_triples,
+                    out,
+                    range.start,
+                    slab,
+                    want_triples.then_some(slab_triples),
+                );
                 tracing::debug!("group placed in its slab in {:.1} ms", ms(timer));
                 Ok(())
             },
@@ -808,7 +776,7 @@ impl Synthesizer {
             let r = self.synthesize_group(
                 vec![parent, level],
                 finest - 1,
-                Some(start),
+                FirstLevel::Given(start),
                 group,
                 periodic,
                 &|m, f| progress(m, base + scale * f),
@@ -858,13 +826,17 @@ impl Synthesizer {
             let group_progress = |m: &str, _: f32| progress(m, 0.15 + 0.85 * f);
             // From l_start, or from the shared parent level.
             let (levels, first_pack, start) = match &parents {
-                None => (bricks::plan_sparse(group, &passes[..=top]), 0, None),
+                None => (
+                    bricks::plan_sparse(group, &passes[..=top]),
+                    0,
+                    FirstLevel::Init,
+                ),
                 Some(parents) => {
                     let level = plan_top(group);
                     let parent = parent_level(&level);
                     let words = parents.state_words(&parent, self.packs[top - 1].pixel_words);
                     let start = self.exec.upload_state(words)?;
-                    (vec![parent, level], top - 1, Some(start))
+                    (vec![parent, level], top - 1, FirstLevel::Given(start))
                 }
             };
             let grid = levels.last().expect("levels").grid.clone();
@@ -902,8 +874,9 @@ impl Synthesizer {
         // planned voxel-exactly, its dependency padding surrounds one layer, not four.
         let exact = voxel_box(voxels);
         let result = self.synthesize_bricks_of(&wanted, exact, progress, false)?;
+        use rayon::prelude::*;
         Ok(voxels
-            .iter()
+            .par_iter()
             .map(|p| result.color(*p).expect("requested voxel"))
             .collect())
     }
@@ -1034,7 +1007,7 @@ impl Synthesizer {
         } = self.synthesize_group(
             levels,
             0,
-            None,
+            FirstLevel::Init,
             &output,
             Periodic::Wrapped(&periods),
             progress,
@@ -1092,7 +1065,7 @@ impl Synthesizer {
         self.synthesize_group(
             levels,
             0,
-            None,
+            FirstLevel::Init,
             group,
             periodic,
             progress,
@@ -1131,7 +1104,7 @@ impl Synthesizer {
             let r = self.synthesize_group(
                 levels,
                 0,
-                None,
+                FirstLevel::Init,
                 &[],
                 Periodic::Wrapped(&periods),
                 &|_, _| {},
@@ -1173,45 +1146,14 @@ impl Synthesizer {
         .unwrap();
         tracing::debug!("planned {} bricks in {:.1} ms", group.len(), ms(timer));
         let parent = parent_level(&finest);
-        let n = (self.params.coarse_cache.unwrap() / 2) as i32;
-        let parent_pack = ANALYSED_LEVELS - 2;
-        let stride = 3 + self.packs[parent_pack].pixel_words as usize;
-        let (seed_lo, seed_hi) = (self.params.seed as u32, (self.params.seed >> 32) as u32);
-        let amps = jitter::amplitudes(self.params.jitter);
-        let sig = jitter::sigma2_fixed();
-        let table = jitter::table();
-        // A hashed offset so different seeds read the cache at different places.
-        let shift =
-            [0x71u32, 0x72, 0x73].map(|k| (hash32(seed_lo ^ seed_hi ^ k) % n as u32) as i32);
-        let cache = self.coarse_cache()?.to_vec();
-        let timer = std::time::Instant::now();
-        let mut words = vec![0u32; parent.bricks.len() * 64 * stride];
-        let jitter_on = self.params.jitter > 0.0;
-        // Brick by brick in parallel: every request pays for its parents' warps.
-        words
-            .par_chunks_mut(64 * stride)
-            .zip(&parent.bricks)
-            .for_each(|(brick_words, b)| {
-                let cell = jitter::cell_of(b.map(|v| v * bricks::BRICK));
-                let warps = jitter_on.then(|| {
-                    let gaussians = jitter::cell_gaussians(cell, seed_lo, seed_hi, 0, sig);
-                    jitter::cell_offsets(cell, &gaussians, amps, sig, &table)
-                });
-                for l in 0..64 {
-                    let v = bricks::voxel_of(*b, l);
-                    let warp = warps.map_or([0; 3], |w| w[l as usize]);
-                    let q = [0, 1, 2].map(|i| (v[i] + warp[i] + shift[i]).rem_euclid(n) as usize);
-                    let src = ((q[2] * n as usize + q[1]) * n as usize + q[0]) * 3;
-                    let dst = l as usize * stride;
-                    brick_words[dst..dst + 3].copy_from_slice(&cache[src..src + 3]);
-                }
-            });
-        tracing::debug!("parent level from the cache: {:.1} ms", ms(timer));
-        let start = self.exec.upload_state(words)?;
+        if self.cache_buf.is_none() {
+            let triples = self.coarse_cache()?.to_vec();
+            self.cache_buf = Some(self.exec.upload_index(triples));
+        }
         self.synthesize_group(
             vec![parent, finest],
-            parent_pack,
-            Some(start),
+            ANALYSED_LEVELS - 2,
+            FirstLevel::Cached,
             group,
             Periodic::No,
             progress,
@@ -1223,14 +1165,14 @@ impl Synthesizer {
 
     /// Run a planned synthesis: colours (64 per brick, `group` order) and, when asked, triples
     /// of the output bricks `group`. `periodic`: whether and how the solid is tileable.
-    /// `levels` are the packs `first_pack..`; `start`: the first level's state when it does not
-    /// come from `init`. An empty `group` skips the colours (the final state is returned).
+    /// `levels` are the packs `first_pack..`; `start`: where the first level's state comes from.
+    /// An empty `group` skips the colours (the final state is returned).
     #[allow(clippy::too_many_arguments)]
     fn synthesize_group(
         &mut self,
         levels: Vec<SparseLevel>,
         first_pack: usize,
-        start: Option<exec::State>,
+        start: FirstLevel,
         group: &[Brick],
         periodic: Periodic,
         progress: Progress,
@@ -1254,8 +1196,8 @@ impl Synthesizer {
         };
         let mut state_bytes = 0u64;
         for (l, lv) in levels.iter().enumerate() {
-            // A first level given whole (`start`) was synthesized elsewhere, if at all.
-            if l > 0 || start.is_none() {
+            // A first level given whole or read from the cache was synthesized elsewhere.
+            if l > 0 || matches!(start, FirstLevel::Init) {
                 stats.voxels_per_level[first_pack + l] += lv.voxels();
             }
             let words = lv.voxels() * (3 + self.packs[first_pack + l].pixel_words as u64);
@@ -1270,7 +1212,7 @@ impl Synthesizer {
         let (mut layout, mut index) = index_of(&mut self.exec, &levels, 0);
         let seed_lo = self.params.seed as u32;
         let seed_hi = (self.params.seed >> 32) as u32;
-        let coarse = &self.packs[0];
+        let coarse = &self.packs[first_pack];
         let amps = jitter::amplitudes(self.params.jitter);
         let sig = jitter::sigma2_fixed();
         let count0 = levels[0].bricks.len() as u32;
@@ -1279,7 +1221,7 @@ impl Synthesizer {
             list_count: count0,
             grid_stride: stride_for(count0 as u64 * 64),
             period: periodic.init_period(),
-            _r1: 0,
+            cache_period: 0,
             _r2: 0,
             ex_width: coarse.width,
             ex_height: coarse.height,
@@ -1310,10 +1252,28 @@ impl Synthesizer {
         };
         progress("level 0: init", 0.0);
         let mut state = match start {
-            Some(s) => s,
-            None => exec::timed(&mut self.exec, &mut self.times, "init", |e| {
-                e.init(first_pack, &init, &index)
+            FirstLevel::Given(s) => s,
+            FirstLevel::Init => exec::timed(&mut self.exec, &mut self.times, "init", |e| {
+                e.init(first_pack, &init, &index, None)
             })?,
+            FirstLevel::Cached => {
+                let n = self.params.coarse_cache.expect("cache requested") / 2;
+                // A hashed offset so different seeds read the cache at different places.
+                let [tile_x, tile_y, tile_z] =
+                    [0x71u32, 0x72, 0x73].map(|k| hash32(seed_lo ^ seed_hi ^ k) % n);
+                let cached = InitParams {
+                    period: 0,
+                    cache_period: n,
+                    tile_x,
+                    tile_y,
+                    tile_z,
+                    ..init
+                };
+                let cache = self.cache_buf.as_ref().expect("cache uploaded");
+                exec::timed(&mut self.exec, &mut self.times, "init", |e| {
+                    e.init(first_pack, &cached, &index, Some(cache))
+                })?
+            }
         };
         for level in 0..levels.len() {
             if level > 0 {
@@ -1464,6 +1424,110 @@ struct GroupResult {
 
 /// The plan of a group of bricks: voxel-exact at the finest level when the request is the
 /// box `exact` (see [`Synthesizer::for_each_group`]).
+/// Copy a group's colours (64 per brick, `group` order) and, when given, triples into the slab
+/// of box `out` whose first z slice is `slab_z0`: the parts of the bricks inside the box. Brick
+/// layers (4 z slices) are disjoint parts of the slab, filled in parallel.
+fn place_group(
+    group: &[Brick],
+    colors: &[u32],
+    group_triples: &[u32],
+    out: Box3,
+    slab_z0: i32,
+    slab: &mut Volume,
+    slab_triples: Option<&mut Vec<u32>>,
+) {
+    use rayon::prelude::*;
+    let channels = slab.channels as usize;
+    let (sx, sy) = (slab.nx as usize, slab.ny as usize);
+    let slice = sx * sy;
+    let slab_z1 = slab_z0 + slab.nz as i32;
+    // The group's bricks by layer: (brick z, index in the group), z ascending.
+    let mut order: Vec<(i32, usize)> = group.iter().enumerate().map(|(j, b)| (b[2], j)).collect();
+    order.sort_unstable();
+    // Each layer's slices within the slab, then its part of the colours and triples.
+    let mut layers = Vec::new();
+    let (mut data, mut triples) = (
+        &mut slab.data[..],
+        slab_triples.map_or(&mut [][..], |t| &mut t[..]),
+    );
+    let mut consumed = slab_z0;
+    for run in order.chunk_by(|a, b| a.0 == b.0) {
+        let bz = run[0].0;
+        let z0 = (bz * bricks::BRICK).max(out.lo[2]).max(slab_z0);
+        let z1 = ((bz + 1) * bricks::BRICK).min(out.hi[2]).min(slab_z1);
+        if z0 >= z1 {
+            continue;
+        }
+        let skip = (z0 - consumed) as usize * slice;
+        let take = (z1 - z0) as usize * slice;
+        let rest = std::mem::take(&mut data);
+        let (layer, rest) = rest[skip * channels..].split_at_mut(take * channels);
+        data = rest;
+        let (layer_triples, rest_triples) = if triples.is_empty() {
+            (&mut [][..], &mut [][..])
+        } else {
+            let rest = std::mem::take(&mut triples);
+            rest[skip * 3..].split_at_mut(take * 3)
+        };
+        triples = rest_triples;
+        consumed = z1;
+        layers.push((z0, run, layer, layer_triples));
+    }
+    layers
+        .into_par_iter()
+        .for_each(|(z0, run, layer, layer_triples)| {
+            let with_triples = !layer_triples.is_empty();
+            for &(_, j) in run {
+                let b = group[j];
+                let lo = b.map(|v| v * bricks::BRICK);
+                if (0..3).all(|i| lo[i] >= out.lo[i] && lo[i] + bricks::BRICK <= out.hi[i]) {
+                    // A brick inside the box (all of them when it is brick-aligned): its 16 rows
+                    // of 4 voxels are consecutive in the layer.
+                    let o = [lo[0] - out.lo[0], lo[1] - out.lo[1], lo[2] - z0].map(|c| c as usize);
+                    for row in 0..16 {
+                        let first = ((o[2] + row / 4) * sy + o[1] + row % 4) * sx + o[0];
+                        let src = j * 64 + row * 4;
+                        let dst = &mut layer[first * channels..(first + 4) * channels];
+                        for (x, color) in colors[src..src + 4].iter().enumerate() {
+                            dst[x * channels..(x + 1) * channels]
+                                .copy_from_slice(&color.to_le_bytes()[..channels]);
+                        }
+                        if with_triples {
+                            layer_triples[first * 3..(first + 4) * 3]
+                                .copy_from_slice(&group_triples[src * 3..(src + 4) * 3]);
+                        }
+                    }
+                    continue;
+                }
+                for local in 0..64 {
+                    let p = bricks::voxel_of(b, local);
+                    if !(0..3).all(|i| (out.lo[i]..out.hi[i]).contains(&p[i])) {
+                        continue;
+                    }
+                    let v = [p[0] - out.lo[0], p[1] - out.lo[1], p[2] - z0].map(|c| c as usize);
+                    let at = (v[2] * sy + v[1]) * sx + v[0];
+                    let src = j * 64 + local as usize;
+                    layer[at * channels..(at + 1) * channels]
+                        .copy_from_slice(&colors[src].to_le_bytes()[..channels]);
+                    if with_triples {
+                        layer_triples[at * 3..at * 3 + 3]
+                            .copy_from_slice(&group_triples[src * 3..src * 3 + 3]);
+                    }
+                }
+            }
+        });
+}
+
+/// Where a planned synthesis's first level comes from.
+enum FirstLevel {
+    /// `init`: the warped tiling of the candidate slab (l_start, or the periodic cache's build).
+    Init,
+    /// A state built elsewhere (the shared coarse levels), given whole.
+    Given(exec::State),
+    /// `init` reading the coarse-level cache (level L-1), warped by the jitter field.
+    Cached,
+}
+
 fn plan_group(group: &[Brick], exact: Option<Box3>, passes: &[usize]) -> Vec<SparseLevel> {
     match exact {
         Some(b) => bricks::plan_voxel_box(b, passes),
