@@ -834,8 +834,13 @@ impl Synthesizer {
                 Some(parents) => {
                     let level = plan_top(group);
                     let parent = parent_level(&level);
+                    let timer = std::time::Instant::now();
                     let words = parents.state_words(&parent, self.packs[top - 1].pixel_words);
                     let start = self.exec.upload_state(words)?;
+                    tracing::debug!(
+                        "level {top}: shared parents uploaded in {:.1} ms",
+                        ms(timer)
+                    );
                     (vec![parent, level], top - 1, FirstLevel::Given(start))
                 }
             };
@@ -852,16 +857,9 @@ impl Synthesizer {
                     stats,
                 )?
                 .state;
-            for &b in group {
-                let triples = (0..bricks::BRICK_VOXELS).flat_map(|l| {
-                    let i = grid
-                        .voxel_index(bricks::voxel_of(b, l))
-                        .expect("wanted bricks are stored")
-                        * stride;
-                    state[i..i + 3].iter().copied()
-                });
-                out.set_brick(b, triples)?;
-            }
+            let timer = std::time::Instant::now();
+            out.set_bricks(group, &grid, &state, stride)?;
+            tracing::debug!("level {top}: group's triples stored in {:.1} ms", ms(timer));
         }
         Ok(out)
     }
@@ -1549,11 +1547,17 @@ fn group_part(exact: Option<Box3>, group: &[Brick]) -> Option<Box3> {
 
 /// The parent bricks that the levels `plan` gives `groups` read, all groups together (sorted
 /// once per group and once at the end, not once per group over the growing whole).
-fn parents_of_groups(groups: &[Vec<Brick>], plan: impl Fn(&[Brick]) -> SparseLevel) -> Vec<Brick> {
-    let mut all = Vec::new();
-    for group in groups {
-        all.extend(parent_level(&plan(group)).bricks);
-    }
+fn parents_of_groups(
+    groups: &[Vec<Brick>],
+    plan: impl Fn(&[Brick]) -> SparseLevel + Sync,
+) -> Vec<Brick> {
+    use rayon::prelude::*;
+    // Groups planned in parallel (a plan is a pure function of its group); the union is
+    // normalized, so the order they finish in does not matter.
+    let mut all: Vec<Brick> = groups
+        .par_iter()
+        .flat_map_iter(|group| parent_level(&plan(group)).bricks)
+        .collect();
     bricks::normalize(&mut all);
     all
 }
@@ -1600,29 +1604,37 @@ impl LevelTriples {
         BrickColors::slot_in(&self.bricks, self.grid.as_ref(), b).expect("brick held")
     }
 
-    /// Store brick `b`'s triples: 64 voxels of 3 packed coordinates.
-    fn set_brick(&mut self, b: Brick, triples: impl Iterator<Item = u32>) -> Result<()> {
+    /// Store the triples of `group`'s bricks (every one held here) from a synthesized state:
+    /// `grid` its storage, `stride` words per voxel. Bricks in parallel, each into its own
+    /// part of the store.
+    fn set_bricks(
+        &mut self,
+        group: &[Brick],
+        grid: &BrickGrid,
+        state: &[u32],
+        stride: usize,
+    ) -> Result<()> {
+        use rayon::prelude::*;
         let n = BRICK_COORDS * self.units;
-        let s = self.slot(b);
-        let dst = &mut self.coords[s * n..(s + 1) * n];
-        let mut stored = 0;
-        for (k, c) in triples.enumerate() {
-            if self.units == 1 {
-                let (x, y) = crate::analysis::frame::unpack(c);
-                if x > 255 || y > 255 {
-                    return Err(Error::Internal(format!(
-                        "coordinate ({x}, {y}) beyond a 256-pixel level"
-                    )));
-                }
-                dst[k] = (x | y << 8) as u16;
-            } else {
-                dst[2 * k] = c as u16;
-                dst[2 * k + 1] = (c >> 16) as u16;
-            }
-            stored += 1;
+        let units = self.units;
+        let mut slots: Vec<(usize, Brick)> = group.iter().map(|&b| (self.slot(b), b)).collect();
+        slots.sort_unstable_by_key(|&(slot, _)| slot);
+        let mut parts = Vec::with_capacity(slots.len());
+        let (mut rest, mut at) = (&mut self.coords[..], 0);
+        for (slot, b) in slots {
+            let (_, tail) = std::mem::take(&mut rest).split_at_mut((slot - at) * n);
+            let (part, tail) = tail.split_at_mut(n);
+            (rest, at) = (tail, slot + 1);
+            parts.push((part, b));
         }
-        debug_assert_eq!(stored, BRICK_COORDS);
-        Ok(())
+        parts.into_par_iter().try_for_each(|(dst, b)| {
+            let base = grid.slot(b).expect("wanted bricks are stored") as usize * 64;
+            let triples = (0..64).flat_map(|l| {
+                let i = (base + l) * stride;
+                state[i..i + 3].iter().copied()
+            });
+            pack_brick(units, dst, triples)
+        })
     }
 
     /// A state of `level`'s bricks (every one held here), `pixel_words` value words per voxel
@@ -1631,25 +1643,52 @@ impl LevelTriples {
         let stride = 3 + pixel_words as usize;
         let n = BRICK_COORDS * self.units;
         let mut words = vec![0u32; level.bricks.len() * 64 * stride];
-        for (chunk, &b) in words.chunks_mut(64 * stride).zip(&level.bricks) {
-            let s = self.slot(b);
-            let src = &self.coords[s * n..(s + 1) * n];
-            for (voxel, t) in chunk
-                .chunks_mut(stride)
-                .zip(src.chunks_exact(3 * self.units))
-            {
-                for (k, word) in voxel[..3].iter_mut().enumerate() {
-                    *word = if self.units == 1 {
-                        let c = t[k] as u32;
-                        crate::analysis::frame::pack(c & 0xFF, c >> 8)
-                    } else {
-                        t[2 * k] as u32 | (t[2 * k + 1] as u32) << 16
-                    };
+        use rayon::prelude::*;
+        words
+            .par_chunks_mut(64 * stride)
+            .zip(&level.bricks)
+            .for_each(|(chunk, &b)| {
+                let s = self.slot(b);
+                let src = &self.coords[s * n..(s + 1) * n];
+                for (voxel, t) in chunk
+                    .chunks_mut(stride)
+                    .zip(src.chunks_exact(3 * self.units))
+                {
+                    for (k, word) in voxel[..3].iter_mut().enumerate() {
+                        *word = if self.units == 1 {
+                            let c = t[k] as u32;
+                            crate::analysis::frame::pack(c & 0xFF, c >> 8)
+                        } else {
+                            t[2 * k] as u32 | (t[2 * k + 1] as u32) << 16
+                        };
+                    }
                 }
-            }
-        }
+            });
         words
     }
+}
+
+/// A brick's triples (64 voxels of 3 packed coordinates) into its part of a [`LevelTriples`]
+/// store of `units` 16-bit units per coordinate.
+fn pack_brick(units: usize, dst: &mut [u16], triples: impl Iterator<Item = u32>) -> Result<()> {
+    let mut stored = 0;
+    for (k, c) in triples.enumerate() {
+        if units == 1 {
+            let (x, y) = crate::analysis::frame::unpack(c);
+            if x > 255 || y > 255 {
+                return Err(Error::Internal(format!(
+                    "coordinate ({x}, {y}) beyond a 256-pixel level"
+                )));
+            }
+            dst[k] = (x | y << 8) as u16;
+        } else {
+            dst[2 * k] = c as u16;
+            dst[2 * k + 1] = (c >> 16) as u16;
+        }
+        stored += 1;
+    }
+    debug_assert_eq!(stored, BRICK_COORDS);
+    Ok(())
 }
 
 /// Coordinates (three per voxel) per brick.
@@ -1742,36 +1781,47 @@ impl IndexLayout {
         words.extend_from_slice(&level.grid.table);
         let push = bricks::push_list;
         let storage_list = push(&mut words, &level.bricks);
-        let subpass_lists = level
+        // Each sub-pass's part (a brick list and its masks, or masks over the storage list),
+        // built in parallel, then appended in order.
+        let pack_masks = |masks: &[u8]| -> Vec<u32> {
+            masks
+                .chunks(4)
+                .map(|m| {
+                    m.iter()
+                        .enumerate()
+                        .fold(0u32, |w, (i, &b)| w | (b as u32) << (8 * i))
+                })
+                .collect()
+        };
+        use rayon::prelude::*;
+        let parts: Vec<(Option<&[Brick]>, Vec<u32>)> = level
             .subpasses
-            .iter()
+            .par_iter()
             .map(|sp| {
-                let pack_masks = |words: &mut Vec<u32>, masks: &[u8]| {
-                    words.extend(masks.chunks(4).map(|m| {
-                        m.iter()
-                            .enumerate()
-                            .fold(0u32, |w, (i, &b)| w | (b as u32) << (8 * i))
-                    }));
-                };
                 if sp.over_storage {
-                    let at = words.len() as u32;
-                    pack_masks(&mut words, &sp.masks);
-                    (storage_list, level.bricks.len() as u32, at)
+                    (None, pack_masks(&sp.masks))
                 } else if shares_storage(sp) {
                     let mut masks = vec![0u8; level.bricks.len()];
                     for (b, &m) in sp.bricks.iter().zip(&sp.masks) {
                         let slot = level.grid.slot(*b).expect("sub-pass bricks are stored");
                         masks[slot as usize] = m;
                     }
-                    let at = words.len() as u32;
-                    pack_masks(&mut words, &masks);
-                    (storage_list, level.bricks.len() as u32, at)
+                    (None, pack_masks(&masks))
                 } else {
-                    let list = push(&mut words, &sp.bricks);
-                    let at = words.len() as u32;
-                    pack_masks(&mut words, &sp.masks);
-                    (list, sp.bricks.len() as u32, at)
+                    (Some(&sp.bricks[..]), pack_masks(&sp.masks))
                 }
+            })
+            .collect();
+        let subpass_lists = parts
+            .into_iter()
+            .map(|(own_list, masks)| {
+                let (list, count) = match own_list {
+                    None => (storage_list, level.bricks.len() as u32),
+                    Some(list) => (push(&mut words, list), list.len() as u32),
+                };
+                let at = words.len() as u32;
+                words.extend_from_slice(&masks);
+                (list, count, at)
             })
             .collect();
         let parent_table = words.len() as u32;
@@ -1945,14 +1995,24 @@ mod level_triples_tests {
                 let x = (b as u32 * 97 + l * 13 + k * 5) % (max + 1);
                 frame_pack(x, (l * 7 + k) % 64)
             };
+            // A synthesized state holding the bricks (in its grid's slots), 2 value words.
+            let grid = BrickGrid::new(&bricks_held);
+            let mut state = vec![u32::MAX; bricks_held.len() * 64 * 5];
             for (i, &b) in bricks_held.iter().enumerate() {
-                store
-                    .set_brick(
-                        b,
-                        (0..64).flat_map(|l| (0..3).map(move |k| triple(i, l, k))),
-                    )
-                    .unwrap();
+                let slot = grid.slot(b).unwrap() as usize;
+                for l in 0..64u32 {
+                    for k in 0..3u32 {
+                        state[(slot * 64 + l as usize) * 5 + k as usize] = triple(i, l, k);
+                    }
+                }
             }
+            // Stored in two groups, the second out of order.
+            store
+                .set_bricks(&bricks_held[..1], &grid, &state, 5)
+                .unwrap();
+            store
+                .set_bricks(&[bricks_held[2], bricks_held[1]], &grid, &state, 5)
+                .unwrap();
             // A level of two of the bricks, in its own order, with one value word per voxel.
             let level = parent_level(&SparseLevel {
                 bricks: vec![[-2, 4, 6], [0, 0, 0]],
@@ -1974,8 +2034,9 @@ mod level_triples_tests {
         }
         // A coordinate a narrow store cannot hold is an error, not a wrong solid.
         let mut store = LevelTriples::new(vec![[0, 0, 0]], 256, 256);
+        let state = vec![frame_pack(256, 0); 64 * 3];
         assert!(store
-            .set_brick([0, 0, 0], (0..192).map(|_| frame_pack(256, 0)))
+            .set_bricks(&[[0, 0, 0]], &BrickGrid::new(&[[0, 0, 0]]), &state, 3)
             .is_err());
     }
 
