@@ -1,8 +1,9 @@
 //! Dispatch of the synthesis kernels `init`, `upsample`, `correct`, `scatter`, `colorize` (CPU
 //! references in `src/cpu/`). Level data stays resident; a level's state is one buffer plus the
 //! corrections' records: `correct` reads the state and writes records, `scatter` writes them
-//! back, so no invocation reads a value written in the same sub-pass. Work is submitted without
-//! waiting; the only wait is the bounded read-back of the colours.
+//! back, so no invocation reads a value written in the same sub-pass. Dispatches are recorded
+//! into one command encoder and submitted together (`flush`: once per level, and before any
+//! read) without waiting; the only wait is the bounded read-back of the colours.
 
 use super::context::GpuContext;
 use crate::error::{Error, Result};
@@ -27,6 +28,10 @@ pub struct GpuSynth {
     /// whether they are packed.
     projections: Vec<(wgpu::Buffer, bool)>,
     table: wgpu::Buffer,
+    /// Dispatches recorded but not yet submitted, with their kernels' names: one submission
+    /// per [`GpuSynth::flush`] (the executor flushes once per level, and every read flushes
+    /// first) instead of one per dispatch.
+    pending: std::sync::Mutex<Option<(wgpu::CommandEncoder, Vec<&'static str>)>>,
 }
 
 /// Vectors (`vec4<i32>`) of `ProjectionWeights` in wgsl/correct.wgsl, and where its weights
@@ -165,6 +170,7 @@ impl GpuSynth {
             levels,
             projections,
             table,
+            pending: std::sync::Mutex::new(None),
         })
     }
 
@@ -195,21 +201,42 @@ impl GpuSynth {
                     layout: &pipeline.get_bind_group_layout(0),
                     entries: &entries(buffers),
                 });
-            let mut encoder =
-                self.ctx
-                    .device
-                    .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                        label: Some(kernel),
-                    });
-            {
-                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor::default());
-                pass.set_pipeline(&pipeline);
-                pass.set_bind_group(0, &bind, &[]);
-                pass.dispatch_workgroups(grid.0, grid.1, grid.2);
-            }
-            self.ctx.queue.submit(Some(encoder.finish()));
+            let mut pending = self.pending.lock().unwrap();
+            let (encoder, kernels) = pending.get_or_insert_with(|| {
+                let encoder =
+                    self.ctx
+                        .device
+                        .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                            label: Some("synthesis kernels"),
+                        });
+                (encoder, Vec::new())
+            });
+            // One pass per dispatch: wgpu orders the passes' buffer accesses with barriers, as
+            // separate submissions were ordered.
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some(kernel),
+                ..Default::default()
+            });
+            pass.set_pipeline(&pipeline);
+            pass.set_bind_group(0, &bind, &[]);
+            pass.dispatch_workgroups(grid.0, grid.1, grid.2);
+            kernels.push(kernel);
             Ok(())
         })
+    }
+
+    /// Submit the recorded dispatches (errors found in them name their kernels).
+    pub fn flush(&self) -> Result<()> {
+        let Some((encoder, kernels)) = self.pending.lock().unwrap().take() else {
+            return Ok(());
+        };
+        let mut names = kernels.clone();
+        names.dedup();
+        self.ctx
+            .checked(&format!("kernels {}", names.join(", ")), || {
+                self.ctx.queue.submit(Some(encoder.finish()));
+                Ok(())
+            })
     }
 
     /// A state built on the host.
@@ -419,6 +446,7 @@ impl GpuSynth {
             ],
             groups(n as u64),
         )?;
+        self.flush()?;
         self.ctx.read_words(&out, n)
     }
 }
@@ -426,6 +454,7 @@ impl GpuSynth {
 impl GpuSynth {
     /// Read a state back (tests and debugging).
     pub fn read_state(&self, s: &GpuState) -> Result<Vec<u32>> {
+        self.flush()?;
         self.ctx.read_words(&s.current, s.words as usize)
     }
 }
@@ -433,6 +462,7 @@ impl GpuSynth {
 impl GpuSynth {
     /// Wait until all submitted kernels finished (for per-kernel timing).
     pub fn finish(&self) -> Result<()> {
+        self.flush()?;
         self.ctx.wait_idle()
     }
 }

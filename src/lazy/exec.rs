@@ -67,6 +67,15 @@ impl Executor {
         }
     }
 
+    /// Submit the work recorded so far (the GPU records a level's dispatches and submits them
+    /// together; the CPU runs each kernel as it is called).
+    pub fn flush(&self) -> Result<()> {
+        match self {
+            Executor::Cpu { .. } => Ok(()),
+            Executor::Gpu(g) => g.flush(),
+        }
+    }
+
     pub fn max_state_bytes(&self) -> u64 {
         match self {
             Executor::Cpu { .. } => 1 << 31,

@@ -1275,6 +1275,9 @@ impl Synthesizer {
         };
         for level in 0..levels.len() {
             if level > 0 {
+                // The previous level's dispatches go to the GPU while this level's index is
+                // built (and its buffers are freed once they ran, as before).
+                self.exec.flush()?;
                 (layout, index) = index_of(&mut self.exec, &levels, level);
                 // The parent's sub-pass plans are done with.
                 levels[level - 1].subpasses = Vec::new();
@@ -1310,6 +1313,8 @@ impl Synthesizer {
                 state = exec::timed(&mut self.exec, &mut self.times, "upsample", |e| {
                     e.upsample(pack_index, &up, state, &index)
                 })?;
+                // Submitted alone, so the parent's state is freed as soon as it has run.
+                self.exec.flush()?;
             }
             progress(
                 &format!("level {level}: correction"),
