@@ -78,7 +78,7 @@ fn new_instance() -> wgpu::Instance {
 /// Every adapter wgpu can see (name, type, backend), for `--list-adapters` and error messages.
 /// Read-back staging buffers up to this size are kept for the next read; larger reads (whole
 /// volumes) allocate their own, so memory is not held after them.
-const REUSED_READBACK_BYTES: u64 = 64 << 20;
+const REUSED_READBACK_BYTES: u64 = 16 << 20;
 
 /// Kernel `name`'s WGSL: the embedded source, or, for kernel development (timing variants on a
 /// device without rebuilding), `$SOLIDSYNTH_SHADER_DIR/NAME.wgsl` when that variable is set and
