@@ -54,3 +54,27 @@ fn shared_struct_layouts_match_wgsl() {
         assert_eq!(span as usize, size, "{name}");
     }
 }
+
+/// `SOLIDSYNTH_SHADER_DIR`: a kernel's file there replaces the embedded source. A broken file is
+/// an error naming the kernel (not a panic, not the embedded kernel run silently); a copy of the
+/// embedded source builds; kernels without a file there stay embedded.
+#[test]
+fn shader_dir_replaces_the_embedded_kernels_it_holds() {
+    let _serial = crate::serial();
+    let Some(_) = crate::gpu() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("colorize.wgsl"), "this is not WGSL").unwrap();
+    std::fs::write(dir.path().join("init.wgsl"), shaders::source("init")).unwrap();
+    // Set under the serial lock, which every GPU test of this binary holds, and removed before
+    // any check can fail (the contexts read it when they build a pipeline).
+    std::env::set_var("SOLIDSYNTH_SHADER_DIR", dir.path());
+    let ctx = crate::open(solidsynth::gpu::GpuOptions::from_env()).unwrap();
+    let broken = ctx.pipeline("colorize").map(|_| ());
+    let copied = ctx.pipeline("init").map(|_| ());
+    let embedded = ctx.pipeline("upsample").map(|_| ());
+    std::env::remove_var("SOLIDSYNTH_SHADER_DIR");
+    let err = broken.expect_err("the broken file is used").to_string();
+    assert!(err.contains("colorize"), "{err}");
+    copied.unwrap();
+    embedded.unwrap();
+}
