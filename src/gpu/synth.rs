@@ -230,7 +230,8 @@ impl GpuSynth {
         let Some((encoder, kernels)) = self.pending.lock().unwrap().take() else {
             return Ok(());
         };
-        let mut names = kernels.clone();
+        let mut names = kernels;
+        names.sort_unstable();
         names.dedup();
         self.ctx
             .checked(&format!("kernels {}", names.join(", ")), || {

@@ -62,7 +62,6 @@ pub fn normalize(bricks: &mut Vec<Brick>) {
     // (Keys are the whole bricks: the order is the same however the sort runs. Parallel only
     // where it pays: a cut's or a group's tens of thousands of bricks.)
     if bricks.len() > 1 << 12 {
-        use rayon::slice::ParallelSliceMut;
         bricks.par_sort_unstable_by_key(key);
     } else {
         bricks.sort_unstable_by_key(key);

@@ -15,6 +15,7 @@ use super::Synthesizer;
 use crate::error::{Error, Result};
 use crate::exemplar::Image;
 use glam::DVec3;
+use rayon::prelude::*;
 
 /// A planar cut request.
 #[derive(Clone, Debug, PartialEq)]
@@ -88,7 +89,6 @@ impl CutSpec {
         let mut out = vec![[0i32; 3]; side * side];
         // Rows in parallel (each pixel's point is computed on its own: the same at any thread
         // count); a warm session's cut is otherwise bound by this loop on a fast GPU.
-        use rayon::prelude::*;
         let inside = out.par_chunks_mut(side).enumerate().all(|(j, row)| {
             for (i, voxel) in row.iter_mut().enumerate() {
                 let p = o + (i as f64 + 0.5 - n / 2.0) * s * u + (j as f64 + 0.5 - n / 2.0) * s * v;

@@ -25,6 +25,7 @@ use crate::volume::Volume;
 pub use bricks::{Brick, BrickGrid, SparseLevel};
 use pack::LevelPack;
 pub use plan::Box3;
+use rayon::prelude::*;
 
 /// Order of the parity classes (bit 0 = x, 1 = y, 2 = z) within a pass. Chosen (exhaustively,
 /// over all 8! orders) to minimize the dependency padding: 13 voxels per level for two passes,
@@ -872,7 +873,6 @@ impl Synthesizer {
         // planned voxel-exactly, its dependency padding surrounds one layer, not four.
         let exact = voxel_box(voxels);
         let result = self.synthesize_bricks_of(&wanted, exact, progress, false)?;
-        use rayon::prelude::*;
         Ok(voxels
             .par_iter()
             .map(|p| result.color(*p).expect("requested voxel"))
@@ -1439,7 +1439,6 @@ fn place_group(
     slab: &mut Volume,
     slab_triples: Option<&mut Vec<u32>>,
 ) {
-    use rayon::prelude::*;
     let channels = slab.channels as usize;
     let (sx, sy) = (slab.nx as usize, slab.ny as usize);
     let slice = sx * sy;
@@ -1556,7 +1555,6 @@ fn parents_of_groups(
     groups: &[Vec<Brick>],
     plan: impl Fn(&[Brick]) -> SparseLevel + Sync,
 ) -> Vec<Brick> {
-    use rayon::prelude::*;
     // A few groups planned at a time, in parallel (a plan is a pure function of its group; the
     // union is normalized, so the order they finish in does not matter). Not all at once: a
     // plan can take tens of MB, and the bunny at 2048 on 16 cores held 0.65 GB more so.
@@ -1625,7 +1623,6 @@ impl LevelTriples {
         state: &[u32],
         stride: usize,
     ) -> Result<()> {
-        use rayon::prelude::*;
         let n = BRICK_COORDS * self.units;
         let units = self.units;
         let mut slots: Vec<(usize, Brick)> = group.iter().map(|&b| (self.slot(b), b)).collect();
@@ -1654,7 +1651,6 @@ impl LevelTriples {
         let stride = 3 + pixel_words as usize;
         let n = BRICK_COORDS * self.units;
         let mut words = vec![0u32; level.bricks.len() * 64 * stride];
-        use rayon::prelude::*;
         words
             .par_chunks_mut(64 * stride)
             .zip(&level.bricks)
@@ -1804,7 +1800,6 @@ impl IndexLayout {
                 })
                 .collect()
         };
-        use rayon::prelude::*;
         let parts: Vec<(Option<&[Brick]>, Vec<u32>)> = level
             .subpasses
             .par_iter()
