@@ -38,6 +38,10 @@ pub struct CutArgs {
     /// Print a JSON summary on stdout.
     #[arg(long)]
     pub json: bool,
+    /// Time every kernel, waiting for the device after each (so each cut takes longer), and
+    /// print each kernel's mean time per warm cut (the first is left out when repeating).
+    #[arg(long)]
+    pub profile: bool,
 }
 
 /// Parse `A,B,C` (finite numbers) for `flag`.
@@ -88,9 +92,16 @@ pub fn run(args: CutArgs, quiet: bool) -> anyhow::Result<()> {
     let compute = args.solid.input.backend.open()?;
     let analysis = load_or_analyze(&args.solid.input, &compute, quiet || args.json)?;
     let mut session = CutSession::new(args.solid.synthesizer(&analysis, &compute)?);
+    if args.profile {
+        session.synthesizer_mut().enable_profiling();
+    }
     let mut latencies = Vec::new();
     let mut image = None;
-    for _ in 0..args.repeat {
+    for i in 0..args.repeat {
+        if args.profile && i == 1 {
+            // Kernel times of warm cuts only: restart the count after the first.
+            session.synthesizer_mut().enable_profiling();
+        }
         let start = Instant::now();
         image = Some(session.cut(&spec)?);
         latencies.push(start.elapsed().as_secs_f64() * 1000.0);
@@ -100,11 +111,29 @@ pub fn run(args: CutArgs, quiet: bool) -> anyhow::Result<()> {
     sorted.sort_by(f64::total_cmp);
     let median = sorted[sorted.len() / 2];
     let p95 = sorted[((sorted.len() as f64 * 0.95).ceil() as usize).clamp(1, sorted.len()) - 1];
+    // Per warm cut (all but the first, unless there is only one).
+    let profiled = args.repeat.saturating_sub(1).max(1) as f64;
+    let kernels: serde_json::Map<String, serde_json::Value> = session
+        .synthesizer()
+        .kernel_times()
+        .map(|t| {
+            t.iter()
+                .map(|(k, (d, n))| {
+                    let per_cut = d.as_secs_f64() * 1000.0 / profiled;
+                    let calls = *n as f64 / profiled;
+                    (
+                        k.to_string(),
+                        serde_json::json!({"ms_per_cut": per_cut, "calls_per_cut": calls}),
+                    )
+                })
+                .collect()
+        })
+        .unwrap_or_default();
     if args.json {
         println!(
             "{}",
             serde_json::json!({"output": args.output, "size": args.size, "repeat": args.repeat,
-                "median_ms": median, "p95_ms": p95, "first_ms": latencies[0],
+                "median_ms": median, "p95_ms": p95, "first_ms": latencies[0], "kernels": kernels,
                 "stats": session.synthesizer().last_stats(),
                 "peak_rss_bytes": solidsynth::util::memory::peak_rss_bytes(), "backend": compute.describe()})
         );
@@ -121,6 +150,13 @@ pub fn run(args: CutArgs, quiet: bool) -> anyhow::Result<()> {
                 "  voxels synthesized per level (coarsest first): {:?}; peak state {:.1} MiB",
                 st.voxels_per_level,
                 st.peak_state_bytes as f64 / (1 << 20) as f64
+            );
+        }
+        for (kernel, t) in &kernels {
+            eprintln!(
+                "  {kernel}: {:.1} ms per cut ({} calls)",
+                t["ms_per_cut"].as_f64().unwrap_or(0.0),
+                t["calls_per_cut"].as_f64().unwrap_or(0.0)
             );
         }
     }

@@ -12,6 +12,7 @@ pub mod bricks;
 pub mod color_match;
 pub mod cut;
 pub mod exec;
+pub mod grouping;
 pub mod jitter;
 pub mod pack;
 pub mod plan;
@@ -507,8 +508,7 @@ impl Synthesizer {
     /// buffers of the padded box, each voxel a triple and a value word (one word covers up to
     /// four channels; the estimate assumes that).
     pub fn chunk_bytes(side: u32) -> u64 {
-        let padded = (side + 2 * PADDING_ESTIMATE) as u64;
-        padded * padded * padded * 16 * 2
+        grouping::padded_state_bytes([side as u64; 3]) * 2
     }
 
     /// Synthesize the box `out` (finest-level voxel coordinates, half-open).
@@ -920,26 +920,15 @@ impl Synthesizer {
         (n as u64).pow(3) * (3 + self.packs[pack].pixel_words as u64) * 4
     }
 
-    /// Split sorted bricks into groups (cubes of bricks) whose working set fits the backend.
+    /// Split sorted bricks into groups (cubes of bricks) whose working set fits the backend
+    /// ([`grouping::cube_side`]).
     /// `coarser_by`: how many levels above the finest the bricks are; the default 512-voxel
     /// cap then spans the same space as a finest-level group (so a shared coarse level is
     /// split like the finest level above it, and its memory stays that of a finest group).
     fn groups(&self, all: &[Brick], coarser_by: usize) -> Vec<Vec<Brick>> {
-        let limit = self.exec.max_state_bytes();
-        let mut side = self.max_chunk_side.unwrap_or(512 >> coarser_by).min(512);
-        while side > 8 && Self::chunk_bytes(side) / 2 > limit {
-            side -= 8;
-        }
-        let cube = (side as i32 / bricks::BRICK).max(1);
-        // Cubes start at the request's low corner, so a request that fits in one cube is one
-        // group wherever it lies.
-        let origin = bricks::bounds(all).map_or([0; 3], |(lo, _)| lo);
-        let mut map: std::collections::BTreeMap<[i32; 3], Vec<Brick>> = Default::default();
-        for b in all {
-            let key = [0, 1, 2].map(|i| (b[i] - origin[i]).div_euclid(cube));
-            map.entry([key[2], key[1], key[0]]).or_default().push(*b);
-        }
-        map.into_values().collect()
+        let cap = self.max_chunk_side.unwrap_or(512 >> coarser_by).min(512);
+        let side = grouping::cube_side(all, cap, self.exec.max_state_bytes());
+        grouping::cubes(all, side)
     }
 
     /// A tileable solid: the `n`^3 volume of a solid periodic with period `n` along each axis

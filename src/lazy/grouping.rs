@@ -1,0 +1,137 @@
+//! Splitting a request's bricks into groups: cubes of bricks, each synthesized on its own with
+//! its dependency padding, sized so that a group's state fits one buffer of the backend.
+
+use super::bricks::{self, Brick, BRICK};
+use super::PADDING_ESTIMATE;
+use std::collections::BTreeMap;
+
+/// Bytes of one state over a box of `extent` finest-level voxels and its padding, each voxel a
+/// triple and a value word (one word covers up to four channels; the estimate assumes that).
+pub fn padded_state_bytes(extent: [u64; 3]) -> u64 {
+    let pad = 2 * PADDING_ESTIMATE as u64;
+    extent.iter().map(|e| e + pad).product::<u64>() * 16
+}
+
+/// The side (voxels) of the cubes to split `all` into: `cap`, unless some cube's state would
+/// exceed `limit` bytes; then the largest side that a dense cube's state fits (at least 8).
+/// Sides between the two are tried by halving `cap`: a thin request (a cut, a flat box) fills
+/// little of a cube, and each group's padded bounding box is what must fit. Fewer groups
+/// recompute less padding and make fewer round trips (a 256^2 cut on lavapipe's 128 MiB
+/// buffers: one group instead of four).
+pub fn cube_side(all: &[Brick], cap: u32, limit: u64) -> u32 {
+    let mut dense = cap;
+    while dense > 8 && padded_state_bytes([dense as u64; 3]) > limit {
+        dense -= 8;
+    }
+    let mut side = cap;
+    while side > dense {
+        let fits = cube_bounds(all, side).values().all(|(lo, hi)| {
+            let extent = [0, 1, 2].map(|i| ((hi[i] - lo[i] + 1) * BRICK) as u64);
+            padded_state_bytes(extent) <= limit
+        });
+        if fits {
+            return side;
+        }
+        side /= 2;
+    }
+    dense
+}
+
+/// `all` (sorted) split into cubes of `side` voxels (rounded down to whole bricks, at least
+/// one), cube keys in (z, y, x) order, each cube's bricks in `all`'s order.
+pub fn cubes(all: &[Brick], side: u32) -> Vec<Vec<Brick>> {
+    let cube = cube_bricks(side);
+    let origin = origin(all);
+    let mut map: BTreeMap<[i32; 3], Vec<Brick>> = Default::default();
+    for b in all {
+        map.entry(cube_key(*b, origin, cube)).or_default().push(*b);
+    }
+    map.into_values().collect()
+}
+
+/// Each cube's bounding box of bricks (inclusive), as [`cubes`] would split `all`.
+fn cube_bounds(all: &[Brick], side: u32) -> BTreeMap<[i32; 3], (Brick, Brick)> {
+    let cube = cube_bricks(side);
+    let origin = origin(all);
+    let mut map: BTreeMap<[i32; 3], (Brick, Brick)> = Default::default();
+    for b in all {
+        map.entry(cube_key(*b, origin, cube))
+            .and_modify(|(lo, hi)| {
+                *lo = [0, 1, 2].map(|i| lo[i].min(b[i]));
+                *hi = [0, 1, 2].map(|i| hi[i].max(b[i]));
+            })
+            .or_insert((*b, *b));
+    }
+    map
+}
+
+fn cube_bricks(side: u32) -> i32 {
+    (side as i32 / BRICK).max(1)
+}
+
+/// Cubes start at the request's low corner, so a request that fits in one cube is one group
+/// wherever it lies.
+fn origin(all: &[Brick]) -> Brick {
+    bricks::bounds(all).map_or([0; 3], |(lo, _)| lo)
+}
+
+fn cube_key(b: Brick, origin: Brick, cube: i32) -> [i32; 3] {
+    let key = [0, 1, 2].map(|i| (b[i] - origin[i]).div_euclid(cube));
+    [key[2], key[1], key[0]]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn slab(x: i32, y: i32, z: i32) -> Vec<Brick> {
+        let mut out = Vec::new();
+        for k in 0..z {
+            for j in 0..y {
+                for i in 0..x {
+                    out.push([i, j, k]);
+                }
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn a_thin_request_takes_a_cube_larger_than_a_dense_one() {
+        let limit = 128 << 20;
+        // A dense 168^3 cube with its padding is the largest that fits 128 MiB.
+        assert_eq!(cube_side(&slab(128, 128, 128), 512, limit), 168);
+        // A 256^2 cut one brick thick: its padded box (284 x 284 x 32 voxels) fits.
+        let cut = slab(64, 64, 1);
+        assert_eq!(cube_side(&cut, 512, limit), 512);
+        assert_eq!(cubes(&cut, 512).len(), 1);
+        // 512 wide and 16 thick does not fit whole (540 x 540 x 44 x 16 bytes = 196 MiB); its
+        // 256 x 256 quarters do.
+        let wide = slab(128, 128, 4);
+        assert_eq!(cube_side(&wide, 512, limit), 256);
+        assert_eq!(cubes(&wide, 256).len(), 4);
+    }
+
+    #[test]
+    fn the_cap_and_the_smallest_side_hold() {
+        // A user's cap is never exceeded, even when a larger cube would fit.
+        assert_eq!(cube_side(&slab(8, 8, 1), 64, 128 << 20), 64);
+        // A limit too small for anything still gives whole bricks.
+        assert_eq!(cube_side(&slab(8, 8, 8), 512, 1), 8);
+        assert_eq!(cubes(&slab(8, 8, 8), 8).len(), 8 * 8 * 8 / 8);
+    }
+
+    #[test]
+    fn cubes_keep_every_brick_once_in_z_y_x_order() {
+        let all = slab(10, 6, 3);
+        let groups = cubes(&all, 16);
+        let mut seen: Vec<Brick> = groups.concat();
+        assert_eq!(seen.len(), all.len());
+        seen.sort_by_key(|b| (b[2], b[1], b[0]));
+        assert_eq!(seen, all);
+        // The first cube holds the origin, the last the far corner.
+        assert!(groups[0].contains(&[0, 0, 0]));
+        assert!(groups.last().unwrap().contains(&[9, 5, 2]));
+        assert!(groups.iter().all(|g| g.len() <= 64));
+    }
+}
