@@ -54,8 +54,10 @@ fn bucket_accumulate_matches_its_reference_in_any_order() {
     assert_eq!(&cpu.sums[7 * 8..8 * 8], &want);
 }
 
-/// Gradient-solid synthesis with its bucket step on the GPU (every control layer's samples
-/// listed and dispatched) gives the same solid, bit for bit, as the CPU's streamed buckets.
+/// Gradient-solid synthesis with its bucket step on the GPU (tiles' samples listed and
+/// dispatched a batch at a time) gives the same solid, bit for bit, as the CPU's streamed
+/// buckets; also when a small storage binding makes every tile its own dispatch and splits its
+/// samples over several buffers.
 #[test]
 fn gradient_synthesis_buckets_bit_exact_on_gpu_and_cpu() {
     let _serial = crate::serial();
@@ -64,20 +66,29 @@ fn gradient_synthesis_buckets_bit_exact_on_gpu_and_cpu() {
     use solidsynth::gradient::synth::{synthesize, GradientSynthParams};
     let Some(_) = crate::gpu() else { return };
     let gpu = Compute::open(BackendChoice::Gpu, &GpuOptions::from_env()).unwrap();
+    let small_binding = GpuOptions {
+        // A tile's counts (1728 voxels x 12 clusters) fit, two tiles' do not.
+        max_binding_bytes: Some(128 << 10),
+        ..GpuOptions::from_env()
+    };
+    let narrow = Compute::open(BackendChoice::Gpu, &small_binding).unwrap();
     let exemplar = solidsynth::exemplar::procedural::cobblestone(48, 9, 3);
+    // 24^3: 6^3 control points, eight tiles of 3^3.
     let params = GradientSynthParams {
         seed: 5,
-        size: 16,
+        size: 24,
         iterations: 1,
         check_points: 2,
         ..Default::default()
     };
     let (cpu, _) = synthesize(&exemplar, &params, &Compute::Cpu, &|_, _| {}).unwrap();
-    let (on_gpu, _) = synthesize(&exemplar, &params, &gpu, &|_, _| {}).unwrap();
     let bits = |s: &solidsynth::gradient::synth::PeriodicSolid| -> Vec<u32> {
         s.data.iter().map(|v| v.to_bits()).collect()
     };
-    words_equal("gradient solid", &bits(&cpu), &bits(&on_gpu)).unwrap();
+    for (name, compute) in [("batched", &gpu), ("one tile per dispatch", &narrow)] {
+        let (on_gpu, _) = synthesize(&exemplar, &params, compute, &|_, _| {}).unwrap();
+        words_equal(name, &bits(&cpu), &bits(&on_gpu)).unwrap();
+    }
 }
 
 /// Synthesis with a mask (region separation): the bucket step on the GPU gives the same region

@@ -274,6 +274,32 @@ impl GpuContext {
             })
     }
 
+    /// A storage buffer holding `parts` end to end (at least one word), copied straight into
+    /// the mapped buffer: no joined copy on the host.
+    pub fn storage_buffer_parts(&self, label: &str, parts: &[&[u32]]) -> Result<wgpu::Buffer> {
+        let words: usize = parts.iter().map(|p| p.len()).sum();
+        let buffer = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(label),
+            size: (words.max(1) * 4) as u64,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: true,
+        });
+        {
+            let mut mapped = buffer
+                .slice(..)
+                .get_mapped_range_mut()
+                .map_err(|e| Error::Gpu(format!("{label}: buffer mapping failed: {e}")))?;
+            let mut at = 0;
+            for part in parts {
+                let bytes: &[u8] = bytemuck::cast_slice(part);
+                mapped.slice(at..at + bytes.len()).copy_from_slice(bytes);
+                at += bytes.len();
+            }
+        }
+        buffer.unmap();
+        Ok(buffer)
+    }
+
     /// A uniform buffer holding `value`.
     pub fn uniform_buffer<T: bytemuck::Pod>(&self, label: &str, value: &T) -> wgpu::Buffer {
         self.device
