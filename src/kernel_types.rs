@@ -208,9 +208,11 @@ gpu_struct! {
     BucketParams size 32 {
         /// Samples (each: voxel, cluster, `channels` values), clusters per voxel, channels.
         samples: u32, clusters: u32, channels: u32,
-        /// 0: count samples per (voxel, cluster); 1: sum the two dominant clusters' samples.
+        /// 0: count samples per (voxel, cluster); 1: find each voxel's two dominant clusters
+        /// (a thread per voxel); 2: sum the dominant clusters' samples.
         pass_index: u32,
-        grid_stride: u32, _pad0: u32, _pad1: u32, _pad2: u32,
+        /// Threads per grid row; voxels (pass 1's threads).
+        grid_stride: u32, voxels: u32, _pad1: u32, _pad2: u32,
     }
 }
 

@@ -48,27 +48,35 @@ pub fn bucket_accumulate_parts(
         .collect::<Result<Vec<_>>>()?;
     let counts = gpu.output_buffer("bucket counts", count_words, 0);
     let sums = gpu.output_buffer("bucket sums", sum_words, 0);
-    for pass in 0..2 {
-        for (input, n) in &inputs {
-            let (gx, gy, grid_stride) = dispatch_grid(*n as u32);
-            let params = BucketParams {
-                samples: *n as u32,
-                clusters,
-                channels,
-                pass_index: pass,
-                grid_stride,
-                ..Default::default()
-            };
-            gpu.checked("bucket_accumulate", || {
-                let uniform = gpu.uniform_buffer("bucket params", &params);
-                gpu.dispatch_and_wait(
-                    "bucket_accumulate",
-                    &pipeline,
-                    &[&uniform, input, &counts, &sums],
-                    (gx, gy),
-                )
-            })?;
-        }
+    let dominants = gpu.output_buffer("dominant clusters", voxels, 0);
+    let run = |pass: u32, input: &wgpu::Buffer, threads: usize| -> Result<()> {
+        let (gx, gy, grid_stride) = dispatch_grid(threads as u32);
+        let params = BucketParams {
+            samples: threads as u32,
+            clusters,
+            channels,
+            pass_index: pass,
+            grid_stride,
+            voxels: voxels as u32,
+            ..Default::default()
+        };
+        gpu.checked("bucket_accumulate", || {
+            let uniform = gpu.uniform_buffer("bucket params", &params);
+            gpu.dispatch_and_wait(
+                "bucket_accumulate",
+                &pipeline,
+                &[&uniform, input, &counts, &sums, &dominants],
+                (gx, gy),
+            )
+        })
+    };
+    for (input, n) in &inputs {
+        run(0, input, *n)?;
+    }
+    // (Pass 1 reads no samples: any buffer binds there.)
+    run(1, &inputs[0].0, voxels)?;
+    for (input, n) in &inputs {
+        run(2, input, *n)?;
     }
     Ok(Buckets {
         counts: gpu.read_words(&counts, count_words)?,
