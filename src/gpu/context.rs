@@ -327,7 +327,11 @@ impl GpuContext {
 
     /// A read-write storage buffer of `words` u32, pre-filled with `sentinel` so a value the
     /// kernel never wrote is distinguishable from one it wrote.
+    /// A zero sentinel costs nothing: wgpu zeroes new buffers on the device.
     pub fn output_buffer(&self, label: &str, words: usize, sentinel: u32) -> wgpu::Buffer {
+        if sentinel == 0 {
+            return self.device_buffer(label, words);
+        }
         let fill = vec![sentinel; words.max(1)];
         self.device
             .create_buffer_init(&wgpu::util::BufferInitDescriptor {
