@@ -821,6 +821,14 @@ fn synth_bad_inputs_exit_2_and_write_nothing() {
         d,
         &["bad.ssa", "future.ssa", "full"],
     );
+    // A period the pyramid cannot halve down to an even coarsest period.
+    let o = run(&["synth", "--size", "40", "--tileable", "-o", out_s]);
+    assert_user_error(
+        &o,
+        "--size 40 with --tileable",
+        d,
+        &["bad.ssa", "future.ssa", "full"],
+    );
 }
 
 #[test]

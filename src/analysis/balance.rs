@@ -46,8 +46,8 @@ pub const CALIBRATION_SEED: u64 = 0xBA1A_4CE;
 /// Edge of the calibration solids for an exemplar of `pixels` pixels: large enough that the
 /// coarsest synthesized level (an eighth of the edge, against an eighth of the exemplar's) holds
 /// about four coordinates per exemplar pixel, 3 (N/8)^3 >= 4 pixels / 64, i.e.
-/// N >= 2 (4/3 pixels)^(1/3); a multiple of 32 (tileable solids need it), at most 128 (two
-/// coordinates per pixel at 512^2: each 160^3 round costs ~11 s on 2 cores, a 128^3 one ~5 s).
+/// N >= 2 (4/3 pixels)^(1/3); a multiple of 32 (tileable solids in one piece need it), at most
+/// 128 (two coordinates per pixel at 512^2: each 160^3 round costs ~11 s on 2 cores, a 128^3 one ~5 s).
 /// (Measured: half that, 32 instead of 64 for 64^2 to 115^2 exemplars, left the balanced solids'
 /// usage twice as concentrated on a 64^2 brick and raised histogram ratios by a quarter to a
 /// third on 96^2 and 115^2 photographs.)

@@ -16,7 +16,7 @@ pub struct SynthArgs {
     #[arg(long)]
     pub size: u32,
     /// A periodic solid of period N (copies of the volume tile space seamlessly): its own
-    /// deterministic solid, not the box [0, N)^3 of the infinite one. N a multiple of 32.
+    /// deterministic solid, not the box [0, N)^3 of the infinite one. N a multiple of 16.
     #[arg(long)]
     pub tileable: bool,
     #[command(flatten)]
@@ -333,12 +333,8 @@ fn z_slice(v: &Volume, z: u32) -> image::RgbaImage {
 pub fn run(args: SynthArgs, quiet: bool) -> anyhow::Result<()> {
     check_size(args.size)?;
     let n = args.size as i32;
-    if args.tileable && (args.size < 32 || args.size % 32 != 0) {
-        return Err(Error::invalid(
-            format!("--size {} with --tileable", args.size),
-            "must be a multiple of 32 (every level a whole number of 4-voxel bricks)",
-        )
-        .into());
+    if args.tileable {
+        solidsynth::lazy::check_tileable_size(args.size)?;
     }
     if args.tileable && args.solid.solid.coarse_cache.is_some() {
         return Err(Error::invalid(

@@ -23,8 +23,8 @@
 const WORD_CHANNELS: usize = 4;
 
 /// Edge of the probe for a finest-level exemplar `width` wide: about one exemplar, so that the
-/// probe holds as much structure as the exemplar does (a multiple of 32, as tileable solids
-/// are, from 64 to 128).
+/// probe holds as much structure as the exemplar does (a multiple of 32, as tileable solids in
+/// one piece are, from 64 to 128).
 pub fn probe_edge(width: u32) -> u32 {
     width.div_ceil(32).clamp(2, 4) * 32
 }

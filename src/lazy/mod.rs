@@ -304,6 +304,25 @@ fn periods_below(n: u32, levels: usize) -> Vec<u32> {
     (0..levels).map(|l| n >> (levels - 1 - l)).collect()
 }
 
+/// Refuse a tileable period `n` (finest-level voxels) that the pyramid cannot keep periodic:
+/// each level's period is half the next one's, and the correction's parity classes need an even
+/// period at l_start, so `n` must be a multiple of 16 (the jitter field repeats on its fine
+/// lattice when l_start's period is not a multiple of 4: [`jitter::fine_lattice`]).
+pub fn check_tileable_size(n: u32) -> Result<()> {
+    let levels = 1u32 << (ANALYSED_LEVELS - 1);
+    let step = 2 * levels;
+    if n < step || n % step != 0 {
+        return Err(Error::invalid(
+            format!("--size {n} with --tileable"),
+            format!(
+                "must be a multiple of {step} (each of the {ANALYSED_LEVELS} levels halves the \
+                 period, and the coarsest needs an even one)"
+            ),
+        ));
+    }
+    Ok(())
+}
+
 /// Slabs of one volume (see [`Slab`]) joined back into the whole volume and its triples.
 struct SlabsJoined {
     volume: Volume,
@@ -934,8 +953,8 @@ impl Synthesizer {
     /// A tileable solid: the `n`^3 volume of a solid periodic with period `n` along each axis
     /// (every level periodic with its own size), so copies of it tile space seamlessly. Its own
     /// deterministic definition (same analysis, seed, jitter), not a region of the infinite
-    /// solid. `n` must be a multiple of 32 (each level a whole number of bricks and of jitter
-    /// cells). Held whole: see [`Self::synthesize_tileable_slabs`] for large ones.
+    /// solid. `n` must be a multiple of 16 ([`check_tileable_size`]). Held whole: see
+    /// [`Self::synthesize_tileable_slabs`] for large ones.
     pub fn synthesize_tileable(
         &mut self,
         n: u32,
@@ -961,15 +980,12 @@ impl Synthesizer {
         want_triples: bool,
         mut sink: impl FnMut(Slab) -> Result<()>,
     ) -> Result<()> {
-        if n < 32 || n % 32 != 0 {
-            return Err(Error::invalid(
-                format!("--size {n} with --tileable"),
-                "must be a multiple of 32 (every level a whole number of 4-voxel bricks)",
-            ));
-        }
+        check_tileable_size(n)?;
         let periods = periods_below(n, ANALYSED_LEVELS);
-        let one_piece = self.periodic_state_bytes(n, ANALYSED_LEVELS - 1)
-            <= self.exec.max_state_bytes()
+        // One piece stores each level's period in whole bricks, which wrap: every period a
+        // multiple of 4, so n of 32. Other sizes go in groups.
+        let one_piece = n % 32 == 0
+            && self.periodic_state_bytes(n, ANALYSED_LEVELS - 1) <= self.exec.max_state_bytes()
             && self.max_chunk_side.is_none_or(|side| side >= n);
         if !one_piece {
             if self.usage.is_some() {
