@@ -64,7 +64,7 @@ pub const FINE_REACH: i32 = 4;
 
 /// Whether a tileable solid of l_start period `period` uses the fine lattice.
 pub fn fine_lattice(period: u32) -> bool {
-    period != 0 && period % CELL as u32 != 0
+    period != 0 && !period.is_multiple_of(CELL as u32)
 }
 
 /// Hash of a cell of the lattice for a seed (shared with the WGSL kernel `init`).

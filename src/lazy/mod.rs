@@ -311,7 +311,7 @@ fn periods_below(n: u32, levels: usize) -> Vec<u32> {
 pub fn check_tileable_size(n: u32) -> Result<()> {
     let levels = 1u32 << (ANALYSED_LEVELS - 1);
     let step = 2 * levels;
-    if n < step || n % step != 0 {
+    if n < step || !n.is_multiple_of(step) {
         return Err(Error::invalid(
             format!("--size {n} with --tileable"),
             format!(
@@ -984,7 +984,7 @@ impl Synthesizer {
         let periods = periods_below(n, ANALYSED_LEVELS);
         // One piece stores each level's period in whole bricks, which wrap: every period a
         // multiple of 4, so n of 32. Other sizes go in groups.
-        let one_piece = n % 32 == 0
+        let one_piece = n.is_multiple_of(32)
             && self.periodic_state_bytes(n, ANALYSED_LEVELS - 1) <= self.exec.max_state_bytes()
             && self.max_chunk_side.is_none_or(|side| side >= n);
         if !one_piece {
