@@ -1,33 +1,62 @@
 //! Splitting a request's bricks into groups: cubes of bricks, each synthesized on its own with
 //! its dependency padding, sized so that a group's state fits one buffer of the backend.
 
-use super::bricks::{self, Brick, BRICK};
+use super::bricks::{self, Brick, BRICK, BRICK_VOXELS};
+use super::plan::{self, Box3};
 use super::PADDING_ESTIMATE;
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, HashMap};
 
 /// Bytes of one state over a box of `extent` finest-level voxels and its padding, each voxel a
-/// triple and a value word (one word covers up to four channels; the estimate assumes that).
+/// triple and a value word (one word covers up to four channels; the estimate assumes that):
+/// the memory estimates' rule of thumb, with [`PADDING_ESTIMATE`] for any schedule.
 pub fn padded_state_bytes(extent: [u64; 3]) -> u64 {
     let pad = 2 * PADDING_ESTIMATE as u64;
     extent.iter().map(|e| e + pad).product::<u64>() * 16
 }
 
-/// The side (voxels) of the cubes to split `all` into: `cap`, unless some cube's state would
-/// exceed `limit` bytes; then the largest side that a dense cube's state fits (at least 8).
-/// Sides between the two are tried by halving `cap`: a thin request (a cut, a flat box) fills
-/// little of a cube, and each group's padded bounding box is what must fit. Fewer groups
-/// recompute less padding and make fewer round trips (a 256^2 cut on lavapipe's 128 MiB
-/// buffers: one group instead of four).
-pub fn cube_side(all: &[Brick], cap: u32, limit: u64) -> u32 {
+/// An upper bound of the largest level state of a group whose bricks span a box of `extent`
+/// finest-level voxels (brick-aligned), synthesized through one level per entry of `passes`
+/// (coarsest first; `stride_bytes` per voxel at each): the dense plan of that box
+/// ([`plan::plan`], whose storage holds every sparse plan's within the box), each level's
+/// storage rounded out to whole bricks at any alignment. Exact in the schedule: more passes,
+/// more padding.
+pub fn planned_state_bytes(extent: [u64; 3], passes: &[usize], stride_bytes: &[u64]) -> u64 {
+    let output = Box3::new([0; 3], extent.map(|e| e as i32));
+    plan::plan(output, passes)
+        .iter()
+        .zip(stride_bytes)
+        .map(|(level, stride)| {
+            let s = level.storage;
+            let bricks: u64 = (0..3)
+                .map(|i| ((s.hi[i] - s.lo[i]) as u64).div_ceil(BRICK as u64) + 1)
+                .product();
+            bricks * BRICK_VOXELS as u64 * stride
+        })
+        .max()
+        .unwrap_or(0)
+}
+
+/// The side (voxels) of the cubes to split `all` into: `cap`, unless some cube's state
+/// (`state_bytes` of its brick-aligned extent) would exceed `limit` bytes; then the largest side
+/// that a dense cube's state fits (at least 8). Sides between the two are tried by halving
+/// `cap`: a thin request (a cut, a flat box) fills little of a cube, and each group's bounding
+/// box is what must fit. Fewer groups recompute less padding and make fewer round trips (a
+/// 256^2 cut on lavapipe's 128 MiB buffers: one group instead of four).
+pub fn cube_side(
+    all: &[Brick],
+    cap: u32,
+    limit: u64,
+    state_bytes: impl Fn([u64; 3]) -> u64,
+) -> u32 {
     let mut dense = cap;
-    while dense > 8 && padded_state_bytes([dense as u64; 3]) > limit {
+    while dense > 8 && state_bytes([dense as u64; 3]) > limit {
         dense -= 8;
     }
     let mut side = cap;
     while side > dense {
         let fits = cube_bounds(all, side).values().all(|(lo, hi)| {
             let extent = [0, 1, 2].map(|i| ((hi[i] - lo[i] + 1) * BRICK) as u64);
-            padded_state_bytes(extent) <= limit
+            state_bytes(extent) <= limit
         });
         if fits {
             return side;
@@ -50,10 +79,10 @@ pub fn cubes(all: &[Brick], side: u32) -> Vec<Vec<Brick>> {
 }
 
 /// Each cube's bounding box of bricks (inclusive), as [`cubes`] would split `all`.
-fn cube_bounds(all: &[Brick], side: u32) -> BTreeMap<[i32; 3], (Brick, Brick)> {
+fn cube_bounds(all: &[Brick], side: u32) -> HashMap<[i32; 3], (Brick, Brick)> {
     let cube = cube_bricks(side);
     let origin = origin(all);
-    let mut map: BTreeMap<[i32; 3], (Brick, Brick)> = Default::default();
+    let mut map: HashMap<[i32; 3], (Brick, Brick)> = Default::default();
     for b in all {
         map.entry(cube_key(*b, origin, cube))
             .and_modify(|(lo, hi)| {
@@ -96,28 +125,49 @@ mod tests {
         out
     }
 
+    /// The default schedule's bound: two passes at each of four levels, 16 bytes a voxel.
+    fn two_passes(extent: [u64; 3]) -> u64 {
+        planned_state_bytes(extent, &[2; 4], &[16; 4])
+    }
+
     #[test]
     fn a_thin_request_takes_a_cube_larger_than_a_dense_one() {
         let limit = 128 << 20;
         // A dense 168^3 cube with its padding is the largest that fits 128 MiB.
-        assert_eq!(cube_side(&slab(128, 128, 128), 512, limit), 168);
-        // A 256^2 cut one brick thick: its padded box (284 x 284 x 32 voxels) fits.
+        assert_eq!(cube_side(&slab(128, 128, 128), 512, limit, two_passes), 168);
+        // A 256^2 cut one brick thick: its padded box fits.
         let cut = slab(64, 64, 1);
-        assert_eq!(cube_side(&cut, 512, limit), 512);
+        assert_eq!(cube_side(&cut, 512, limit, two_passes), 512);
         assert_eq!(cubes(&cut, 512).len(), 1);
-        // 512 wide and 16 thick does not fit whole (540 x 540 x 44 x 16 bytes = 196 MiB); its
-        // 256 x 256 quarters do.
+        // 512 wide and 16 thick does not fit whole; its 256 x 256 quarters do.
         let wide = slab(128, 128, 4);
-        assert_eq!(cube_side(&wide, 512, limit), 256);
+        assert!(two_passes([512, 512, 16]) > limit);
+        assert_eq!(cube_side(&wide, 512, limit, two_passes), 256);
         assert_eq!(cubes(&wide, 256).len(), 4);
+    }
+
+    #[test]
+    fn the_bound_follows_the_schedule_and_covers_the_padding() {
+        // Two passes at the finest level pad a box by 12 voxels below and 13 above; whole
+        // bricks at any alignment add at most one brick a side.
+        let b = two_passes([64, 64, 64]);
+        assert!(b >= 89u64.pow(3) * 16 && b <= 96u64.pow(3) * 16, "{b}");
+        // More passes, more padding: the dense side shrinks.
+        let four = |e: [u64; 3]| planned_state_bytes(e, &[2, 2, 2, 4], &[16; 4]);
+        assert!(four([64; 3]) > b);
+        let limit = 128 << 20;
+        assert!(cube_side(&slab(128, 128, 128), 512, limit, four) < 168);
+        // No passes: the storage is the box itself (plus the brick rounding).
+        let none = planned_state_bytes([64; 3], &[0; 4], &[16; 4]);
+        assert_eq!(none, 17u64.pow(3) * 64 * 16);
     }
 
     #[test]
     fn the_cap_and_the_smallest_side_hold() {
         // A user's cap is never exceeded, even when a larger cube would fit.
-        assert_eq!(cube_side(&slab(8, 8, 1), 64, 128 << 20), 64);
+        assert_eq!(cube_side(&slab(8, 8, 1), 64, 128 << 20, two_passes), 64);
         // A limit too small for anything still gives whole bricks.
-        assert_eq!(cube_side(&slab(8, 8, 8), 512, 1), 8);
+        assert_eq!(cube_side(&slab(8, 8, 8), 512, 1, two_passes), 8);
         assert_eq!(cubes(&slab(8, 8, 8), 8).len(), 8 * 8 * 8 / 8);
     }
 

@@ -946,7 +946,15 @@ impl Synthesizer {
     /// split like the finest level above it, and its memory stays that of a finest group).
     fn groups(&self, all: &[Brick], coarser_by: usize) -> Vec<Vec<Brick>> {
         let cap = self.max_chunk_side.unwrap_or(512 >> coarser_by).min(512);
-        let side = grouping::cube_side(all, cap, self.exec.max_state_bytes());
+        // The levels up to the bricks' own, with this schedule and these strides.
+        let levels = ANALYSED_LEVELS - coarser_by;
+        let passes = &self.params.passes.levels()[..levels];
+        let strides: Vec<u64> = self.packs[..levels]
+            .iter()
+            .map(|p| (3 + p.pixel_words as u64) * 4)
+            .collect();
+        let bound = |extent| grouping::planned_state_bytes(extent, passes, &strides);
+        let side = grouping::cube_side(all, cap, self.exec.max_state_bytes(), bound);
         grouping::cubes(all, side)
     }
 
