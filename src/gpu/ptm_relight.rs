@@ -8,7 +8,8 @@ use crate::kernel_types::PtmRelightParams;
 use crate::ptm::{Ptm, PtmFormat};
 use std::ops::Range;
 
-/// Written into a new output buffer (a NaN: never a result of finite inputs).
+/// Written into a new output buffer, and before every relight in debug builds (a NaN: never a
+/// result of finite inputs).
 const SENTINEL: u32 = 0x7FC0_DEAD;
 
 /// A PTM's texels uploaded in chunks that respect the storage-binding limit, each texel padded
@@ -98,9 +99,14 @@ impl GpuPtm {
             };
             let words = gpu.checked("ptm_relight", || {
                 let uniform = gpu.uniform_buffer("ptm relight params", &params);
-                // The kernel writes every pixel: the output is not refilled between relights
-                // (a 12 MiB upload per 1024^2 relight). It held sentinels when created, so the
-                // kernels-test's first relight shows any pixel the kernel skips.
+                // The kernel writes every pixel. Debug builds (the tests) refill the output
+                // with sentinels before each relight, so a skipped pixel shows as a NaN;
+                // release builds do not (a 12 MiB upload per 1024^2 relight).
+                if cfg!(debug_assertions) {
+                    let sentinels = vec![SENTINEL; count as usize * 3];
+                    gpu.queue
+                        .write_buffer(output, 0, bytemuck::cast_slice(&sentinels));
+                }
                 gpu.dispatch_and_wait(
                     "ptm_relight",
                     &pipeline,

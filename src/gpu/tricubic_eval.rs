@@ -7,6 +7,10 @@ use crate::gradient::GradientSolid;
 use crate::kernel_types::TricubicParams;
 use rayon::prelude::*;
 
+/// Written into the output before the kernel runs in debug builds (a NaN: never a result of
+/// finite inputs).
+const SENTINEL: u32 = 0x7FC0_DEAD;
+
 /// Same result as [`crate::cpu::tricubic_eval::tricubic_eval`], within float tolerance.
 pub fn tricubic_eval(gpu: &GpuContext, solid: &GradientSolid, query: &Query) -> Result<Vec<f32>> {
     let words = run(gpu, solid, query, false)?;
@@ -104,10 +108,15 @@ fn run(gpu: &GpuContext, solid: &GradientSolid, query: &Query, quantize: bool) -
         let words = gpu.checked("tricubic_eval", || {
             let start = std::time::Instant::now();
             let uniform = gpu.uniform_buffer("tricubic params", &params);
-            // Every point's words are written by the kernel: the buffer is not filled and
-            // uploaded from the host first (a sentinel fill of 64 MiB took 66 ms of a 256^3
-            // render on lavapipe); wgpu zeroes it on the device.
-            let output = gpu.device_buffer("values", count as usize * c);
+            // Every point's words are written by the kernel. Debug builds (the tests) fill the
+            // buffer with sentinels first, so a point the kernel skips shows as a NaN; release
+            // builds do not fill and upload it from the host (64 MiB took 66 ms of a 256^3
+            // render on lavapipe): wgpu zeroes it on the device.
+            let output = if cfg!(debug_assertions) {
+                gpu.output_buffer("values", count as usize * c, SENTINEL)
+            } else {
+                gpu.device_buffer("values", count as usize * c)
+            };
             let allocated = start.elapsed();
             gpu.dispatch_and_wait(
                 "tricubic_eval",
