@@ -65,8 +65,10 @@ fn cell_hash(cell: vec3<i32>) -> u32 {
 // integer sum, the same in any order. About a fifth of the 125 are kept, so each voxel's loop is
 // that much shorter.
 const CELLS_AROUND: u32 = 125u;
-// Room for every fine cell around a brick (16000 bytes: within WebGPU's 16 KiB default).
-const MAX_KEPT: u32 = 1000u;
+// Room for every cell visited around a brick: 125, or on the fine lattice 1000 (16000 bytes:
+// within WebGPU's 16 KiB default). A pipeline constant, so that only the fine lattice's
+// pipeline holds the larger array (less workgroup memory: more workgroups at once on a GPU).
+override MAX_KEPT: u32 = 125u;
 var<workgroup> gaussians: array<vec4<i32>, MAX_KEPT>;
 var<workgroup> kept: atomic<u32>;
 
@@ -154,6 +156,9 @@ fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) 
         // The cell's voxel centres span [lo, lo + 3 voxels] per axis (1/256 voxel).
         let lo = cell * CELL * 256 + vec3<i32>(128);
         let fine = fine_lattice();
+        if (fine && MAX_KEPT < FINE_SIDE * FINE_SIDE * FINE_SIDE) {
+            return; // a pipeline built for the coarse lattice: the state shows the sentinel
+        }
         let around = select(CELLS_AROUND, FINE_SIDE * FINE_SIDE * FINE_SIDE, fine);
         for (var g = li; g < around; g += 64u) {
             var gauss: vec4<i32>;

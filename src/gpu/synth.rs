@@ -281,6 +281,7 @@ impl GpuSynth {
         extra: Option<&wgpu::Buffer>,
         bricks: u32,
         pixel_words: u32,
+        constants: &[(&str, f64)],
     ) -> Result<GpuState> {
         let voxels = bricks as u64 * 64;
         let words = voxels * (3 + pixel_words as u64);
@@ -294,7 +295,7 @@ impl GpuSynth {
             (4, index),
         ];
         buffers.extend(extra.map(|b| (5, b)));
-        self.run(kernel, &[], &buffers, groups(voxels))?;
+        self.run(kernel, constants, &buffers, groups(voxels))?;
         Ok(GpuState {
             current: out,
             records: None,
@@ -315,6 +316,13 @@ impl GpuSynth {
                 "init from the coarse cache without its buffer".into(),
             ));
         }
+        // The fine jitter lattice visits 1000 cells per workgroup, the usual one 125 (the
+        // shader's default, so the common pipeline is the one built up front).
+        let constants: &[(&str, f64)] = if crate::lazy::jitter::fine_lattice(p.period) {
+            &[("MAX_KEPT", 1000.0)]
+        } else {
+            &[]
+        };
         // (Binding 5 is declared whether or not the cache is read: the table stands in.)
         self.fill_state(
             "init",
@@ -325,6 +333,7 @@ impl GpuSynth {
             Some(cache.unwrap_or(&self.table)),
             p.list_count,
             p.pixel_words,
+            constants,
         )
     }
 
@@ -345,6 +354,7 @@ impl GpuSynth {
             None,
             p.list_count,
             p.pixel_words,
+            &[],
         )
     }
 
