@@ -58,8 +58,8 @@ fn cell_hash(cell: vec3<i32>) -> u32 {
 
 // The Gaussians of the 5^3 cells around this workgroup's cell (its brick: bricks and jitter
 // cells are both 4^3 and aligned), computed once per workgroup instead of once per voxel (the
-// CPU reference likewise shares them per cell: src/lazy/jitter.rs, cell_gaussians). Per cell
-// (x fastest from the corner cell - REACH): centre (1/256 voxels), then shape | direction << 2.
+// CPU reference likewise shares them per cell: src/lazy/jitter.rs, cell_gaussians). Each:
+// centre (1/256 voxels), then shape | direction << 2.
 // Only those that reach some voxel of the cell are kept (as the reference's cell_gaussians:
 // the others add exactly zero), in whatever order the threads append them: the warp is an
 // integer sum, the same in any order. About a fifth of the 125 are kept, so each voxel's loop is
@@ -157,7 +157,9 @@ fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) 
         let lo = cell * CELL * 256 + vec3<i32>(128);
         let fine = fine_lattice();
         if (fine && MAX_KEPT < FINE_SIDE * FINE_SIDE * FINE_SIDE) {
-            return; // a pipeline built for the coarse lattice: the state shows the sentinel
+            // Not reached: the host builds the fine lattice's pipeline with room for 1000
+            // (src/gpu/synth.rs, init). Returning keeps the array's writes in bounds.
+            return;
         }
         let around = select(CELLS_AROUND, FINE_SIDE * FINE_SIDE * FINE_SIDE, fine);
         for (var g = li; g < around; g += 64u) {

@@ -4,8 +4,9 @@
 //! Bucket reuse: buckets exist for one tile at a time (the voxels whose nearest control points
 //! are in layers K0..K1, rows R0..R1 and columns C0..C1: z in [4 K0 - 2, 4 K1 - 2), y in
 //! [4 R0 - 2, 4 R1 - 2), x in [4 C0 - 2, 4 C1 - 2)): a cube of about 5^3 control points, whose
-//! buckets fit a core's L2 cache (O(1) memory per tile instead of O(P^3)). Only check points whose slices can reach the tile are visited. Tiles are
-//! independent (they read the previous solid and the matches) and run in parallel.
+//! buckets fit a core's L2 cache (O(1) memory per tile instead of O(P^3)). Only check points
+//! whose slices can reach the tile are visited. Tiles are independent (they read the previous
+//! solid and the matches) and run in parallel.
 //!
 //! Accumulation is kernel `bucket_accumulate` (wgsl/bucket_accumulate.wgsl): pass 1 counts the
 //! samples of every (voxel, colour cluster), pass 2 sums, in 8.8 fixed point, the samples of each
