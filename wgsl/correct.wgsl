@@ -257,20 +257,21 @@ fn rotate(t: vec3<u32>, a: u32) -> vec3<u32> {
 
 @compute @workgroup_size(64)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let tid = gid.x + gid.y * params.grid_stride;
-    if (tid >= params.list_count * 8u) {
+    let voxel = class_voxel(gid.x + gid.y * params.grid_stride);
+    let b = voxel.x;
+    let k = voxel.y;
+    if (b >= params.list_count) {
         return;
     }
+    let tid = b * 8u + k;
     if (CHANNELS != params.channels || PCA_OUT != params.pca_out || K2D != params.k2d) {
         return; // a pipeline built for other constants: leave the voxel unwritten (sentinel shows)
     }
-    let k = tid % 8u;
-    let b = tid / 8u;
     if (((bricks[params.mask_offset + b / 4u] >> ((b % 4u) * 8u + k)) & 1u) == 0u) {
         return; // a voxel the plan does not need
     }
     let cls = vec3<u32>(params.class_x, params.class_y, params.class_z);
-    let pos = brick_at(params.list_offset, tid / 8u) * 4
+    let pos = brick_at(params.list_offset, b) * 4
         + vec3<i32>(cls + 2u * vec3<u32>(k & 1u, (k >> 1u) & 1u, k >> 2u));
     let r = around(pos);
     var q0 = project_plane(r, 0u);

@@ -23,12 +23,13 @@ struct ScatterParams {
 
 @compute @workgroup_size(64)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let tid = gid.x + gid.y * params.grid_stride;
-    if (tid >= params.list_count * 8u) {
+    let voxel = class_voxel(gid.x + gid.y * params.grid_stride);
+    let b = voxel.x;
+    let k = voxel.y;
+    if (b >= params.list_count) {
         return;
     }
-    let k = tid % 8u;
-    let b = tid / 8u;
+    let tid = b * 8u + k;
     if (((bricks[params.mask_offset + b / 4u] >> ((b % 4u) * 8u + k)) & 1u) == 0u) {
         return; // not updated in this sub-pass
     }
