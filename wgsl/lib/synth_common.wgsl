@@ -73,7 +73,7 @@ fn brick_at(list: u32, i: u32) -> vec3<i32> {
 // neighbouring bricks. A thin request needs some of a brick's class voxels and not others (a
 // slice's last sub-pass: the four on one z layer), mostly the same k in neighbouring bricks, so
 // the voxels the plan skips fill whole SIMD groups, which a driver skips. On lavapipe the warm
-// axis-aligned 256^2 and 512^2 cuts got 25-30% faster (99.5% of the lanes busy instead of 90%,
+// axis-aligned 256^2 and 512^2 cuts got 20-30% faster (99.5% of the lanes busy instead of 90%,
 // and the lanes' neighbour lookups agree); boxes, oblique cuts and surfaces are unchanged
 // within noise (BENCHMARKS.md, session 23). The grid's rows are whole workgroups
 // (`dispatch_grid`), so this is a bijection; records stay in list order (b * 8 + k).
