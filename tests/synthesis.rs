@@ -286,6 +286,27 @@ mod determinism {
             );
             assert_eq!(&c.to_le_bytes()[..want.len()], want, "voxel {p:?}");
         }
+        // A sparse request whose bounding box's dense plan exceeds the state limit but whose own
+        // plan fits is one group (no padding at seams between groups); one byte less and it
+        // is split into cubes. The same colours every way.
+        let far = [
+            points[0],
+            [points[0][0] + 60, points[0][1] + 50, points[0][2] + 40],
+        ];
+        let mut one = Synthesizer::new(&a, params.clone(), &Compute::Cpu).unwrap();
+        let far_colors = one.sample(&far, &|_, _| {}).unwrap();
+        let fitting = one.last_stats().unwrap().peak_state_bytes;
+        let dense_bound =
+            solidsynth::lazy::grouping::planned_state_bytes([64, 56, 48], &[2; 4], &[16; 4]);
+        assert!(dense_bound > fitting, "{dense_bound} vs {fitting}");
+        let mut limited = Synthesizer::new(&a, params.clone(), &Compute::Cpu).unwrap();
+        limited.set_state_limit(fitting);
+        assert_eq!(limited.sample(&far, &|_, _| {}).unwrap(), far_colors);
+        assert_eq!(limited.last_stats().unwrap().groups, 1);
+        let mut split = Synthesizer::new(&a, params.clone(), &Compute::Cpu).unwrap();
+        split.set_state_limit(fitting - 1);
+        assert_eq!(split.sample(&far, &|_, _| {}).unwrap(), far_colors);
+        assert!(split.last_stats().unwrap().groups > 1);
         // Storage follows the request: two scattered points cost less than the box around them
         // (40 points of this small box cost more: each brings its own dependency padding, and
         // the box's is planned voxel-exactly).
