@@ -23,7 +23,6 @@ struct CorrectParams {
     grid_stride: u32, mask_offset: u32, period: u32, _pad3: u32, _pad4: u32,
 }
 
-const MAX_PCA_OUT: u32 = 16u;
 // Pipeline-overridable copies of params.channels, params.pca_out and params.k2d (the host sets
 // them equal): constant loop bounds let the driver unroll the hot loops and keep the
 // accumulators in registers. The kernel checks they agree with the uniforms.
@@ -41,6 +40,11 @@ override PACKED_WEIGHTS: bool = false;
 // does not need stay unwritten.
 @group(0) @binding(3) var<storage, read_write> updates: array<u32>;
 // (binding 4: the level's brick index, declared by the prelude)
+// The level's candidate tables (src/gpu/candidate_tables.rs): each 2D and 3D candidate with its
+// scale and projections in one run of words, so scoring it reads one place. Header: plane a's
+// 2D table at word a, set s's 3D table at word 3 + s, 3D slots per pixel at word 6. Entries are
+// padded to whole vec4s (entry_2d, entry_3d there).
+@group(0) @binding(6) var<storage, read> tables: array<u32>;
 
 // Index of voxel p in the state (ABSENT when its brick is not stored).
 fn state_index(pos: vec3<i32>) -> u32 {
@@ -126,7 +130,14 @@ struct ProjectionWeights {
 
 // The CPU reference sums (x_i - mean_i) * w_ji; here sum_i x_i * w_ji - bias_j, the same value
 // (it fits an i32, analysis::pca::choose_shift) reached through wrapping partial sums.
-fn project_plane(r: Around, a: u32) -> array<i32, MAX_PCA_OUT> {
+// A plane's projected neighbourhood: its PCA_OUT bytes packed 4 to a word (up to 16; zero past
+// PCA_OUT), and the sum of their squares.
+struct Projected {
+    words: vec4<u32>,
+    squares: u32,
+}
+
+fn project_plane(r: Around, a: u32) -> Projected {
     let groups = (PCA_OUT + 3u) / 4u;
     var acc: array<vec4<i32>, 4>;
     for (var g = 0u; g < 4u; g++) {
@@ -169,32 +180,50 @@ fn project_plane(r: Around, a: u32) -> array<i32, MAX_PCA_OUT> {
         }
     }
     let round = 1 << (params.shift - 1u);
-    var q: array<i32, MAX_PCA_OUT>;
-    for (var j = 0u; j < MAX_PCA_OUT; j++) {
-        q[j] = 0;
-    }
+    var q = Projected(vec4<u32>(0u), 0u);
     for (var j = 0u; j < PCA_OUT; j++) {
-        q[j] = clamp(((acc[j / 4u][j % 4u] + round) >> params.shift) + 128, 0, 255);
+        let v = u32(clamp(((acc[j / 4u][j % 4u] + round) >> params.shift) + 128, 0, 255));
+        q.words[j / 4u] |= v << ((j % 4u) * 8u);
+        q.squares += v * v;
     }
     return q;
 }
 
-fn distance(q: ptr<function, array<i32, MAX_PCA_OUT>>, a: u32, c: u32) -> u32 {
-    let proj = select(select(params.proj2, params.proj1, a == 1u), params.proj0, a == 0u);
-    let base = proj + (u32(coord_y(c)) * params.ex_width + u32(coord_x(c))) * params.proj_words;
-    var d = 0u;
-    // One read per word of 4 projected bytes.
+// sum_j (q_j - p_j)^2 over the PCA_OUT bytes of q and of the projection words p, as
+// q.q + p.p - 2 q.p with packed byte dot products: exact (each sum is below 16 x 255^2, and the
+// total, a sum of squares, is not negative), and on an H100 it halved the kernel's time against
+// a loop over the bytes of an array of PCA_OUT i32 (BENCHMARKS.md, session 24), whose registers
+// the three planes' arrays held for the whole search. Bytes of p past PCA_OUT (none at the
+// analysis' 8 or 12 dimensions) are masked off: the CPU reference ignores them.
+fn words_distance(q: Projected, p: vec4<u32>) -> u32 {
+    var d = q.squares;
     for (var w = 0u; w < (PCA_OUT + 3u) / 4u; w++) {
-        let word = level[base + w];
-        for (var b = 0u; b < 4u; b++) {
-            let j = w * 4u + b;
-            if (j < PCA_OUT) {
-                let diff = (*q)[j] - i32((word >> (b * 8u)) & 0xFFu);
-                d += u32(diff * diff);
-            }
+        var word = p[w];
+        if ((w + 1u) * 4u > PCA_OUT) {
+            word &= (1u << ((PCA_OUT % 4u) * 8u)) - 1u;
         }
+        d += dot4U8Packed(word, word) - 2u * dot4U8Packed(q.words[w], word);
     }
     return d;
+}
+
+fn distance(q: Projected, a: u32, c: u32) -> u32 {
+    let proj = select(select(params.proj2, params.proj1, a == 1u), params.proj0, a == 0u);
+    let base = proj + (u32(coord_y(c)) * params.ex_width + u32(coord_x(c))) * params.proj_words;
+    var p = vec4<u32>(0u);
+    for (var w = 0u; w < (PCA_OUT + 3u) / 4u; w++) {
+        p[w] = level[base + w];
+    }
+    return words_distance(q, p);
+}
+
+// `distance` to the projection stored at word `at` of the candidate tables.
+fn table_distance(q: Projected, at: u32) -> u32 {
+    var p = vec4<u32>(0u);
+    for (var w = 0u; w < (PCA_OUT + 3u) / 4u; w++) {
+        p[w] = tables[at + w];
+    }
+    return words_distance(q, p);
 }
 
 // Usage penalty of pixel c of E_a in sixteenths (analysis::balance): one word per pixel right
@@ -211,9 +240,12 @@ fn factor(t: vec3<u32>) -> u32 {
     return 16u + penalty(0u, t.x) + penalty(1u, t.y) + penalty(2u, t.z);
 }
 
-fn best_2d(r: Around, a: u32, q: ptr<function, array<i32, MAX_PCA_OUT>>) -> u32 {
-    let cand2d = select(select(params.cand2d2, params.cand2d1, a == 1u), params.cand2d0, a == 0u);
+// The best 2D candidate of plane a (x) and its unscaled distance (y).
+fn best_2d(r: Around, a: u32, q: Projected) -> vec2<u32> {
+    let table = tables[a];
+    let entry = (2u + params.proj_words + 3u) & ~3u;
     var best = 0u;
+    var best_raw = 0u;
     var best_d = 0xFFFFFFFFu;
     for (var dv = -1; dv <= 1; dv++) {
         for (var du = -1; du <= 1; du++) {
@@ -230,18 +262,20 @@ fn best_2d(r: Around, a: u32, q: ptr<function, array<i32, MAX_PCA_OUT>>) -> u32 
                 continue;
             }
             let src = pack_coord(resolve_near(sx, params.ex_width, params.border), resolve_near(sy, params.ex_height, params.border));
-            let list = cand2d + (u32(coord_y(src)) * params.ex_width + u32(coord_x(src))) * params.k2d;
+            let list = table + (u32(coord_y(src)) * params.ex_width + u32(coord_x(src))) * K2D * entry;
             for (var j = 0u; j < K2D; j++) {
-                let cand = level[list + j];
-                let d = distance(q, a, cand) * (16u + penalty(a, cand));
+                let e = list + j * entry;
+                let raw = table_distance(q, e + 2u);
+                let d = raw * tables[e + 1u];
                 if (d < best_d) {
                     best_d = d;
-                    best = cand;
+                    best = tables[e];
+                    best_raw = raw;
                 }
             }
         }
     }
-    return best;
+    return vec2<u32>(best, best_raw);
 }
 
 // rotate_from_shared of src/analysis/frame.rs.
@@ -274,53 +308,52 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let pos = brick_at(params.list_offset, b) * 4
         + vec3<i32>(cls + 2u * vec3<u32>(k & 1u, (k >> 1u) & 1u, k >> 2u));
     let r = around(pos);
-    var q0 = project_plane(r, 0u);
-    var q1 = project_plane(r, 1u);
-    var q2 = project_plane(r, 2u);
-    let best2d = vec3<u32>(best_2d(r, 0u, &q0), best_2d(r, 1u, &q1), best_2d(r, 2u, &q2));
+    let q0 = project_plane(r, 0u);
+    let q1 = project_plane(r, 1u);
+    let q2 = project_plane(r, 2u);
+    let found0 = best_2d(r, 0u, q0);
+    let found1 = best_2d(r, 1u, q1);
+    let found2 = best_2d(r, 2u, q2);
+    let best2d = vec3<u32>(found0.x, found1.x, found2.x);
+    // Their distances on their own planes.
+    let own_d = vec3<u32>(found0.y, found1.y, found2.y);
     var best = best2d;
     if (params.mode == 0u) {
         // The voxel's current triple (active bricks are stored).
         let o = (r.own + u32(r.local.z * 16 + r.local.y * 4 + r.local.x)) * stride();
         best = vec3<u32>(state[o], state[o + 1u], state[o + 2u]);
-        var best_d = (distance(&q0, 0u, best.x) + distance(&q1, 1u, best.y) + distance(&q2, 2u, best.z)) * factor(best);
+        var best_d = (distance(q0, 0u, best.x) + distance(q1, 1u, best.y) + distance(q2, 2u, best.z)) * factor(best);
+        let entry = (4u + 2u * params.proj_words + 3u) & ~3u;
+        let slots = tables[6];
         for (var a = 0u; a < 3u; a++) {
             var owner = a;
             if (params.shared_sets != 0u) {
                 owner = 0u;
             }
             // Every 3D candidate of pixel best2d[a] has it as its a coordinate (the .ssa reader
-            // checks it): its distance on plane a is scored once.
-            var own = 0u;
-            if (a == 0u) {
-                own = distance(&q0, 0u, best2d.x);
-            } else if (a == 1u) {
-                own = distance(&q1, 1u, best2d.y);
-            } else {
-                own = distance(&q2, 2u, best2d.z);
-            }
+            // checks it): its distance on plane a is best_2d's.
             let pixel = u32(coord_y(best2d[a])) * params.ex_width + u32(coord_x(best2d[a]));
             let counts = select(select(params.counts2, params.counts1, owner == 1u), params.counts0, owner == 0u);
-            let cand3d = select(select(params.cand3d2, params.cand3d1, owner == 1u), params.cand3d0, owner == 0u);
             let count = min(level[counts + pixel], params.k3d_used);
-            let list = cand3d + pixel * params.k3d_stride * 3u;
+            let list = tables[3u + owner] + pixel * slots * entry;
             for (var j = 0u; j < count; j++) {
-                let e = list + j * 3u;
-                var t = vec3<u32>(level[e], level[e + 1u], level[e + 2u]);
+                let e = list + j * entry;
+                var t = vec3<u32>(tables[e], tables[e + 1u], tables[e + 2u]);
                 if (params.shared_sets != 0u) {
                     t = rotate(t, a);
                 }
-                var d = own;
-                if (a != 0u) {
-                    d += distance(&q0, 0u, t.x);
+                // The stored projections: on plane (a + 1) % 3, then (a + 2) % 3.
+                let next = e + 4u;
+                let last = next + params.proj_words;
+                var d = own_d[a];
+                if (a == 0u) {
+                    d += table_distance(q1, next) + table_distance(q2, last);
+                } else if (a == 1u) {
+                    d += table_distance(q2, next) + table_distance(q0, last);
+                } else {
+                    d += table_distance(q0, next) + table_distance(q1, last);
                 }
-                if (a != 1u) {
-                    d += distance(&q1, 1u, t.y);
-                }
-                if (a != 2u) {
-                    d += distance(&q2, 2u, t.z);
-                }
-                d *= factor(t);
+                d *= tables[e + 3u];
                 if (d < best_d) {
                     best_d = d;
                     best = t;

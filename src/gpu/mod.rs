@@ -2,6 +2,7 @@
 //! kernel, named like its `wgsl/*.wgsl`.
 
 pub mod bucket_accumulate;
+pub mod candidate_tables;
 pub mod context;
 pub mod lapped_render;
 pub mod project;

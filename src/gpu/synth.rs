@@ -5,6 +5,7 @@
 //! into one command encoder and submitted together (`flush`: once per level, and before any
 //! read) without waiting; the only wait is the bounded read-back of the colours.
 
+use super::candidate_tables::candidate_tables;
 use super::context::GpuContext;
 use crate::error::{Error, Result};
 use crate::kernel_types::{
@@ -27,6 +28,9 @@ pub struct GpuSynth {
     /// Per level, the `correct` kernel's projection weights ([`projection_uniform`]) and
     /// whether they are packed.
     projections: Vec<(wgpu::Buffer, bool)>,
+    /// Per level, the `correct` kernel's candidate tables ([`candidate_tables`]) and their 3D
+    /// slots per pixel.
+    candidates: Vec<(wgpu::Buffer, u32)>,
     table: wgpu::Buffer,
     /// Dispatches recorded but not yet submitted, with their kernels' names: one submission
     /// per [`GpuSynth::flush`] (the executor flushes once per level, and every read flushes
@@ -164,11 +168,36 @@ impl GpuSynth {
             .iter()
             .map(|p| ctx.storage_buffer("level data", bytemuck::cast_slice(&p.words)))
             .collect();
+        let mut candidates = Vec::with_capacity(packs.len());
+        for (i, p) in packs.iter().enumerate() {
+            let slots = p.k3d_used(i + 1 == packs.len());
+            let started = std::time::Instant::now();
+            let words = candidate_tables(p, slots);
+            tracing::debug!(
+                "level {i}: candidate tables of {} KiB built in {:.1} ms",
+                words.len() / 256,
+                started.elapsed().as_secs_f64() * 1e3
+            );
+            let bytes = words.len() as u64 * 4;
+            if bytes > ctx.max_binding_bytes() {
+                return Err(Error::invalid(
+                    "exemplar",
+                    format!(
+                        "its candidate tables need {bytes} bytes per level on the GPU, over the \
+                         adapter's {}-byte binding limit; use a smaller exemplar or --backend cpu",
+                        ctx.max_binding_bytes()
+                    ),
+                ));
+            }
+            let buffer = ctx.storage_buffer("candidate tables", bytemuck::cast_slice(&words));
+            candidates.push((buffer, slots));
+        }
         let table = ctx.storage_buffer("jitter table", bytemuck::cast_slice(table));
         Ok(GpuSynth {
             ctx,
             levels,
             projections,
+            candidates,
             table,
             pending: std::sync::Mutex::new(None),
         })
@@ -380,6 +409,13 @@ impl GpuSynth {
             );
         }
         let records = s.records.as_ref().unwrap();
+        let (candidates, slots) = &self.candidates[level];
+        if p.mode == 0 && p.k3d_used > *slots {
+            return Err(Error::Gpu(format!(
+                "the correction scores {} 3D candidates per pixel; level {level}'s tables hold {slots}",
+                p.k3d_used
+            )));
+        }
         let uniform = self.ctx.uniform_buffer("correct params", p);
         let (projection, packed) = &self.projections[level];
         self.run(
@@ -397,6 +433,7 @@ impl GpuSynth {
                 (3, records),
                 (4, index),
                 (5, projection),
+                (6, candidates),
             ],
             groups(threads),
         )?;

@@ -1403,13 +1403,7 @@ impl Synthesizer {
                 &format!("level {level}: correction"),
                 (level as f32 + 0.1) / levels.len() as f32,
             );
-            // The paper's reduced search at the finest level: 4 of the 3D candidates.
-            let k3d_used = if pack_index + 1 == self.packs.len() {
-                4
-            } else {
-                pack.k3d_stride
-            }
-            .min(pack.k3d_stride);
+            let k3d_used = pack.k3d_used(pack_index + 1 == self.packs.len());
             for (s, sp) in lv.subpasses.iter().enumerate() {
                 if sp.is_empty() {
                     continue;

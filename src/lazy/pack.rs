@@ -117,4 +117,17 @@ impl LevelPack {
         pack.words.extend(super::color_match::identity());
         pack
     }
+
+    /// 3D candidates a correction of this level scores per plane: the paper's reduced search
+    /// at the finest level (4), every kept one elsewhere.
+    pub fn k3d_used(&self, finest: bool) -> u32 {
+        if finest {
+            FINEST_3D_CANDIDATES.min(self.k3d_stride)
+        } else {
+            self.k3d_stride
+        }
+    }
 }
+
+/// The paper's reduced 3D search at the finest level.
+const FINEST_3D_CANDIDATES: u32 = 4;

@@ -1,0 +1,145 @@
+//! The `correct` kernel's candidate tables: a level's 2D and 3D candidate lists with what scoring
+//! a candidate reads beside it, laid out so that one candidate is one contiguous run of words.
+//!
+//! Scoring a candidate from the level data reads its coordinate from one table, its projection
+//! from another and its usage penalty from a third (a 3D candidate: three coordinates, two
+//! projections, three penalties), each at an unrelated address. On an H100 the correction kernel
+//! ran far below its arithmetic rate, waiting on such scattered reads of level data too large
+//! for the L1 cache; the CPU backend had already gathered each candidate's data into one record
+//! (`Prepared` in src/cpu/correct.rs). These tables do the same for the GPU: every value is the
+//! one the kernel read before (the CPU reference still reads the level data, so the
+//! kernels-tests compare the two paths), only its place changes.
+//!
+//! Layout (u32 words): a header of [`HEADER_WORDS`], then the tables.
+//! - header: the word offsets of plane a's 2D table (words 0..3) and of 3D candidate set s's table
+//!   (words 3..6; one set when the analysis is shared, its offset repeated), then the 3D slots per
+//!   pixel (word 6).
+//! - 2D table of plane a: per exemplar pixel, its `k2d` candidates, each [`entry_2d`] words: the
+//!   candidate's coordinate, 16 + its usage penalty (the distance's scale), its projection.
+//! - 3D table of set s: per exemplar pixel, `slots` candidates (unused ones zero), each
+//!   [`entry_3d`] words: the triple, 16 + the usage penalties of its three pixels, the
+//!   projection of its coordinate on plane (s + 1) % 3, then on plane (s + 2) % 3. For a shared
+//!   analysis (set 0, rotated per plane by the kernel) those are the projections of the triple's
+//!   y and z coordinates, which the rotation for plane a puts on planes (a + 1) % 3 and
+//!   (a + 2) % 3: the same order.
+
+use crate::lazy::pack::LevelPack;
+use rayon::prelude::*;
+
+pub const HEADER_WORDS: usize = 8;
+
+/// Words per 2D candidate: 2 + proj_words, padded to whole 16-byte vectors (so a candidate
+/// never straddles two of the GPU's 32-byte sectors: one at the finest level's 8 PCA
+/// dimensions, two at 12).
+pub fn entry_2d(proj_words: u32) -> u32 {
+    (2 + proj_words).next_multiple_of(4)
+}
+
+/// Words per 3D candidate: 4 + 2 proj_words, padded likewise (8 at 8 PCA dimensions, 12 at 12).
+pub fn entry_3d(proj_words: u32) -> u32 {
+    (4 + 2 * proj_words).next_multiple_of(4)
+}
+
+/// Plane a's (or set a's) word offsets of level data in `p`.
+struct Planes {
+    pixels: [usize; 3],
+    projected: [usize; 3],
+}
+
+impl Planes {
+    fn of(p: &LevelPack) -> Planes {
+        let o = &p.offsets;
+        Planes {
+            pixels: o.pixels.map(|w| w as usize),
+            projected: o.projected.map(|w| w as usize),
+        }
+    }
+
+    fn pixel(p: &LevelPack, c: u32) -> usize {
+        let (x, y) = (c & 0xFFFF, c >> 16);
+        (y * p.width + x) as usize
+    }
+
+    /// 16 + the usage penalty of pixel `c` of plane `a` (right after its pixels).
+    fn factor(&self, p: &LevelPack, a: usize, c: u32) -> u32 {
+        let table = self.pixels[a] + (p.width * p.height * p.pixel_words) as usize;
+        16 + p.words[table + Self::pixel(p, c)]
+    }
+
+    /// The projection words of pixel `c` on plane `a`.
+    fn projection<'a>(&self, p: &'a LevelPack, a: usize, c: u32) -> &'a [u32] {
+        let at = self.projected[a] + Self::pixel(p, c) * p.proj_words as usize;
+        &p.words[at..at + p.proj_words as usize]
+    }
+}
+
+/// The tables of level `p` with `slots` 3D candidates per pixel (at least the `k3d_used` of any
+/// correction of this level; see [`LevelPack::k3d_used`]).
+pub fn candidate_tables(p: &LevelPack, slots: u32) -> Vec<u32> {
+    let planes = &Planes::of(p);
+    let pixels = (p.width * p.height) as usize;
+    let pw = p.proj_words as usize;
+    let mut words = vec![0u32; HEADER_WORDS];
+    words[6] = slots;
+
+    // 2D tables, one per distinct (list, projections, penalties), as the CPU backend shares them.
+    let mut built: Vec<([u32; 3], u32)> = Vec::new();
+    for a in 0..3 {
+        let key = [
+            p.offsets.cand2d[a],
+            p.offsets.projected[a],
+            p.offsets.pixels[a],
+        ];
+        if let Some(&(_, at)) = built.iter().find(|(k, _)| *k == key) {
+            words[a] = at;
+            continue;
+        }
+        let at = words.len() as u32;
+        let list = p.offsets.cand2d[a] as usize;
+        let n = pixels * p.k2d as usize;
+        let entry = entry_2d(p.proj_words) as usize;
+        let start = words.len();
+        words.resize(start + n * entry, 0);
+        words[start..]
+            .par_chunks_mut(entry)
+            .zip(&p.words[list..list + n])
+            .for_each(|(e, &c)| {
+                e[0] = c;
+                e[1] = planes.factor(p, a, c);
+                e[2..2 + pw].copy_from_slice(planes.projection(p, a, c));
+            });
+        words[a] = at;
+        built.push((key, at));
+    }
+
+    // 3D tables.
+    let sets = if p.shared { 1 } else { 3 };
+    let entry = entry_3d(p.proj_words) as usize;
+    for s in 0..sets {
+        let at = words.len() as u32;
+        let counts = p.offsets.counts[s] as usize;
+        let list = p.offsets.cand3d[s] as usize;
+        let (next, last) = ((s + 1) % 3, (s + 2) % 3);
+        let start = words.len();
+        words.resize(start + pixels * slots as usize * entry, 0);
+        words[start..]
+            .par_chunks_mut(slots as usize * entry)
+            .enumerate()
+            .for_each(|(pixel, candidates)| {
+                let count = p.words[counts + pixel].min(slots) as usize;
+                for (j, e) in candidates.chunks_exact_mut(entry).take(count).enumerate() {
+                    let at = list + (pixel * p.k3d_stride as usize + j) * 3;
+                    let t = [p.words[at], p.words[at + 1], p.words[at + 2]];
+                    e[..3].copy_from_slice(&t);
+                    // Shared: one penalty table for the three (the sum is rotation-free).
+                    e[3] = (0..3).map(|b| planes.factor(p, b, t[b]) - 16).sum::<u32>() + 16;
+                    e[4..4 + pw].copy_from_slice(planes.projection(p, next, t[next]));
+                    e[4 + pw..4 + 2 * pw].copy_from_slice(planes.projection(p, last, t[last]));
+                }
+            });
+        for t in if p.shared { 0..3 } else { s..s + 1 } {
+            words[3 + t] = at;
+        }
+    }
+    words
+}
