@@ -522,3 +522,48 @@ fn each_synthesis_kernel_matches_its_reference() {
         .unwrap();
     words_equal("scatter", &cpu_scattered, &gpu_scattered).unwrap();
 }
+
+/// A warm GPU cut session keeps its buffers from one cut to the next (`CutSession`): cuts of
+/// other sizes and orientations in between must leave every cut's bytes those of the CPU
+/// backend's session, whatever the reused buffers held before.
+#[test]
+fn warm_gpu_cut_session_repeats_its_cuts_exactly() {
+    use solidsynth::lazy::cut::{CutSession, CutSpec};
+    let _serial = crate::serial();
+    let Some(_) = crate::gpu() else { return };
+    let gpu = Compute::open(BackendChoice::Gpu, &GpuOptions::from_env()).unwrap();
+    let a = analysis(false, Border::Wrap);
+    let params = SynthParams {
+        seed: 21,
+        coarse_cache: Some(64),
+        ..Default::default()
+    };
+    let axis = CutSpec {
+        origin: [-7.0, 12.0, 30.5],
+        normal: [0.0, 0.0, 1.0],
+        up: None,
+        size: 24,
+        spacing: 1.0,
+    };
+    let oblique = CutSpec {
+        origin: [5.0, -3.0, 9.0],
+        normal: [0.3, 0.5, 0.8],
+        up: None,
+        size: 16,
+        spacing: 1.5,
+    };
+    let mut on_cpu = CutSession::new(Synthesizer::new(&a, params.clone(), &Compute::Cpu).unwrap());
+    let mut on_gpu = CutSession::new(Synthesizer::new(&a, params, &gpu).unwrap());
+    for (i, spec) in [&axis, &oblique, &axis, &oblique, &axis]
+        .into_iter()
+        .enumerate()
+    {
+        let cpu = on_cpu.cut(spec).unwrap();
+        let gpu = on_gpu.cut(spec).unwrap();
+        assert!(
+            cpu.pixels == gpu.pixels,
+            "cut {i} ({:?}) differs between the warm sessions",
+            spec.normal
+        );
+    }
+}

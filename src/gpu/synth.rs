@@ -20,6 +20,50 @@ pub struct GpuState {
     /// sub-pass of the state so far: at most an eighth of the state.
     records: Option<wgpu::Buffer>,
     words: u64,
+    /// Where its buffers go when it is dropped, in a session that keeps them.
+    pool: Option<BufferPool>,
+}
+
+impl Drop for GpuState {
+    fn drop(&mut self) {
+        if let Some(pool) = &self.pool {
+            pool.give(self.current.clone());
+            if let Some(r) = self.records.take() {
+                pool.give(r);
+            }
+        }
+    }
+}
+
+/// Device buffers a warm session keeps between its requests ([`GpuSynth::keep_buffers`]): a
+/// request's states, correction records and colours come back here when it is done with them,
+/// and the next request takes one of the same size instead of allocating (and having wgpu zero)
+/// a new one. Every kernel writes the words it later reads (the kernels-tests run on poisoned
+/// memory, and a test compares a warm session's repeated cuts with fresh ones), so what a buffer
+/// held before does not matter. At most [`POOLED_BUFFERS`] and [`POOLED_BYTES`] are kept, the
+/// oldest given back first.
+#[derive(Clone, Default)]
+struct BufferPool(Arc<std::sync::Mutex<Vec<wgpu::Buffer>>>);
+
+const POOLED_BUFFERS: usize = 8;
+const POOLED_BYTES: u64 = 1 << 30;
+
+impl BufferPool {
+    fn take(&self, bytes: u64) -> Option<wgpu::Buffer> {
+        let mut kept = self.0.lock().unwrap();
+        let i = kept.iter().position(|b| b.size() == bytes)?;
+        Some(kept.remove(i))
+    }
+
+    fn give(&self, buffer: wgpu::Buffer) {
+        let mut kept = self.0.lock().unwrap();
+        kept.push(buffer);
+        while kept.len() > POOLED_BUFFERS
+            || kept.iter().map(|b| b.size()).sum::<u64>() > POOLED_BYTES
+        {
+            kept.remove(0);
+        }
+    }
 }
 
 pub struct GpuSynth {
@@ -36,6 +80,8 @@ pub struct GpuSynth {
     /// per [`GpuSynth::flush`] (the executor flushes once per level, and every read flushes
     /// first) instead of one per dispatch.
     pending: std::sync::Mutex<Option<(wgpu::CommandEncoder, Vec<&'static str>)>>,
+    /// Kept buffers, in a warm session ([`GpuSynth::keep_buffers`]).
+    pool: Option<BufferPool>,
 }
 
 /// Vectors (`vec4<i32>`) of `ProjectionWeights` in wgsl/correct.wgsl, and where its weights
@@ -200,7 +246,24 @@ impl GpuSynth {
             candidates,
             table,
             pending: std::sync::Mutex::new(None),
+            pool: None,
         })
+    }
+
+    /// Keep the buffers of finished requests for the next ones (a warm session: `CutSession`,
+    /// `serve`). Off by default: a one-off synthesis would only hold memory longer.
+    pub fn keep_buffers(&mut self) {
+        self.pool.get_or_insert_with(BufferPool::default);
+    }
+
+    /// A storage buffer of `words` words that a kernel fills before anything reads it: a kept one
+    /// of that size when there is one.
+    fn scratch_buffer(&self, label: &str, words: u64) -> wgpu::Buffer {
+        let bytes = words.max(1) * 4;
+        self.pool
+            .as_ref()
+            .and_then(|p| p.take(bytes))
+            .unwrap_or_else(|| self.ctx.device_buffer(label, words as usize))
     }
 
     pub fn max_state_bytes(&self) -> u64 {
@@ -210,7 +273,7 @@ impl GpuSynth {
     /// A state: `init` and `upsample` write every word of theirs, a correction's scratch is a
     /// copy of the state before its kernel runs.
     fn state_buffer(&self, words: u64) -> wgpu::Buffer {
-        self.ctx.device_buffer("triples", words as usize)
+        self.scratch_buffer("triples", words)
     }
 
     fn run(
@@ -287,6 +350,7 @@ impl GpuSynth {
             current,
             records: None,
             words: words.len() as u64,
+            pool: self.pool.clone(),
         }
     }
 
@@ -329,6 +393,7 @@ impl GpuSynth {
             current: out,
             records: None,
             words,
+            pool: self.pool.clone(),
         })
     }
 
@@ -403,10 +468,10 @@ impl GpuSynth {
             .as_ref()
             .is_none_or(|b| b.size() < record_words * 4)
         {
-            s.records = Some(
-                self.ctx
-                    .device_buffer("correction records", record_words as usize),
-            );
+            let grown = self.scratch_buffer("correction records", record_words);
+            if let (Some(pool), Some(old)) = (&self.pool, s.records.replace(grown)) {
+                pool.give(old);
+            }
         }
         let records = s.records.as_ref().unwrap();
         let (candidates, slots) = &self.candidates[level];
@@ -480,7 +545,7 @@ impl GpuSynth {
     ) -> Result<Vec<u32>> {
         let n = p.list_count as usize * 64;
         // (`colorize` writes a colour per listed voxel.)
-        let out = self.ctx.device_buffer("colours", n);
+        let out = self.scratch_buffer("colours", n as u64);
         let uniform = self.ctx.uniform_buffer("colorize params", p);
         self.run(
             "colorize",
@@ -495,7 +560,11 @@ impl GpuSynth {
             groups(n as u64),
         )?;
         self.flush()?;
-        self.ctx.read_words(&out, n)
+        let colours = self.ctx.read_words(&out, n);
+        if let Some(pool) = &self.pool {
+            pool.give(out);
+        }
+        colours
     }
 }
 

@@ -116,7 +116,9 @@ pub struct CutSession {
 }
 
 impl CutSession {
-    pub fn new(synth: Synthesizer) -> CutSession {
+    /// A session over `synth`, which keeps its device buffers between cuts.
+    pub fn new(mut synth: Synthesizer) -> CutSession {
+        synth.keep_buffers();
         CutSession { synth }
     }
 

@@ -76,6 +76,14 @@ impl Executor {
         }
     }
 
+    /// Keep device buffers from one request to the next (a warm session; the CPU backend's
+    /// states are plain vectors).
+    pub fn keep_buffers(&mut self) {
+        if let Executor::Gpu(g) = self {
+            g.keep_buffers();
+        }
+    }
+
     pub fn max_state_bytes(&self) -> u64 {
         match self {
             Executor::Cpu { .. } => 1 << 31,

@@ -918,6 +918,12 @@ impl Synthesizer {
         self.last_stats.as_ref()
     }
 
+    /// Keep the GPU's state, record and colour buffers from one request for the next ones of the
+    /// same sizes, as a warm session does (`CutSession`): no allocation and zeroing per request.
+    pub fn keep_buffers(&mut self) {
+        self.exec.keep_buffers();
+    }
+
     /// Time every kernel (waiting for the device after each, so totals grow slightly).
     pub fn enable_profiling(&mut self) {
         self.times = Some(Default::default());
