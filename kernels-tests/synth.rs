@@ -191,8 +191,18 @@ fn synthesis_kernels_bit_exact_on_gpu_and_cpu() {
     same_on_both("weights beyond 16 bits", &a, &params, &gpu, |s| {
         s.synthesize(b, &|_, _| {}).unwrap()
     });
-    // A tileable solid (reads wrap around each level's period; periodic jitter and tiling).
     let a = analysis(false, Border::Wrap);
+    // A parameter arena of 1 KiB (a few dispatches): each level's batch is submitted in parts,
+    // whenever the arena is full.
+    let params = SynthParams {
+        seed: 13,
+        ..Default::default()
+    };
+    same_on_both("small parameter arena", &a, &params, &gpu, |s| {
+        s.set_parameter_arena_bytes(1024).unwrap();
+        s.synthesize(b, &|_, _| {}).unwrap()
+    });
+    // A tileable solid (reads wrap around each level's period; periodic jitter and tiling).
     let params = SynthParams {
         seed: 5,
         ..Default::default()

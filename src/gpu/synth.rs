@@ -79,9 +79,50 @@ pub struct GpuSynth {
     /// Dispatches recorded but not yet submitted, with their kernels' names: one submission
     /// per [`GpuSynth::flush`] (the executor flushes once per level, and every read flushes
     /// first) instead of one per dispatch.
-    pending: std::sync::Mutex<Option<(wgpu::CommandEncoder, Vec<&'static str>)>>,
+    pending: std::sync::Mutex<Option<Batch>>,
+    /// The dispatches' parameters (uniform binding 0), one slice per dispatch of a batch: one
+    /// upload per submission instead of a buffer per dispatch.
+    arena: wgpu::Buffer,
     /// Kept buffers, in a warm session ([`GpuSynth::keep_buffers`]).
     pool: Option<BufferPool>,
+}
+
+/// Dispatches recorded and not yet submitted, with their kernels' names and parameters.
+struct Batch {
+    encoder: wgpu::CommandEncoder,
+    kernels: Vec<&'static str>,
+    /// What [`GpuSynth::submit`] writes into the arena, each dispatch's at an aligned offset.
+    params: Vec<u8>,
+}
+
+/// Bytes of the parameter arena: 256 dispatches at the usual 256-byte offset alignment (a
+/// level's batch has at most about 70); a fuller batch is submitted and a new one begun.
+const ARENA_BYTES: usize = 64 << 10;
+
+impl Batch {
+    fn has_room(&self, bytes: usize, alignment: usize, capacity: u64) -> bool {
+        (self.params.len().next_multiple_of(alignment) + bytes.next_multiple_of(16)) as u64
+            <= capacity
+    }
+
+    /// Append `bytes` (zero-padded to 16) at the next aligned offset; returns the offset.
+    fn push_params(&mut self, bytes: &[u8], alignment: usize) -> u64 {
+        let offset = self.params.len().next_multiple_of(alignment);
+        self.params.resize(offset, 0);
+        self.params.extend_from_slice(bytes);
+        self.params
+            .resize(offset + bytes.len().next_multiple_of(16), 0);
+        offset as u64
+    }
+}
+
+fn parameter_arena(ctx: &GpuContext, bytes: u64) -> wgpu::Buffer {
+    ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("kernel parameters"),
+        size: bytes,
+        usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    })
 }
 
 /// Vectors (`vec4<i32>`) of `ProjectionWeights` in wgsl/correct.wgsl, and where its weights
@@ -239,6 +280,7 @@ impl GpuSynth {
             candidates.push((buffer, slots));
         }
         let table = ctx.storage_buffer("jitter table", bytemuck::cast_slice(table));
+        let arena = parameter_arena(&ctx, ARENA_BYTES as u64);
         Ok(GpuSynth {
             ctx,
             levels,
@@ -246,8 +288,18 @@ impl GpuSynth {
             candidates,
             table,
             pending: std::sync::Mutex::new(None),
+            arena,
             pool: None,
         })
+    }
+
+    /// Shrink the parameter arena to `bytes` (after a flush), so that batches are submitted
+    /// after a few dispatches: the kernels-tests take the path of a full arena that way.
+    #[doc(hidden)]
+    pub fn set_parameter_arena_bytes(&mut self, bytes: u64) -> Result<()> {
+        self.flush()?;
+        self.arena = parameter_arena(&self.ctx, bytes);
+        Ok(())
     }
 
     /// Keep the buffers of finished requests for the next ones (a warm session: `CutSession`,
@@ -276,58 +328,94 @@ impl GpuSynth {
         self.scratch_buffer("triples", words)
     }
 
-    fn run(
+    /// Record one dispatch of `kernel`: its parameters at binding 0 (a slice of the batch's
+    /// parameter arena), `buffers` at the other bindings.
+    fn run<T: bytemuck::Pod>(
         &self,
         kernel: &'static str,
         constants: &[(&str, f64)],
+        params: &T,
         buffers: &[(u32, &wgpu::Buffer)],
         grid: (u32, u32, u32),
     ) -> Result<()> {
         let pipeline = self.ctx.pipeline_with(kernel, constants)?;
+        let bytes = bytemuck::bytes_of(params);
+        let mut pending = self.pending.lock().unwrap();
+        if pending
+            .as_ref()
+            .is_some_and(|b| !b.has_room(bytes.len(), self.arena_alignment(), self.arena.size()))
+        {
+            let full = pending.take().unwrap();
+            self.submit(full)?;
+        }
         self.ctx.checked(kernel, || {
+            let batch = pending.get_or_insert_with(|| Batch {
+                encoder: self
+                    .ctx
+                    .device
+                    .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                        label: Some("synthesis kernels"),
+                    }),
+                kernels: Vec::new(),
+                params: Vec::new(),
+            });
+            let offset = batch.push_params(bytes, self.arena_alignment());
+            let mut entries = entries(buffers);
+            entries.push(wgpu::BindGroupEntry {
+                binding: 0,
+                resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                    buffer: &self.arena,
+                    offset,
+                    size: std::num::NonZeroU64::new(bytes.len().next_multiple_of(16) as u64),
+                }),
+            });
             let bind = self
                 .ctx
                 .device
                 .create_bind_group(&wgpu::BindGroupDescriptor {
                     label: Some(kernel),
                     layout: &pipeline.get_bind_group_layout(0),
-                    entries: &entries(buffers),
+                    entries: &entries,
                 });
-            let mut pending = self.pending.lock().unwrap();
-            let (encoder, kernels) = pending.get_or_insert_with(|| {
-                let encoder =
-                    self.ctx
-                        .device
-                        .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                            label: Some("synthesis kernels"),
-                        });
-                (encoder, Vec::new())
-            });
             // One pass per dispatch: wgpu orders the passes' buffer accesses with barriers, as
             // separate submissions were ordered.
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some(kernel),
-                ..Default::default()
-            });
+            let mut pass = batch
+                .encoder
+                .begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some(kernel),
+                    ..Default::default()
+                });
             pass.set_pipeline(&pipeline);
             pass.set_bind_group(0, &bind, &[]);
             pass.dispatch_workgroups(grid.0, grid.1, grid.2);
-            kernels.push(kernel);
+            batch.kernels.push(kernel);
             Ok(())
         })
     }
 
+    fn arena_alignment(&self) -> usize {
+        (self.ctx.limits.min_uniform_buffer_offset_alignment as usize).max(16)
+    }
+
     /// Submit the recorded dispatches (errors found in them name their kernels).
     pub fn flush(&self) -> Result<()> {
-        let Some((encoder, kernels)) = self.pending.lock().unwrap().take() else {
-            return Ok(());
-        };
-        let mut names = kernels;
+        let batch = self.pending.lock().unwrap().take();
+        match batch {
+            Some(b) => self.submit(b),
+            None => Ok(()),
+        }
+    }
+
+    /// Upload a batch's parameters into the arena and submit its commands. The arena is reused
+    /// by the next batch: the queue writes it after the work submitted before has run.
+    fn submit(&self, batch: Batch) -> Result<()> {
+        let mut names = batch.kernels;
         names.sort_unstable();
         names.dedup();
         self.ctx
             .checked(&format!("kernels {}", names.join(", ")), || {
-                self.ctx.queue.submit(Some(encoder.finish()));
+                self.ctx.queue.write_buffer(&self.arena, 0, &batch.params);
+                self.ctx.queue.submit(Some(batch.encoder.finish()));
                 Ok(())
             })
     }
@@ -379,16 +467,9 @@ impl GpuSynth {
         let voxels = bricks as u64 * 64;
         let words = voxels * (3 + pixel_words as u64);
         let out = self.state_buffer(words);
-        let uniform = self.ctx.uniform_buffer(kernel, params);
-        let mut buffers = vec![
-            (0, &uniform),
-            (1, &self.levels[level]),
-            (2, input),
-            (3, &out),
-            (4, index),
-        ];
+        let mut buffers = vec![(1, &self.levels[level]), (2, input), (3, &out), (4, index)];
         buffers.extend(extra.map(|b| (5, b)));
-        self.run(kernel, constants, &buffers, groups(voxels))?;
+        self.run(kernel, constants, params, &buffers, groups(voxels))?;
         Ok(GpuState {
             current: out,
             records: None,
@@ -481,7 +562,6 @@ impl GpuSynth {
                 p.k3d_used
             )));
         }
-        let uniform = self.ctx.uniform_buffer("correct params", p);
         let (projection, packed) = &self.projections[level];
         self.run(
             "correct",
@@ -491,8 +571,8 @@ impl GpuSynth {
                 ("K2D", p.k2d as f64),
                 ("PACKED_WEIGHTS", if *packed { 1.0 } else { 0.0 }),
             ],
+            p,
             &[
-                (0, &uniform),
                 (1, &self.levels[level]),
                 (2, &s.current),
                 (3, records),
@@ -502,13 +582,11 @@ impl GpuSynth {
             ],
             groups(threads),
         )?;
-        let uniform = self
-            .ctx
-            .uniform_buffer("scatter params", &ScatterParams::of(p));
         self.run(
             "scatter",
             &[],
-            &[(0, &uniform), (2, records), (3, &s.current), (4, index)],
+            &ScatterParams::of(p),
+            &[(2, records), (3, &s.current), (4, index)],
             groups(threads),
         )
     }
@@ -526,11 +604,11 @@ impl GpuSynth {
             .ctx
             .storage_buffer("records", bytemuck::cast_slice(records));
         let s = self.upload_state(state);
-        let uniform = self.ctx.uniform_buffer("scatter params", p);
         self.run(
             "scatter",
             &[],
-            &[(0, &uniform), (2, &records), (3, &s.current), (4, index)],
+            p,
+            &[(2, &records), (3, &s.current), (4, index)],
             groups(p.list_count as u64 * 8),
         )?;
         self.read_state(&s)
@@ -546,12 +624,11 @@ impl GpuSynth {
         let n = p.list_count as usize * 64;
         // (`colorize` writes a colour per listed voxel.)
         let out = self.scratch_buffer("colours", n as u64);
-        let uniform = self.ctx.uniform_buffer("colorize params", p);
         self.run(
             "colorize",
             &[],
+            p,
             &[
-                (0, &uniform),
                 (1, &self.levels[level]),
                 (2, &s.current),
                 (3, &out),

@@ -84,6 +84,14 @@ impl Executor {
         }
     }
 
+    /// See [`GpuSynth::set_parameter_arena_bytes`] (the CPU backend has no arena).
+    pub fn set_parameter_arena_bytes(&mut self, bytes: u64) -> Result<()> {
+        match self {
+            Executor::Gpu(g) => g.set_parameter_arena_bytes(bytes),
+            Executor::Cpu { .. } => Ok(()),
+        }
+    }
+
     pub fn max_state_bytes(&self) -> u64 {
         match self {
             Executor::Cpu { .. } => 1 << 31,

@@ -924,6 +924,13 @@ impl Synthesizer {
         self.exec.keep_buffers();
     }
 
+    /// Tests: a GPU parameter arena of `bytes`, so that batches fill up (see
+    /// `GpuSynth::set_parameter_arena_bytes`).
+    #[doc(hidden)]
+    pub fn set_parameter_arena_bytes(&mut self, bytes: u64) -> Result<()> {
+        self.exec.set_parameter_arena_bytes(bytes)
+    }
+
     /// Time every kernel (waiting for the device after each, so totals grow slightly).
     pub fn enable_profiling(&mut self) {
         self.times = Some(Default::default());
