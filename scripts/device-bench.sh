@@ -108,6 +108,13 @@ if wants cuts; then
         section cuts.txt $ss cut --backend gpu --origin 32,32,20 --normal 0,0,1 --size "$s" \
             --repeat $repeat --coarse-cache 128 --passes 2,2,2,1 -o "$work/cut$s.png"
     done
+    # Where a fast cut's time goes besides the kernels: the host's debug timings (plan, brick
+    # index, the wait for the device and the copy), then each kernel's GPU time.
+    section cuts.txt env SOLIDSYNTH_LOG=solidsynth=debug $ss cut --backend gpu \
+        --origin 32,32,20 --normal 0,0,1 --size 256 --repeat 4 --coarse-cache 128 \
+        --passes 2,2,2,1 -o "$work/cut-debug.png"
+    section cuts.txt $ss cut --backend gpu --origin 32,32,20 --normal 0,0,1 --size 256 \
+        --repeat $repeat --coarse-cache 128 --passes 2,2,2,1 --profile -o "$work/cut-profile.png"
 fi
 if wants surface; then
     for r in $resolutions; do
