@@ -22,6 +22,8 @@ if [[ "${1:-}" == "--prepare" ]]; then
     strip -o dist/solidsynth target/release/solidsynth
     strip -o dist/kernels-test "$kernels"
     cp ../shared/meshes/bunny.obj dist/bunny.obj
+    rm -rf dist/ablations
+    scripts/correct-ablations.sh dist/ablations
     ls -la dist
     exit 0
 fi
@@ -68,6 +70,7 @@ if ((quick)); then
     render_sizes=64
     gradient_sizes=32
     runs=1
+    ablation_size=32
 else
     both_sizes=64,128,256
     gpu_sizes=512
@@ -78,6 +81,7 @@ else
     render_sizes=64,128,256
     gradient_sizes=64,128
     runs=3
+    ablation_size=256
 fi
 
 # Byte-exactness of every kernel against its CPU reference, on this device.
@@ -91,6 +95,16 @@ if wants synth; then
     # One pass at the finest level (README: --passes), the faster schedule.
     section synth.txt $ss bench synth --sizes $both_sizes,$gpu_sizes --backends gpu --runs $runs \
         --passes 2,2,2,1
+    # What each part of `correct` costs here: timing-only variants (scripts/correct-ablations.sh,
+    # made by --prepare), the second of two runs each (the first compiles the variant).
+    for v in "" dist/ablations/*; do
+        for run in 1 2; do
+            SOLIDSYNTH_SHADER_DIR=$v $ss synth --size "$ablation_size" --backend gpu --profile \
+                -o "$work/ablation.nrrd" >"$work/ablation.txt" 2>&1
+        done
+        echo "== correct kernel, ${v:-as built}: $(grep -E '^ *kernel correct +[0-9]' "$work/ablation.txt")" |
+            tee -a "$out/synth.txt"
+    done
 fi
 
 # Issue 5: warm cut latency (target 256^2 <= 2 ms) and the bunny (target <= 1 s at 1024).
