@@ -46,7 +46,9 @@ impl Drop for GpuState {
 struct BufferPool(Arc<std::sync::Mutex<Vec<wgpu::Buffer>>>);
 
 const POOLED_BUFFERS: usize = 8;
-const POOLED_BYTES: u64 = 1 << 30;
+/// A 256^2 cut keeps about 45 MiB (two states, records, colours), an oblique 512^2 one more;
+/// `serve` holds one pool per loaded solid, so the cap stays well below a device's memory.
+const POOLED_BYTES: u64 = 256 << 20;
 
 impl BufferPool {
     fn take(&self, bytes: u64) -> Option<wgpu::Buffer> {
@@ -297,6 +299,13 @@ impl GpuSynth {
     /// after a few dispatches: the kernels-tests take the path of a full arena that way.
     #[doc(hidden)]
     pub fn set_parameter_arena_bytes(&mut self, bytes: u64) -> Result<()> {
+        // Room for the largest parameters (`CorrectParams`) at any offset alignment.
+        if bytes < 512 || bytes % 16 != 0 {
+            return Err(Error::invalid(
+                "parameter arena",
+                format!("{bytes} bytes; it needs a multiple of 16, at least 512"),
+            ));
+        }
         self.flush()?;
         self.arena = parameter_arena(&self.ctx, bytes);
         Ok(())
@@ -348,7 +357,7 @@ impl GpuSynth {
             let full = pending.take().unwrap();
             self.submit(full)?;
         }
-        self.ctx.checked(kernel, || {
+        let recorded = self.ctx.checked(kernel, || {
             let batch = pending.get_or_insert_with(|| Batch {
                 encoder: self
                     .ctx
@@ -390,7 +399,13 @@ impl GpuSynth {
             pass.dispatch_workgroups(grid.0, grid.1, grid.2);
             batch.kernels.push(kernel);
             Ok(())
-        })
+        });
+        if recorded.is_err() {
+            // The request fails; its batch (whose encoder may be invalid now) must not be
+            // submitted with the next request's work.
+            pending.take();
+        }
+        recorded
     }
 
     fn arena_alignment(&self) -> usize {

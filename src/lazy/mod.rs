@@ -1409,7 +1409,8 @@ impl Synthesizer {
                 state = exec::timed(&mut self.exec, &mut self.times, "upsample", |e| {
                     e.upsample(pack_index, &up, state, &index)
                 })?;
-                // Submitted alone, so the parent's state is freed as soon as it has run.
+                // Submitted alone, so the parent's state is freed as soon as it has run (a warm
+                // session keeps it for its next request instead: `keep_buffers`).
                 self.exec.flush()?;
             }
             progress(
