@@ -61,8 +61,7 @@ fn analyze(
 #[test]
 fn synthesis_kernels_bit_exact_on_gpu_and_cpu() {
     let _serial = crate::serial();
-    let Some(_) = crate::gpu() else { return };
-    let gpu = Compute::open(BackendChoice::Gpu, &GpuOptions::from_env()).unwrap();
+    let Some(gpu) = gpu_backend() else { return };
     let cases = [
         (
             false,
@@ -253,8 +252,7 @@ fn synthesis_kernels_bit_exact_on_gpu_and_cpu() {
 #[test]
 fn gpu_boxes_are_windows_of_larger_gpu_boxes() {
     let _serial = crate::serial();
-    let Some(_) = crate::gpu() else { return };
-    let gpu = Compute::open(BackendChoice::Gpu, &GpuOptions::from_env()).unwrap();
+    let Some(gpu) = gpu_backend() else { return };
     let a = analysis(false, Border::Wrap);
     let params = SynthParams {
         seed: 21,
@@ -315,6 +313,13 @@ fn gpu_boxes_are_windows_of_larger_gpu_boxes() {
         &bytes_to_words(&shared.data),
     )
     .unwrap();
+}
+
+/// The GPU backend for a synthesizer; None (the test is skipped) where there is no adapter,
+/// which fails instead under CI (`crate::gpu`).
+fn gpu_backend() -> Option<Compute> {
+    crate::gpu()?;
+    Some(Compute::open(BackendChoice::Gpu, &GpuOptions::from_env()).unwrap())
 }
 
 /// Run `f` on a fresh synthesizer of each backend and require byte-identical volumes.
@@ -540,8 +545,7 @@ fn each_synthesis_kernel_matches_its_reference() {
 fn warm_gpu_cut_session_repeats_its_cuts_exactly() {
     use solidsynth::lazy::cut::{CutSession, CutSpec};
     let _serial = crate::serial();
-    let Some(_) = crate::gpu() else { return };
-    let gpu = Compute::open(BackendChoice::Gpu, &GpuOptions::from_env()).unwrap();
+    let Some(gpu) = gpu_backend() else { return };
     let a = analysis(false, Border::Wrap);
     let params = SynthParams {
         seed: 21,
