@@ -215,11 +215,6 @@ fn synthesis_kernels_bit_exact_on_gpu_and_cpu() {
         s.set_max_chunk_side(16);
         s.synthesize_tileable(32, &|_, _| {}, false).unwrap().0
     });
-    // A period of 48: l_start's 6 is not whole bricks, so always boxes of the periodic solid,
-    // with the jitter's fine lattice in `init`.
-    same_on_both("tileable 48", &a, &params, &gpu, |s| {
-        s.synthesize_tileable(48, &|_, _| {}, false).unwrap().0
-    });
     // One colour source per channel, the matched table among them, on three different
     // exemplars (each channel's pixel from its own exemplar's data).
     let three = analysis(true, Border::Wrap);

@@ -45,6 +45,10 @@ override PACKED_WEIGHTS: bool = false;
 // 2D table at word a, set s's 3D table at word 3 + s, 3D slots per pixel at word 6. Entries are
 // padded to whole vec4s (entry_2d, entry_3d there).
 @group(0) @binding(6) var<storage, read> tables: array<u32>;
+// The state as the pass began: a voxel reads its neighbours outside its own brick here, those
+// inside from `state` (brick-local sub-passes, src/cpu/correct.rs), so a pass depends on its
+// bricks and 2 voxels around them only (src/lazy/plan.rs).
+@group(0) @binding(7) var<storage, read> pass_start: array<u32>;
 
 // Index of voxel p in the state (ABSENT when its brick is not stored).
 fn state_index(pos: vec3<i32>) -> u32 {
@@ -111,6 +115,24 @@ fn plane_neighbour(r: Around, a: u32, du: i32, dv: i32) -> u32 {
     return select(base + u32(n.z * 16 + n.y * 4 + n.x), ABSENT, base == ABSENT);
 }
 
+// Whether the voxel at (du, dv) in plane a of the voxel `r` surrounds lies in its brick. Only
+// positions decide it, so the lanes of a SIMD group (one class voxel k of eight bricks) agree,
+// and the branch in `neighbour_word` reads one buffer.
+fn in_own_brick(r: Around, a: u32, du: i32, dv: i32) -> bool {
+    let nu = r.local[(a + 1u) % 3u] + du;
+    let nv = r.local[(a + 2u) % 3u] + dv;
+    return nu >= 0 && nu <= 3 && nv >= 0 && nv <= 3;
+}
+
+// Word w of the stored voxel s (not ABSENT): from the current state in the own brick, else as
+// the pass began.
+fn neighbour_word(s: u32, w: u32, own: bool) -> u32 {
+    if (own) {
+        return state[s * stride() + w];
+    }
+    return pass_start[s * stride() + w];
+}
+
 // The projection's weights and biases (host: `projection_uniform` in src/gpu/synth.rs), in a
 // uniform buffer: every invocation reads the same words at the same time. Read from the level's
 // storage buffer they took ~45% of the kernel on lavapipe, from here about a quarter (lavapipe
@@ -149,15 +171,16 @@ fn project_plane(r: Around, a: u32) -> Projected {
         for (var du = -2; du <= 2; du++) {
             // Absent voxels read as zero.
             let s = plane_neighbour(r, a, du, dv);
+            let own = in_own_brick(r, a, du, dv);
             // The neighbour's first value word, read once for its (up to 4) channels.
             var word = 0u;
             if (s != ABSENT) {
-                word = state[s * stride() + 3u];
+                word = neighbour_word(s, 3u, own);
             }
             for (var ch = 0u; ch < CHANNELS; ch++) {
                 var byte = 0u;
                 if (ch >= 4u && s != ABSENT) {
-                    byte = (state[s * stride() + 3u + ch / 4u] >> ((ch % 4u) * 8u)) & 0xFFu;
+                    byte = (neighbour_word(s, 3u + ch / 4u, own) >> ((ch % 4u) * 8u)) & 0xFFu;
                 } else if (ch < 4u) {
                     byte = (word >> (ch * 8u)) & 0xFFu;
                 }
@@ -254,7 +277,7 @@ fn best_2d(r: Around, a: u32, q: Projected) -> vec2<u32> {
             let s = plane_neighbour(r, a, du, dv);
             var c = 0u;
             if (s != ABSENT) {
-                c = state[s * stride() + a];
+                c = neighbour_word(s, a, in_own_brick(r, a, du, dv));
             }
             let sx = coord_x(c) - du;
             let sy = coord_y(c) - dv;

@@ -18,9 +18,10 @@ use coherence::Grid;
 use frame::{next, rotate_from_shared, NEIGHBOURHOOD_PIXELS, NO_COORD};
 
 /// Bumped whenever the analysis computes something different from the same inputs and
-/// parameters (e.g. the balancing's calibration sizes; 2: PCA weights limited to 16 bits), so
-/// cached analyses are recomputed.
-pub const ALGORITHM_REVISION: u32 = 2;
+/// parameters (e.g. the balancing's calibration sizes; 2: PCA weights limited to 16 bits; 3: the
+/// calibration solids synthesized with brick-local sub-passes), so cached analyses are
+/// recomputed.
+pub const ALGORITHM_REVISION: u32 = 3;
 
 /// Pyramid levels analysed: synthesis starts three levels above the finest (l_start = L - 3).
 pub const ANALYSED_LEVELS: usize = 4;

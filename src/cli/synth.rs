@@ -16,7 +16,7 @@ pub struct SynthArgs {
     #[arg(long)]
     pub size: u32,
     /// A periodic solid of period N (copies of the volume tile space seamlessly): its own
-    /// deterministic solid, not the box [0, N)^3 of the infinite one. N a multiple of 16.
+    /// deterministic solid, not the box [0, N)^3 of the infinite one. N a multiple of 32.
     #[arg(long)]
     pub tileable: bool,
     #[command(flatten)]

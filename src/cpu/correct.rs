@@ -15,8 +15,12 @@
 //! Distances are integer sums of squared differences of 8-bit projections; ties keep the first
 //! found in that enumeration order.
 //!
-//! Reads come from `state`; results are returned, not written in place, so a sub-pass never reads
-//! a value it produced (the GPU ping-pongs two buffers for the same reason).
+//! Brick-local sub-passes: a voxel reads its neighbours in its own 4x4x4 brick from `state` (as the
+//! pass's earlier sub-passes left them) and those in other bricks from `pass_start` (the state when
+//! the pass began). A pass's dependencies then stay within its bricks and 2 voxels around them,
+//! so a request plans one dilation per pass, as the paper does (`lazy::plan`), instead of one
+//! per sub-pass, while the sub-passes inside a brick keep their Gauss-Seidel convergence.
+//! Results are returned, not written in place, so a sub-pass never reads a value it produced.
 //!
 //! Same results as the shader, organised for a CPU: voxels are corrected a run of bricks at a
 //! time from a `Window` copied out of the state, and candidates are scored from per-level
@@ -152,7 +156,7 @@ impl Window {
         ((d[2] * WINDOW + d[1]) * ROW + d[0]) as usize
     }
 
-    /// Copy from the state what the corrections of the voxels of class `class` in the `n`
+    /// Copy from the pass-start state what the corrections of the voxels of class `class` in the `n`
     /// bricks from `b` along x read, a row segment per index lookup (in a brick,
     /// x-consecutive voxels are consecutive in the state). The rest of the window is stale and
     /// never read.
@@ -211,7 +215,7 @@ impl Window {
                             self.triples[row..row + len].fill([0; 3]);
                         }
                         Some(s) => {
-                            let words = &ctx.state[s * STRIDE..(s + len) * STRIDE];
+                            let words = &ctx.pass_start[s * STRIDE..(s + len) * STRIDE];
                             for (i, v) in words.chunks_exact(STRIDE).enumerate() {
                                 self.values[row + i] = v[3];
                                 if with_triples {
@@ -240,12 +244,59 @@ impl Neighbours for Window {
     }
 }
 
+/// A voxel's reads in a brick-local sub-pass: its own brick from the current state, the rest from
+/// `outer` (the pass-start state, through the index or a [`Window`] copied from it).
+struct BrickLocal<'r, R: Neighbours> {
+    outer: &'r R,
+    state: &'r [u32],
+    stride: usize,
+    /// The own brick's first voxel (position) and state index.
+    origin: [i32; 3],
+    base: usize,
+}
+
+impl<R: Neighbours> BrickLocal<'_, R> {
+    /// The state index of `pos` when it lies in the own brick (by position: in a periodic state
+    /// the copy of the brick one period away is another brick).
+    #[inline(always)]
+    fn own(&self, pos: [i32; 3]) -> Option<usize> {
+        let d = [0, 1, 2].map(|i| pos[i] - self.origin[i]);
+        d.iter()
+            .all(|&v| (0..4).contains(&v))
+            .then(|| self.base + (d[2] * 16 + d[1] * 4 + d[0]) as usize)
+    }
+}
+
+impl<R: Neighbours> Neighbours for BrickLocal<'_, R> {
+    #[inline(always)]
+    fn triple(&self, pos: [i32; 3]) -> [u32; 3] {
+        match self.own(pos) {
+            Some(s) => {
+                let i = s * self.stride;
+                [self.state[i], self.state[i + 1], self.state[i + 2]]
+            }
+            None => self.outer.triple(pos),
+        }
+    }
+
+    #[inline(always)]
+    fn word(&self, pos: [i32; 3], w: usize) -> u32 {
+        match self.own(pos) {
+            Some(s) => self.state[s * self.stride + 3 + w],
+            None => self.outer.word(pos, w),
+        }
+    }
+}
+
+#[derive(Clone, Copy)]
 struct Ctx<'a> {
     p: &'a CorrectParams,
     level: &'a [u32],
     /// The level data as bytes (little-endian words), for reading projections directly.
     level_bytes: &'a [u8],
+    /// The state as the sub-passes so far left it, and as it was when the pass began.
     state: &'a [u32],
+    pass_start: &'a [u32],
     /// The level's brick index.
     bricks: &'a [u32],
     grid_lo: [i32; 3],
@@ -610,9 +661,17 @@ impl Ctx<'_> {
         if windowed {
             window.fill(self, first, n as i32, class);
         }
+        // Reads outside the own brick through the index see the pass-start state.
+        let start = Ctx {
+            state: self.pass_start,
+            ..*self
+        };
+        let stride = self.stride();
         for m in 0..n {
             let mask = self.mask(i + m);
             let b = [first[0] + m as i32, first[1], first[2]];
+            let origin = b.map(|v| v * 4);
+            let base = self.state_index(origin).expect("active bricks are stored");
             for k in 0..8 {
                 if (mask >> k) & 1 == 0 {
                     continue;
@@ -624,9 +683,23 @@ impl Ctx<'_> {
                 ];
                 let index = self.state_index(pos).expect("active bricks are stored");
                 let t = if windowed {
-                    self.correct_voxel::<MADD>(window, pos)
+                    let r = BrickLocal {
+                        outer: &*window,
+                        state: self.state,
+                        stride,
+                        origin,
+                        base,
+                    };
+                    self.correct_voxel::<MADD>(&r, pos)
                 } else {
-                    self.correct_voxel::<MADD>(self, pos)
+                    let r = BrickLocal {
+                        outer: &start,
+                        state: self.state,
+                        stride,
+                        origin,
+                        base,
+                    };
+                    self.correct_voxel::<MADD>(&r, pos)
                 };
                 out.push((index as u32, t));
             }
@@ -832,8 +905,23 @@ fn penalty(p: &CorrectParams, level: &[u32], a: usize, c: u32) -> u32 {
 
 /// Run one sub-pass: returns (state index, new triple) for every voxel of the class in the
 /// bricks of the list in `p`.
-pub fn correct(p: &CorrectParams, level: &[u32], state: &[u32], bricks: &[u32]) -> Updates {
-    correct_prepared(&Prepared::new(p, level), p, level, state, bricks)
+/// One sub-pass; `pass_start`: the state when its pass began (the same words as `state` in the
+/// pass's first sub-pass).
+pub fn correct(
+    p: &CorrectParams,
+    level: &[u32],
+    state: &[u32],
+    pass_start: &[u32],
+    bricks: &[u32],
+) -> Updates {
+    correct_prepared(
+        &Prepared::new(p, level),
+        p,
+        level,
+        state,
+        pass_start,
+        bricks,
+    )
 }
 
 /// What a correction derives from a level's data alone: the PCA weights transposed, the means,
@@ -1071,9 +1159,15 @@ pub fn correct_prepared(
     p: &CorrectParams,
     level: &[u32],
     state: &[u32],
+    pass_start: &[u32],
     bricks: &[u32],
 ) -> Updates {
     assert!(prepared.fits(p), "prepared for another level layout");
+    assert_eq!(
+        state.len(),
+        pass_start.len(),
+        "pass-start state of another size"
+    );
     assert!(
         state.len() / (3 + p.pixel_words as usize) <= u32::MAX as usize,
         "state indices fit 32 bits"
@@ -1084,6 +1178,7 @@ pub fn correct_prepared(
         level_bytes: bytemuck::cast_slice(level),
         prepared,
         state,
+        pass_start,
         bricks,
         grid_lo: [p.grid_lo_x, p.grid_lo_y, p.grid_lo_z],
         grid_dims: [p.grid_x, p.grid_y, p.grid_z],

@@ -19,6 +19,9 @@ pub struct GpuState {
     /// The corrections' records (`wgsl/correct.wgsl`, then `scatter`), grown to the largest
     /// sub-pass of the state so far: at most an eighth of the state.
     records: Option<wgpu::Buffer>,
+    /// A copy of the state as the current correction pass began (`begin_pass`): brick-local
+    /// sub-passes read other bricks' voxels there.
+    pass_start: Option<wgpu::Buffer>,
     words: u64,
     /// Where its buffers go when it is dropped, in a session that keeps them.
     pool: Option<BufferPool>,
@@ -30,6 +33,9 @@ impl Drop for GpuState {
             pool.give(self.current.clone());
             if let Some(r) = self.records.take() {
                 pool.give(r);
+            }
+            if let Some(b) = self.pass_start.take() {
+                pool.give(b);
             }
         }
     }
@@ -358,16 +364,7 @@ impl GpuSynth {
             self.submit(full)?;
         }
         let recorded = self.ctx.checked(kernel, || {
-            let batch = pending.get_or_insert_with(|| Batch {
-                encoder: self
-                    .ctx
-                    .device
-                    .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                        label: Some("synthesis kernels"),
-                    }),
-                kernels: Vec::new(),
-                params: Vec::new(),
-            });
+            let batch = pending.get_or_insert_with(|| self.new_batch());
             let offset = batch.push_params(bytes, self.arena_alignment());
             let mut entries = entries(buffers);
             entries.push(wgpu::BindGroupEntry {
@@ -406,6 +403,19 @@ impl GpuSynth {
             pending.take();
         }
         recorded
+    }
+
+    fn new_batch(&self) -> Batch {
+        Batch {
+            encoder: self
+                .ctx
+                .device
+                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                    label: Some("synthesis kernels"),
+                }),
+            kernels: Vec::new(),
+            params: Vec::new(),
+        }
     }
 
     fn arena_alignment(&self) -> usize {
@@ -452,6 +462,7 @@ impl GpuSynth {
         GpuState {
             current,
             records: None,
+            pass_start: None,
             words: words.len() as u64,
             pool: self.pool.clone(),
         }
@@ -488,6 +499,7 @@ impl GpuSynth {
         Ok(GpuState {
             current: out,
             records: None,
+            pass_start: None,
             words,
             pool: self.pool.clone(),
         })
@@ -548,6 +560,21 @@ impl GpuSynth {
         )
     }
 
+    /// Begin a correction pass: record a copy of the state as it is now, which the pass's
+    /// sub-passes read for voxels outside their own bricks.
+    pub fn begin_pass(&mut self, s: &mut GpuState) -> Result<()> {
+        if s.pass_start.is_none() {
+            s.pass_start = Some(self.scratch_buffer("pass-start state", s.words));
+        }
+        let copy = s.pass_start.as_ref().unwrap();
+        let mut pending = self.pending.lock().unwrap();
+        let batch = pending.get_or_insert_with(|| self.new_batch());
+        batch
+            .encoder
+            .copy_buffer_to_buffer(&s.current, 0, copy, 0, Some(s.words * 4));
+        Ok(())
+    }
+
     /// One correction sub-pass: `correct` reads the state and writes one record per listed
     /// class voxel, then `scatter` writes the needed records into the state (queue order keeps
     /// the two apart), so no invocation reads a value written in the same sub-pass.
@@ -594,6 +621,12 @@ impl GpuSynth {
                 (4, index),
                 (5, projection),
                 (6, candidates),
+                (
+                    7,
+                    s.pass_start
+                        .as_ref()
+                        .expect("a correction runs inside a pass (begin_pass)"),
+                ),
             ],
             groups(threads),
         )?;

@@ -28,9 +28,10 @@ impl IndexBuf {
     }
 }
 
-/// A level's triples on the backend.
+/// A level's triples on the backend. The CPU's holds its words and, during a correction pass,
+/// a copy of them as the pass began (brick-local sub-passes read other bricks there).
 pub enum State {
-    Cpu(Vec<u32>),
+    Cpu(Vec<u32>, Vec<u32>),
     Gpu(crate::gpu::synth::GpuState),
 }
 
@@ -61,7 +62,7 @@ impl Executor {
     /// The state's words (triples and values), copied to the host.
     pub fn read_state(&self, state: &State) -> Result<Vec<u32>> {
         match (self, state) {
-            (Executor::Cpu { .. }, State::Cpu(v)) => Ok(v.clone()),
+            (Executor::Cpu { .. }, State::Cpu(v, _)) => Ok(v.clone()),
             (Executor::Gpu(g), State::Gpu(s)) => g.read_state(s),
             _ => unreachable!("state from another backend"),
         }
@@ -102,7 +103,7 @@ impl Executor {
     /// A state built on the host (e.g. from the coarse-level cache).
     pub fn upload_state(&self, words: Vec<u32>) -> Result<State> {
         match self {
-            Executor::Cpu { .. } => Ok(State::Cpu(words)),
+            Executor::Cpu { .. } => Ok(State::Cpu(words, Vec::new())),
             Executor::Gpu(g) => Ok(State::Gpu(g.upload_state(&words))),
         }
     }
@@ -124,13 +125,16 @@ impl Executor {
         cache: Option<&IndexBuf>,
     ) -> Result<State> {
         match self {
-            Executor::Cpu { levels, table, .. } => Ok(State::Cpu(crate::cpu::init::init(
-                p,
-                table,
-                &levels[level],
-                index.cpu(),
-                cache.map_or(&[][..], |c| c.cpu()),
-            ))),
+            Executor::Cpu { levels, table, .. } => Ok(State::Cpu(
+                crate::cpu::init::init(
+                    p,
+                    table,
+                    &levels[level],
+                    index.cpu(),
+                    cache.map_or(&[][..], |c| c.cpu()),
+                ),
+                Vec::new(),
+            )),
             Executor::Gpu(g) => Ok(State::Gpu(g.init(
                 level,
                 p,
@@ -149,12 +153,26 @@ impl Executor {
         index: &IndexBuf,
     ) -> Result<State> {
         match (self, parent) {
-            (Executor::Cpu { levels, .. }, State::Cpu(v)) => Ok(State::Cpu(
+            (Executor::Cpu { levels, .. }, State::Cpu(v, _)) => Ok(State::Cpu(
                 crate::cpu::upsample::upsample(p, &levels[level], &v, index.cpu()),
+                Vec::new(),
             )),
             (Executor::Gpu(g), State::Gpu(s)) => {
                 Ok(State::Gpu(g.upsample(level, p, s, index.gpu())?))
             }
+            _ => unreachable!("state from another backend"),
+        }
+    }
+
+    /// Begin a correction pass: its sub-passes read other bricks' voxels as they are now.
+    pub fn begin_pass(&mut self, state: &mut State) -> Result<()> {
+        match (self, state) {
+            (Executor::Cpu { .. }, State::Cpu(v, pass_start)) => {
+                pass_start.clear();
+                pass_start.extend_from_slice(v);
+                Ok(())
+            }
+            (Executor::Gpu(g), State::Gpu(s)) => g.begin_pass(s),
             _ => unreachable!("state from another backend"),
         }
     }
@@ -171,7 +189,7 @@ impl Executor {
                 Executor::Cpu {
                     levels, prepared, ..
                 },
-                State::Cpu(v),
+                State::Cpu(v, pass_start),
             ) => {
                 use crate::cpu::correct::{correct_prepared, Prepared};
                 let data = &levels[level];
@@ -182,7 +200,8 @@ impl Executor {
                     rebuilt = Prepared::new(p, data);
                     prep = &rebuilt;
                 }
-                let updates = correct_prepared(prep, p, data, v, index.cpu());
+                assert_eq!(v.len(), pass_start.len(), "a correction outside a pass");
+                let updates = correct_prepared(prep, p, data, v, pass_start, index.cpu());
                 crate::cpu::correct::apply(p, &levels[level], v, &updates);
                 Ok(())
             }
@@ -199,7 +218,7 @@ impl Executor {
         index: &IndexBuf,
     ) -> Result<Vec<u32>> {
         match (self, state) {
-            (Executor::Cpu { levels, .. }, State::Cpu(v)) => Ok(crate::cpu::colorize::colorize(
+            (Executor::Cpu { levels, .. }, State::Cpu(v, _)) => Ok(crate::cpu::colorize::colorize(
                 p,
                 &levels[level],
                 v,

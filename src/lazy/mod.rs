@@ -29,9 +29,10 @@ pub use plan::Box3;
 use rayon::prelude::*;
 
 /// Order of the parity classes (bit 0 = x, 1 = y, 2 = z) within a pass. Chosen (exhaustively,
-/// over all 8! orders) to minimize the dependency padding: 13 voxels per level for two passes,
-/// against 19 for the lexicographic order (12 below and 13 above since the planner dilates
-/// from the class's own voxels, `plan::Box3::snapped_to_class`).
+/// over all 8! orders) to minimize the dependency padding when every sub-pass read the latest
+/// values (13 voxels per level for two passes, against 19 for the lexicographic order); since
+/// sub-passes are brick-local (`plan`) the order no longer changes the padding, only which
+/// in-brick neighbours a class sees updated.
 pub const SUBPASS_ORDER: [usize; 8] = [0, 6, 5, 4, 3, 1, 2, 7];
 
 /// Most correction passes a level may run.
@@ -305,18 +306,19 @@ fn periods_below(n: u32, levels: usize) -> Vec<u32> {
 }
 
 /// Refuse a tileable period `n` (finest-level voxels) that the pyramid cannot keep periodic:
-/// each level's period is half the next one's, and the correction's parity classes need an even
-/// period at l_start, so `n` must be a multiple of 16 (the jitter field repeats on its fine
-/// lattice when l_start's period is not a multiple of 4: [`jitter::fine_lattice`]).
+/// each level's period is half the next one's, and the correction's brick-local sub-passes
+/// (`plan`) need whole 4-voxel bricks in every level's period, so `n` must be a multiple of 32.
+/// (Until session 25 a multiple of 16 was enough; the jitter field's fine lattice,
+/// [`jitter::fine_lattice`], served l_start periods that were not multiples of 4.)
 pub fn check_tileable_size(n: u32) -> Result<()> {
     let levels = 1u32 << (ANALYSED_LEVELS - 1);
-    let step = 2 * levels;
+    let step = 4 * levels;
     if n < step || !n.is_multiple_of(step) {
         return Err(Error::invalid(
             format!("--size {n} with --tileable"),
             format!(
                 "must be a multiple of {step} (each of the {ANALYSED_LEVELS} levels halves the \
-                 period, and the coarsest needs an even one)"
+                 period, and the coarsest needs whole 4-voxel bricks)"
             ),
         ));
     }
@@ -1051,7 +1053,7 @@ impl Synthesizer {
     /// A tileable solid: the `n`^3 volume of a solid periodic with period `n` along each axis
     /// (every level periodic with its own size), so copies of it tile space seamlessly. Its own
     /// deterministic definition (same analysis, seed, jitter), not a region of the infinite
-    /// solid. `n` must be a multiple of 16 ([`check_tileable_size`]). Held whole: see
+    /// solid. `n` must be a multiple of 32 ([`check_tileable_size`]). Held whole: see
     /// [`Self::synthesize_tileable_slabs`] for large ones.
     pub fn synthesize_tileable(
         &mut self,
@@ -1419,6 +1421,9 @@ impl Synthesizer {
             );
             let k3d_used = pack.k3d_used(pack_index + 1 == self.packs.len());
             for (s, sp) in lv.subpasses.iter().enumerate() {
+                if s % SUBPASS_ORDER.len() == 0 {
+                    self.exec.begin_pass(&mut state)?;
+                }
                 if sp.is_empty() {
                     continue;
                 }
@@ -2150,7 +2155,7 @@ mod tileable_tests {
 
     /// A tileable solid is exactly periodic: a box of the periodic solid shifted by part of a
     /// period holds the tileable volume's voxels rolled by that shift, for a period in one
-    /// piece (64) and one always built in groups on the jitter's fine lattice (48).
+    /// piece (64) and the smallest (32).
     #[test]
     fn tileable_solids_repeat_exactly_with_their_period() {
         let input = AnalysisInput {
@@ -2164,7 +2169,7 @@ mod tileable_tests {
             ..Default::default()
         };
         let analysis = analyze(&input, &params, &Compute::Cpu, &|_, _| {}).unwrap();
-        for n in [48i32, 64] {
+        for n in [32i32, 64] {
             let mut s = Synthesizer::new(&analysis, SynthParams::default(), &Compute::Cpu).unwrap();
             let (whole, _) = s.synthesize_tileable(n as u32, &|_, _| {}, false).unwrap();
             let periods = periods_below(n as u32, ANALYSED_LEVELS);

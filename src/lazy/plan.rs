@@ -2,12 +2,18 @@
 //! values of the infinite solid (spatial determinism, paper 5.2).
 //!
 //! A correction sub-pass updates the voxels of one parity class (x, y, z mod 2) and reads, for
-//! each, the three 5x5 planes through it (its 3-neighbourhood and its k-coherent sources). Planning
-//! runs backwards from the requested box: per class, the box of voxels whose values are still
-//! needed; a sub-pass must compute its class's needed box, and every voxel it reads becomes needed
-//! before it. At the start of a level, the union of needed boxes is what upsampling (or the
-//! initialization) must provide, and half of it (rounded out) is what the coarser level must
-//! deliver. Boxes make this slightly conservative but never short.
+//! each, the three 5x5 planes through it (its 3-neighbourhood and its k-coherent sources). It
+//! reads a neighbour in its own 4x4x4 brick as the earlier sub-passes of the pass left it, and a
+//! neighbour in another brick as it was when the pass began (`cpu::correct`, brick-local
+//! sub-passes). So a pass's dependencies stay within its bricks plus 2 voxels: planning runs
+//! backwards from the requested box, a pass computes every voxel of the bricks covering what
+//! must be correct after it, and needs, when it begins, those bricks and 2 voxels around them.
+//! The paper plans one dilation by the neighbourhood per pass in the same way (its Fig. 7); with
+//! every read taking the latest value, sub-pass after sub-pass, the dependencies would chain
+//! through the eight sub-passes (13 voxels of padding per level for two passes instead of 6 to 9
+//! here; BENCHMARKS.md, session 25). At the start of a level, the union of needed boxes is what
+//! upsampling (or the initialization) must provide, and half of it (rounded out) is what the
+//! coarser level must deliver. Boxes make this slightly conservative but never short.
 
 use super::SUBPASS_ORDER;
 
@@ -67,6 +73,17 @@ impl Box3 {
             hi: [0, 1, 2].map(|i| self.hi[i] - (self.hi[i] - 1 - c[i]).rem_euclid(2)),
         }
     }
+    /// The smallest box of whole bricks (multiples of 4) holding this one.
+    pub fn snapped_to_bricks(&self) -> Box3 {
+        if self.is_empty() {
+            return *self;
+        }
+        Box3 {
+            lo: self.lo.map(|v| v.div_euclid(BRICK) * BRICK),
+            hi: self.hi.map(|v| (v - 1).div_euclid(BRICK) * BRICK + BRICK),
+        }
+    }
+
     /// The coarser-level box whose children cover this one.
     pub fn parent(&self) -> Box3 {
         Box3 {
@@ -83,44 +100,12 @@ impl Box3 {
     }
 }
 
-/// Offsets a correction reads: the three 5x5 planes through the voxel.
-pub fn footprint() -> Vec<[i32; 3]> {
-    let mut d = Vec::new();
-    for z in -2..=2 {
-        for y in -2..=2 {
-            for x in -2..=2i32 {
-                if x == 0 || y == 0 || z == 0 {
-                    d.push([x, y, z]);
-                }
-            }
-        }
-    }
-    d
-}
+/// How far a correction reads from its voxel along any axis: the 5x5 planes reach 2 (its
+/// k-coherent sources, the 3x3 in-plane neighbours, are among them).
+pub const READ_REACH: i32 = 2;
 
-fn class_of(c: usize) -> [i32; 3] {
-    [(c & 1) as i32, ((c >> 1) & 1) as i32, ((c >> 2) & 1) as i32]
-}
-
-/// For reader class `c` and read class `k`: the per-axis extent of footprint offsets from a
-/// class-c voxel landing on a class-k voxel (None when no offset does).
-fn extents() -> [[Option<([i32; 3], [i32; 3])>; 8]; 8] {
-    let mut out = [[None; 8]; 8];
-    for c in 0..8 {
-        let pc = class_of(c);
-        for d in footprint() {
-            let k = (0..3)
-                .map(|i| (((pc[i] + d[i]).rem_euclid(2)) as usize) << i)
-                .sum::<usize>();
-            let e = out[c][k].get_or_insert((d, d));
-            for i in 0..3 {
-                e.0[i] = e.0[i].min(d[i]);
-                e.1[i] = e.1[i].max(d[i]);
-            }
-        }
-    }
-    out
-}
+/// Brick edge (`bricks::BRICK`): a pass's sub-passes see each other's updates within a brick.
+const BRICK: i32 = 4;
 
 /// What one level of a box synthesis computes.
 #[derive(Clone, Debug, PartialEq)]
@@ -137,32 +122,23 @@ pub struct LevelPlan {
 /// Plan a synthesis of `output` (finest-level voxels) through one level per entry of `passes`,
 /// each with that many correction passes (coarsest level first). Returned coarsest level first.
 pub fn plan(output: Box3, passes: &[usize]) -> Vec<LevelPlan> {
-    let ext = extents();
     let mut plans = Vec::new();
     let mut deliver = output;
     for &level_passes in passes.iter().rev() {
-        let mut need = [deliver; 8];
+        // What must hold its solid values after the pass being planned (the last one first).
+        let mut need = deliver;
         let mut subpasses = Vec::new();
         for _ in 0..level_passes {
+            // Every voxel of the bricks covering it: a voxel depends on the earlier sub-passes'
+            // results in its own brick.
+            let computed = need.snapped_to_bricks();
             for &c in SUBPASS_ORDER.iter().rev() {
-                // Only the class's own voxels are computed: reads are dilated from their hull
-                // (a thin box may hold none of a class).
-                let computed = need[c].snapped_to_class(c);
-                subpasses.push((c, computed));
-                if computed.is_empty() {
-                    continue;
-                }
-                // Voxel c is overwritten here: before it, class c is needed only where read.
-                need[c] = Box3::new([0; 3], [0; 3]);
-                for k in 0..8 {
-                    if let Some((lo, hi)) = ext[c][k] {
-                        need[k] = need[k].hull(&computed.dilate(lo, hi));
-                    }
-                }
+                subpasses.push((c, computed.snapped_to_class(c)));
             }
+            need = computed.dilate([-READ_REACH; 3], [READ_REACH; 3]);
         }
         subpasses.reverse();
-        let storage = need.iter().fold(deliver, |acc, b| acc.hull(b));
+        let storage = need.hull(&deliver);
         plans.push(LevelPlan {
             storage,
             deliver,
@@ -177,6 +153,10 @@ pub fn plan(output: Box3, passes: &[usize]) -> Vec<LevelPlan> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn class_of(c: usize) -> [i32; 3] {
+        [(c & 1) as i32, ((c >> 1) & 1) as i32, ((c >> 2) & 1) as i32]
+    }
 
     #[test]
     fn snapping_keeps_exactly_the_class_voxels() {
@@ -223,13 +203,14 @@ mod tests {
                 assert_eq!(plans[i + 1].storage.parent(), p.deliver);
             }
         }
-        // The padding of the finest level stays small (13 voxels with the chosen order).
+        // The padding of the finest level: its bricks (out.lo[0] = -3 rounds to -4), one more
+        // brick for the first pass, and 2 voxels around.
         let f = &plans[3];
-        assert!(
-            f.storage.lo[0] >= out.lo[0] - 13 && f.storage.hi[2] <= out.hi[2] + 13,
-            "{:?}",
-            f.storage
-        );
+        assert_eq!(f.storage, Box3::new([-10, -2, -6], [26, 18, 22]));
+        // Every pass computes whole bricks, all of their voxels.
+        for (class, b) in &f.subpasses {
+            assert_eq!(b.lo.map(|v| v.rem_euclid(4)), class_of(*class), "{b:?}");
+        }
     }
 
     #[test]
