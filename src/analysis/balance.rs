@@ -12,7 +12,7 @@
 //! How, keeping the solid lazy and spatially deterministic. Those methods re-weight with the
 //! histogram of the volume being synthesized, a global quantity a lazy synthesis never has. Here
 //! the histogram is measured once, at analysis time, on calibration solids: `rounds` tileable
-//! solids of `calibration_size` voxels per side (seed [`CALIBRATION_SEED`]), each synthesized with
+//! solids of `calibration_size` voxels per side (seeds from [`CALIBRATION_SEED`]), each synthesized with
 //! the penalties found so far. After each, every level's usage of every exemplar pixel (all
 //! three coordinates of every voxel, per exemplar; one histogram when one image serves all
 //! axes) is divided by its mean and added up over the rounds; a pixel's penalty is then
@@ -39,8 +39,8 @@ pub const MAX_ROUNDS: u32 = 16;
 /// Three of them plus 16, times the largest distance (3 planes x 12 dims x 255^2), stays below
 /// 2^32: the kernels' u32 products cannot overflow.
 pub const MAX_PENALTY: u8 = 255;
-/// Seed of the calibration solids (any fixed value: the analysis must not depend on the user's
-/// synthesis seed).
+/// Seed of the first calibration solid, the next rounds' are the following ones (any fixed
+/// values: the analysis must not depend on the user's synthesis seed).
 pub const CALIBRATION_SEED: u64 = 0xBA1A_4CE;
 
 /// Edge of the calibration solids for an exemplar of `pixels` pixels: large enough that the
@@ -93,8 +93,11 @@ pub fn balance(
             &format!("round {} of {rounds} ({size}^3)", round + 1),
             round as f32 / rounds as f32,
         );
+        // A new solid each round (until session 25 every round synthesized the same one, which
+        // made the penalties swing with that one solid: the built-in exemplar's grey cells were
+        // nearly half of one analysis' solids and absent from the next's).
         let params = SynthParams {
-            seed: CALIBRATION_SEED,
+            seed: CALIBRATION_SEED + round as u64,
             ..Default::default()
         };
         let mut synth = Synthesizer::new(analysis, params, compute)?;

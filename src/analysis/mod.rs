@@ -19,9 +19,9 @@ use frame::{next, rotate_from_shared, NEIGHBOURHOOD_PIXELS, NO_COORD};
 
 /// Bumped whenever the analysis computes something different from the same inputs and
 /// parameters (e.g. the balancing's calibration sizes; 2: PCA weights limited to 16 bits; 3: the
-/// calibration solids synthesized with brick-local sub-passes), so cached analyses are
-/// recomputed.
-pub const ALGORITHM_REVISION: u32 = 3;
+/// calibration solids synthesized with brick-local sub-passes; 4: a new calibration seed each
+/// round), so cached analyses are recomputed.
+pub const ALGORITHM_REVISION: u32 = 4;
 
 /// Pyramid levels analysed: synthesis starts three levels above the finest (l_start = L - 3).
 pub const ANALYSED_LEVELS: usize = 4;
