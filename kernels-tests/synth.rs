@@ -101,8 +101,9 @@ fn synthesis_kernels_bit_exact_on_gpu_and_cpu() {
             s.synthesize(b, &|_, _| {}).unwrap()
         });
     }
-    // A one-voxel-thick slab (an axis-aligned cut's request), planned voxel-exactly at the
-    // finest level: partial brick masks in every sub-pass.
+    // A one-voxel-thick slab (an axis-aligned cut's request): its bricks and their padding.
+    // (Until session 25 it was planned voxel by voxel, with partial brick masks; passes now
+    // compute whole bricks, so every mask is full.)
     let a = analysis(false, Border::Wrap);
     let params = SynthParams {
         seed: 78,

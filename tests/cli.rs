@@ -821,7 +821,7 @@ fn synth_bad_inputs_exit_2_and_write_nothing() {
         d,
         &["bad.ssa", "future.ssa", "full"],
     );
-    // A period the pyramid cannot halve down to an even coarsest period.
+    // A period the pyramid cannot halve down to a coarsest period of whole 4-voxel bricks.
     let o = run(&["synth", "--size", "40", "--tileable", "-o", out_s]);
     assert_user_error(
         &o,

@@ -30,22 +30,11 @@ const WEIGHT_ENTRIES: i32 = 144;
 // The coarse-level cache's triples, 3 words per voxel, x fastest (any buffer when not used).
 @group(0) @binding(5) var<storage, read> cache: array<u32>;
 
-// Tileable solids whose l_start period is not a multiple of 4 use a fine lattice of 2^3 cells,
-// each holding a Gaussian with probability 1/8 (src/lazy/jitter.rs, FINE_CELL).
-const FINE_CELL: i32 = 2;
-const FINE_REACH: i32 = 4;
-// Fine cells visited per workgroup: the brick's 2^3 and FINE_REACH more on each side.
-const FINE_SIDE: u32 = 10u;
-
-fn fine_lattice() -> bool {
-    return params.period != 0u && params.period % 4u != 0u;
-}
-
 fn cell_hash(cell: vec3<i32>) -> u32 {
     // Tileable solids: cells repeat with the period, so the field does too.
     var c = cell;
     if (params.period != 0u) {
-        let n = i32(params.period) / select(CELL, FINE_CELL, fine_lattice());
+        let n = i32(params.period) / CELL;
         c = vec3<i32>(rem_euclid(c.x, n), rem_euclid(c.y, n), rem_euclid(c.z, n));
     }
     var h = hash32(params.seed_lo ^ 0x9E3779B9u);
@@ -65,28 +54,8 @@ fn cell_hash(cell: vec3<i32>) -> u32 {
 // integer sum, the same in any order. About a fifth of the 125 are kept, so each voxel's loop is
 // that much shorter.
 const CELLS_AROUND: u32 = 125u;
-// Room for every cell visited around a brick: 125, or on the fine lattice 1000 (16000 bytes:
-// within WebGPU's 16 KiB default). A pipeline constant, so that only the fine lattice's
-// pipeline holds the larger array (less workgroup memory: more workgroups at once on a GPU).
-override MAX_KEPT: u32 = 125u;
-var<workgroup> gaussians: array<vec4<i32>, MAX_KEPT>;
+var<workgroup> gaussians: array<vec4<i32>, CELLS_AROUND>;
 var<workgroup> kept: atomic<u32>;
-
-// The Gaussian of fine cell `cell`, with w = -1 when the cell holds none.
-fn fine_gaussian_of(cell: vec3<i32>) -> vec4<i32> {
-    let h = cell_hash(cell);
-    if ((hash32(h ^ 5u) & 7u) != 0u) {
-        return vec4<i32>(0, 0, 0, -1);
-    }
-    let shape = hash32(h ^ 4u);
-    let within = u32(FINE_CELL) * 256u - 1u;
-    return vec4<i32>(
-        cell.x * FINE_CELL * 256 + i32(hash32(h ^ 1u) & within),
-        cell.y * FINE_CELL * 256 + i32(hash32(h ^ 2u) & within),
-        cell.z * FINE_CELL * 256 + i32(hash32(h ^ 3u) & within),
-        i32((shape & 3u) | (((shape >> 2u) & 63u) << 2u)),
-    );
-}
 
 fn gaussian_of(cell: vec3<i32>) -> vec4<i32> {
     let h = cell_hash(cell);
@@ -155,24 +124,11 @@ fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) 
         var sig2 = array<i32, 4>(params.sig0, params.sig1, params.sig2, params.sig3);
         // The cell's voxel centres span [lo, lo + 3 voxels] per axis (1/256 voxel).
         let lo = cell * CELL * 256 + vec3<i32>(128);
-        let fine = fine_lattice();
-        if (fine && MAX_KEPT < FINE_SIDE * FINE_SIDE * FINE_SIDE) {
-            // Not reached: the host builds the fine lattice's pipeline with room for 1000
-            // (src/gpu/synth.rs, init). Returning keeps the array's writes in bounds.
-            return;
-        }
-        let around = select(CELLS_AROUND, FINE_SIDE * FINE_SIDE * FINE_SIDE, fine);
-        for (var g = li; g < around; g += 64u) {
-            var gauss: vec4<i32>;
-            if (fine) {
-                let o = vec3<i32>(vec3<u32>(g % FINE_SIDE, (g / FINE_SIDE) % FINE_SIDE, g / (FINE_SIDE * FINE_SIDE)));
-                gauss = fine_gaussian_of(cell * (CELL / FINE_CELL) - vec3<i32>(FINE_REACH) + o);
-            } else {
-                let o = vec3<i32>(vec3<u32>(g % 5u, (g / 5u) % 5u, g / 25u)) - vec3<i32>(REACH);
-                gauss = gaussian_of(cell + o);
-            }
+        for (var g = li; g < CELLS_AROUND; g += 64u) {
+            let o = vec3<i32>(vec3<u32>(g % 5u, (g / 5u) % 5u, g / 25u)) - vec3<i32>(REACH);
+            let gauss = gaussian_of(cell + o);
             let near = max(max(lo - gauss.xyz, gauss.xyz - (lo + vec3<i32>(3 * 256))), vec3<i32>(0));
-            if (gauss.w >= 0 && dot(near, near) < WEIGHT_ENTRIES * sig2[u32(gauss.w) & 3u]) {
+            if (dot(near, near) < WEIGHT_ENTRIES * sig2[u32(gauss.w) & 3u]) {
                 gaussians[atomicAdd(&kept, 1u)] = gauss;
             }
         }

@@ -2,7 +2,8 @@
 // and writes its class's voxels to a compact buffer (one stride-word record per listed class
 // voxel, in list order), so no invocation reads a value written in the same sub-pass; this kernel
 // then copies the needed records into place. The compact buffer is at most an eighth of the
-// state, where a second full state (copied back after every sub-pass) used to double it.
+// state (a second full state, copied back after every sub-pass, used to double it; since session
+// 25 a copy of the state taken once per pass does, for the brick-local reads of other bricks).
 // CPU reference: src/cpu/scatter.rs.
 
 struct ScatterParams {

@@ -288,7 +288,8 @@ pub fn check_sparse_memory(
     let requested = bricks * (256 + 32);
     // A group is a cube of the request: on a surface it holds about (side / extent)^2 of the
     // bricks, and stores their padding too, about eight times their voxels at the finest
-    // level (13 voxels of padding around a 4-voxel brick layer, the coarser levels halving),
+    // level (13 voxels of padding around a 4-voxel brick layer before session 25's brick-local
+    // sub-passes, 6 to 9 since, so this over-estimates; the coarser levels halving),
     // 16 bytes a voxel, two copies on a GPU.
     let group_side = params.max_group.unwrap_or(512);
     let share = (group_side as f64 / extent.max(1.0)).powi(2).min(1.0);

@@ -1,7 +1,9 @@
 //! Dispatch of the synthesis kernels `init`, `upsample`, `correct`, `scatter`, `colorize` (CPU
-//! references in `src/cpu/`). Level data stays resident; a level's state is one buffer plus the
-//! corrections' records: `correct` reads the state and writes records, `scatter` writes them
-//! back, so no invocation reads a value written in the same sub-pass. Dispatches are recorded
+//! references in `src/cpu/`). Level data stays resident; a level's state is one buffer, plus the
+//! corrections' records and, during a pass, a copy of the state as the pass began (`begin_pass`:
+//! brick-local sub-passes read other bricks there): `correct` reads the state and writes
+//! records, `scatter` writes them back, so no invocation reads a value written in the same
+//! sub-pass. Dispatches are recorded
 //! into one command encoder and submitted together (`flush`: once per level, and before any
 //! read) without waiting; the only wait is the bounded read-back of the colours.
 
@@ -52,7 +54,8 @@ impl Drop for GpuState {
 struct BufferPool(Arc<std::sync::Mutex<Vec<wgpu::Buffer>>>);
 
 const POOLED_BUFFERS: usize = 8;
-/// A 256^2 cut keeps about 45 MiB (two states, records, colours), an oblique 512^2 one more;
+/// A 256^2 cut keeps about 45 MiB (a state, its pass-start copy, records, colours), an
+/// oblique 512^2 one more;
 /// `serve` holds one pool per loaded solid, so the cap stays well below a device's memory.
 const POOLED_BYTES: u64 = 256 << 20;
 
@@ -518,13 +521,6 @@ impl GpuSynth {
                 "init from the coarse cache without its buffer".into(),
             ));
         }
-        // The fine jitter lattice visits 1000 cells per workgroup, the usual one 125 (the
-        // shader's default, so the common pipeline is the one built up front).
-        let constants: &[(&str, f64)] = if crate::lazy::jitter::fine_lattice(p.period) {
-            &[("MAX_KEPT", 1000.0)]
-        } else {
-            &[]
-        };
         // (Binding 5 is declared whether or not the cache is read: the table stands in.)
         self.fill_state(
             "init",
@@ -535,7 +531,7 @@ impl GpuSynth {
             Some(cache.unwrap_or(&self.table)),
             p.list_count,
             p.pixel_words,
-            constants,
+            &[],
         )
     }
 

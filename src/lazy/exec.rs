@@ -1,5 +1,6 @@
 //! Running the synthesis kernels on the chosen backend. The CPU executor calls the references in
-//! `cpu/`; the GPU executor keeps the level data resident and ping-pongs two state buffers.
+//! `cpu/`; the GPU executor keeps the level data resident. Both keep, during a correction pass,
+//! a copy of the state as the pass began (`begin_pass`).
 
 use super::pack::LevelPack;
 use crate::backend::Compute;

@@ -7,8 +7,9 @@
 //! (0.06-0.16) and amplitude 0.8-2 voxels (0.05-0.125) times --jitter. The paper's narrowest
 //! Gaussians would be a fraction of an l_start voxel, a perturbation the correction undoes (the
 //! paper: small-scale distortions are corrected by synthesis); --jitter scales the warp.
-//! All in fixed point, so GPU and CPU agree. Tileable solids whose l_start period is not whole
-//! cells use a fine lattice of 2^3 cells with the same density instead ([`FINE_CELL`]).
+//! All in fixed point, so GPU and CPU agree. Tileable solids' l_start periods are whole cells
+//! (`lazy::check_tileable_size`), so their cells repeat with the period. (Until session 25 a
+//! fine lattice of 2^3 cells served periods that were not.)
 
 use crate::util::hash::hash32;
 
@@ -55,30 +56,14 @@ pub fn sigma2_fixed() -> [i32; 4] {
     SIGMAS.map(|s| (s * s * 4096.0).round() as i32)
 }
 
-/// The fine lattice of tileable solids whose l_start period is even but not a multiple of
-/// [`CELL`] (`--tileable` sizes 16 mod 32): cells of 2^3 voxels, so that whole cells fill the
-/// period, each holding a Gaussian with probability 1/8 (the same density as one per 4^3 cell),
-/// centred within its cell, and reached [`FINE_REACH`] cells out (the same 8 voxels).
-pub const FINE_CELL: i32 = 2;
-pub const FINE_REACH: i32 = 4;
-
-/// Whether a tileable solid of l_start period `period` uses the fine lattice.
-pub fn fine_lattice(period: u32) -> bool {
-    period != 0 && !period.is_multiple_of(CELL as u32)
-}
-
 /// Hash of a cell of the lattice for a seed (shared with the WGSL kernel `init`).
-/// `period`: tileable solids' period in voxels (0: none); cells then repeat with it (cells of
-/// [`FINE_CELL`] on the fine lattice).
+/// `period`: tileable solids' period in voxels (0: none; else whole cells); cells then repeat
+/// with it.
 pub fn cell_hash(seed_lo: u32, seed_hi: u32, c: [i32; 3], period: u32) -> u32 {
-    let side = if fine_lattice(period) {
-        FINE_CELL
-    } else {
-        CELL
-    };
+    debug_assert!(period.is_multiple_of(CELL as u32), "period {period}");
     let c = match period {
         0 => c,
-        n => c.map(|v| v.rem_euclid(n as i32 / side)),
+        n => c.map(|v| v.rem_euclid(n as i32 / CELL)),
     };
     let mut h = hash32(seed_lo ^ 0x9E37_79B9);
     h = hash32(h ^ seed_hi);
@@ -119,37 +104,6 @@ fn gaussians_around(cell: [i32; 3], seed_lo: u32, seed_hi: u32, period: u32) -> 
     out
 }
 
-/// The Gaussians of the fine lattice ([`FINE_CELL`]) around the 4^3 cell `cell`: its 2^3 fine
-/// cells and [`FINE_REACH`] more on each side, in the kernel's order (z, y, x ascending); a fine
-/// cell holds one when a hash of it is 0 mod 8.
-fn fine_gaussians_around(cell: [i32; 3], seed_lo: u32, seed_hi: u32, period: u32) -> Vec<Gaussian> {
-    let per = CELL / FINE_CELL;
-    let range = |c: i32| c * per - FINE_REACH..c * per + per + FINE_REACH;
-    let mut out = Vec::new();
-    for fz in range(cell[2]) {
-        for fy in range(cell[1]) {
-            for fx in range(cell[0]) {
-                let h = cell_hash(seed_lo, seed_hi, [fx, fy, fz], period);
-                if hash32(h ^ 5) & 7 != 0 {
-                    continue;
-                }
-                let shape = hash32(h ^ 4);
-                let within = |salt: u32| (hash32(h ^ salt) & (FINE_CELL as u32 * 256 - 1)) as i32;
-                out.push(Gaussian {
-                    centre: [
-                        fx * FINE_CELL * 256 + within(1),
-                        fy * FINE_CELL * 256 + within(2),
-                        fz * FINE_CELL * 256 + within(3),
-                    ],
-                    shape: (shape & 3) as usize,
-                    dir: ((shape >> 2) & 63) as usize,
-                });
-            }
-        }
-    }
-    out
-}
-
 /// The Gaussians that reach some voxel of cell `cell` (in the kernel's order, which does not
 /// matter to the integer sums). Every voxel of a cell shares them, so the CPU backend computes
 /// them once per cell. Those left out lie beyond the weight table's 3 sigma (`sig2` as
@@ -164,11 +118,7 @@ pub fn cell_gaussians(
     // The cell's voxel centres span [lo, hi] per axis, in 1/256 voxel.
     let lo = cell.map(|c| c * CELL * 256 + 128);
     let hi = lo.map(|v| v + (CELL - 1) * 256);
-    let mut out = if fine_lattice(period) {
-        fine_gaussians_around(cell, seed_lo, seed_hi, period)
-    } else {
-        gaussians_around(cell, seed_lo, seed_hi, period)
-    };
+    let mut out = gaussians_around(cell, seed_lo, seed_hi, period);
     out.retain(|g| {
         // Squared distance from the centre to the nearest voxel centre of the cell: a lower
         // bound of every voxel's r2 in `offset_from`.
@@ -286,40 +236,6 @@ pub fn cell_offsets(
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// On the fine lattice (l_start period 6 or 10: not whole 4^3 cells) the field repeats
-    /// with the period along every axis, and it moves voxels.
-    #[test]
-    fn the_fine_lattice_field_repeats_with_the_period() {
-        let (amps, sig2, table) = (amplitudes(1.0), sigma2_fixed(), table());
-        for period in [6u32, 10] {
-            assert!(fine_lattice(period));
-            let at = |p: [i32; 3]| {
-                let cell = cell_of(p);
-                let g = cell_gaussians(cell, 7, 1, period, sig2);
-                let local = [0, 1, 2].map(|a| p[a] - cell[a] * CELL);
-                let offsets = cell_offsets(cell, &g, amps, sig2, &table);
-                let warp = offsets[(local[2] * 16 + local[1] * 4 + local[0]) as usize];
-                assert_eq!(warp, offset_from(p, &g, amps, sig2, &table));
-                warp
-            };
-            let n = period as i32;
-            let mut moved = 0;
-            for p in [[0, 0, 0], [1, 5, 2], [-3, 7, 11], [5, -9, 4], [13, 2, -6]] {
-                let w = at(p);
-                moved += (w != [0; 3]) as usize;
-                for axis in 0..3 {
-                    for k in [-2, 1, 3] {
-                        let mut q = p;
-                        q[axis] += k * n;
-                        assert_eq!(at(q), w, "period {period}: {p:?} and {q:?}");
-                    }
-                }
-            }
-            assert!(moved > 0, "period {period}: no voxel moved");
-        }
-        assert!(!fine_lattice(0) && !fine_lattice(8) && !fine_lattice(32));
-    }
 
     #[test]
     fn the_gaussians_left_out_add_nothing() {

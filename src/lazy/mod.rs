@@ -308,8 +308,8 @@ fn periods_below(n: u32, levels: usize) -> Vec<u32> {
 /// Refuse a tileable period `n` (finest-level voxels) that the pyramid cannot keep periodic:
 /// each level's period is half the next one's, and the correction's brick-local sub-passes
 /// (`plan`) need whole 4-voxel bricks in every level's period, so `n` must be a multiple of 32.
-/// (Until session 25 a multiple of 16 was enough; the jitter field's fine lattice,
-/// [`jitter::fine_lattice`], served l_start periods that were not multiples of 4.)
+/// (Until session 25 a multiple of 16 was enough, with a finer jitter lattice for l_start
+/// periods that were not multiples of 4.)
 pub fn check_tileable_size(n: u32) -> Result<()> {
     let levels = 1u32 << (ANALYSED_LEVELS - 1);
     let step = 4 * levels;
@@ -1082,10 +1082,9 @@ impl Synthesizer {
     ) -> Result<()> {
         check_tileable_size(n)?;
         let periods = periods_below(n, ANALYSED_LEVELS);
-        // One piece stores each level's period in whole bricks, which wrap: every period a
-        // multiple of 4, so n of 32. Other sizes go in groups.
-        let one_piece = n.is_multiple_of(32)
-            && self.periodic_state_bytes(n, ANALYSED_LEVELS - 1) <= self.state_limit()
+        // One piece stores each level's period in whole bricks, which wrap (every period is
+        // whole bricks: `check_tileable_size`); too large a period goes in groups.
+        let one_piece = self.periodic_state_bytes(n, ANALYSED_LEVELS - 1) <= self.state_limit()
             && self.max_chunk_side.is_none_or(|side| side >= n);
         if !one_piece {
             if self.usage.is_some() {
@@ -1299,12 +1298,9 @@ impl Synthesizer {
             let words = lv.voxels() * (3 + self.packs[first_pack + l].pixel_words as u64);
             state_bytes = state_bytes.max(words * 4);
         }
-        let gpu_copies = if matches!(self.exec, exec::Executor::Gpu(_)) {
-            2
-        } else {
-            1
-        };
-        stats.peak_state_bytes = stats.peak_state_bytes.max(state_bytes * gpu_copies);
+        // The state and its pass-start copy (the GPU's correction records, an eighth more, are
+        // left out).
+        stats.peak_state_bytes = stats.peak_state_bytes.max(state_bytes * 2);
         let (mut layout, mut index) = index_of(&mut self.exec, &levels, 0);
         let seed_lo = self.params.seed as u32;
         let seed_hi = (self.params.seed >> 32) as u32;
@@ -1945,7 +1941,7 @@ impl IndexLayout {
 #[derive(Clone, Debug, Default, serde::Serialize)]
 pub struct SynthStats {
     pub voxels_per_level: Vec<u64>,
-    /// Largest state of one level (both ping-pong buffers on the GPU), bytes.
+    /// Largest state of one level with its pass-start copy (both backends), bytes.
     pub peak_state_bytes: u64,
     /// Groups of bricks synthesized independently.
     pub groups: usize,

@@ -132,6 +132,12 @@ pub fn plan(output: Box3, passes: &[usize]) -> Vec<LevelPlan> {
             // Every voxel of the bricks covering it: a voxel depends on the earlier sub-passes'
             // results in its own brick.
             let computed = need.snapped_to_bricks();
+            if computed.is_empty() {
+                // Nothing needed: no pass computes anything (the padding must not grow from
+                // an empty box).
+                subpasses.extend(SUBPASS_ORDER.iter().map(|&c| (c, computed)));
+                continue;
+            }
             for &c in SUBPASS_ORDER.iter().rev() {
                 subpasses.push((c, computed.snapped_to_class(c)));
             }
