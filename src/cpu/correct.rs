@@ -231,6 +231,51 @@ impl Window {
     }
 }
 
+/// The 64 voxels of one brick in a [`Window`]: values and triples.
+struct BrickCopy {
+    values: [u32; 64],
+    triples: [[u32; 3]; 64],
+}
+
+impl BrickCopy {
+    fn new() -> BrickCopy {
+        BrickCopy {
+            values: [0; 64],
+            triples: [[0; 3]; 64],
+        }
+    }
+}
+
+impl Window {
+    /// Window slot of local voxel `l` (x fastest) of brick `m` of the run.
+    #[inline(always)]
+    fn brick_slot(m: i32, l: usize) -> usize {
+        let (x, y, z) = ((l & 3) as i32, ((l >> 2) & 3) as i32, (l >> 4) as i32);
+        (((2 + z) * WINDOW + 2 + y) * ROW + 2 + 4 * m + x) as usize
+    }
+
+    /// Put brick `m`'s current voxels (`words`: its 64 state records of 4 words) in place of
+    /// their pass-start copies, keeping those in `saved` for [`Window::restore`].
+    fn overlay(&mut self, m: i32, words: &[u32], saved: &mut BrickCopy) {
+        for (l, v) in words.chunks_exact(4).enumerate() {
+            let s = Window::brick_slot(m, l);
+            saved.values[l] = self.values[s];
+            saved.triples[l] = self.triples[s];
+            self.values[s] = v[3];
+            self.triples[s] = [v[0], v[1], v[2]];
+        }
+    }
+
+    /// Undo [`Window::overlay`] of brick `m`: the next brick of the run reads it as the pass began.
+    fn restore(&mut self, m: i32, saved: &BrickCopy) {
+        for l in 0..64 {
+            let s = Window::brick_slot(m, l);
+            self.values[s] = saved.values[l];
+            self.triples[s] = saved.triples[l];
+        }
+    }
+}
+
 impl Neighbours for Window {
     #[inline(always)]
     fn triple(&self, pos: [i32; 3]) -> [u32; 3] {
@@ -667,11 +712,18 @@ impl Ctx<'_> {
             ..*self
         };
         let stride = self.stride();
+        let mut saved = BrickCopy::new();
         for m in 0..n {
             let mask = self.mask(i + m);
             let b = [first[0] + m as i32, first[1], first[2]];
             let origin = b.map(|v| v * 4);
             let base = self.state_index(origin).expect("active bricks are stored");
+            if windowed {
+                // The brick's own voxels as the pass's sub-passes left them, in place of their
+                // pass-start copies while its voxels are corrected.
+                let words = &self.state[base * stride..(base + 64) * stride];
+                window.overlay(m as i32, words, &mut saved);
+            }
             for k in 0..8 {
                 if (mask >> k) & 1 == 0 {
                     continue;
@@ -683,14 +735,7 @@ impl Ctx<'_> {
                 ];
                 let index = self.state_index(pos).expect("active bricks are stored");
                 let t = if windowed {
-                    let r = BrickLocal {
-                        outer: &*window,
-                        state: self.state,
-                        stride,
-                        origin,
-                        base,
-                    };
-                    self.correct_voxel::<MADD>(&r, pos)
+                    self.correct_voxel::<MADD>(&*window, pos)
                 } else {
                     let r = BrickLocal {
                         outer: &start,
@@ -702,6 +747,9 @@ impl Ctx<'_> {
                     self.correct_voxel::<MADD>(&r, pos)
                 };
                 out.push((index as u32, t));
+            }
+            if windowed {
+                window.restore(m as i32, &saved);
             }
         }
     }
@@ -904,9 +952,8 @@ fn penalty(p: &CorrectParams, level: &[u32], a: usize, c: u32) -> u32 {
 }
 
 /// Run one sub-pass: returns (state index, new triple) for every voxel of the class in the
-/// bricks of the list in `p`.
-/// One sub-pass; `pass_start`: the state when its pass began (the same words as `state` in the
-/// pass's first sub-pass).
+/// bricks of the list in `p`. `pass_start`: the state when its pass began (the same words as
+/// `state` in the pass's first sub-pass).
 pub fn correct(
     p: &CorrectParams,
     level: &[u32],
