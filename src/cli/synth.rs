@@ -290,7 +290,7 @@ pub fn check_sparse_memory(
     // bricks, and stores their padding too, about eight times their voxels at the finest
     // level (13 voxels of padding around a 4-voxel brick layer before session 25's brick-local
     // sub-passes, 6 to 9 since, so this over-estimates; the coarser levels halving),
-    // 16 bytes a voxel, two copies on a GPU.
+    // 16 bytes a voxel, two copies (the state and its pass-start copy, on either backend).
     let group_side = params.max_group.unwrap_or(512);
     let share = (group_side as f64 / extent.max(1.0)).powi(2).min(1.0);
     let group_bricks = ((bricks as f64 * share) as u64).min((group_side as u64 / 4).pow(3));

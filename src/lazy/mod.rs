@@ -533,8 +533,8 @@ impl Synthesizer {
     }
 
     /// Bytes of working memory one chunk of `side`^3 needs at the finest level: two state
-    /// buffers of the padded box, each voxel a triple and a value word (one word covers up to
-    /// four channels; the estimate assumes that).
+    /// buffers of the padded box (the state and its pass-start copy), each voxel a triple and a
+    /// value word (one word covers up to four channels; the estimate assumes that).
     pub fn chunk_bytes(side: u32) -> u64 {
         grouping::padded_state_bytes([side as u64; 3]) * 2
     }
