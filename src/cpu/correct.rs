@@ -201,32 +201,60 @@ impl Window {
                     continue;
                 };
                 let with_triples = full1 || pair1;
-                // Split at the brick edges (window x 2, 6, 10, ...).
-                let mut x0 = xs.start;
-                while x0 < xs.end {
-                    let edge = if x0 < 2 { 2 } else { x0 + 4 - (x0 - 2) % 4 };
-                    let x1 = xs.end.min(edge);
-                    let row = ((z * WINDOW + y) * ROW + x0) as usize;
-                    let len = (x1 - x0) as usize;
-                    let pos = [self.origin[0] + x0, self.origin[1] + y, self.origin[2] + z];
-                    match ctx.state_index(pos) {
-                        None => {
-                            self.values[row..row + len].fill(0);
-                            self.triples[row..row + len].fill([0; 3]);
-                        }
-                        Some(s) => {
-                            let words = &ctx.pass_start[s * STRIDE..(s + len) * STRIDE];
-                            for (i, v) in words.chunks_exact(STRIDE).enumerate() {
-                                self.values[row + i] = v[3];
-                                if with_triples {
-                                    self.triples[row + i] = [v[0], v[1], v[2]];
-                                }
-                            }
+                self.copy_row(ctx, y, z, xs, with_triples);
+            }
+        }
+    }
+
+    /// Copy every voxel of the window around the `n` bricks from `b` (all classes' reads) from
+    /// the pass-start state: a whole pass's sub-passes then read it ([`correct_pass`]).
+    fn fill_all(&mut self, ctx: &Ctx, b: [i32; 3], n: i32) {
+        debug_assert!((1..=MAX_RUN).contains(&n));
+        self.origin = b.map(|v| v * 4 - 2);
+        for z in 0..WINDOW {
+            for y in 0..WINDOW {
+                self.copy_row(ctx, y, z, 0..4 * n + 4, true);
+            }
+        }
+    }
+
+    /// Copy window row (y, z) over `xs` from the pass-start state, a brick's segment per index
+    /// lookup; triples too when asked.
+    #[inline(always)]
+    fn copy_row(
+        &mut self,
+        ctx: &Ctx,
+        y: i32,
+        z: i32,
+        xs: std::ops::Range<i32>,
+        with_triples: bool,
+    ) {
+        // A triple and one value word per voxel.
+        const STRIDE: usize = 4;
+        // Split at the brick edges (window x 2, 6, 10, ...).
+        let mut x0 = xs.start;
+        while x0 < xs.end {
+            let edge = if x0 < 2 { 2 } else { x0 + 4 - (x0 - 2) % 4 };
+            let x1 = xs.end.min(edge);
+            let row = ((z * WINDOW + y) * ROW + x0) as usize;
+            let len = (x1 - x0) as usize;
+            let pos = [self.origin[0] + x0, self.origin[1] + y, self.origin[2] + z];
+            match ctx.state_index(pos) {
+                None => {
+                    self.values[row..row + len].fill(0);
+                    self.triples[row..row + len].fill([0; 3]);
+                }
+                Some(s) => {
+                    let words = &ctx.pass_start[s * STRIDE..(s + len) * STRIDE];
+                    for (i, v) in words.chunks_exact(STRIDE).enumerate() {
+                        self.values[row + i] = v[3];
+                        if with_triples {
+                            self.triples[row + i] = [v[0], v[1], v[2]];
                         }
                     }
-                    x0 = x1;
                 }
             }
+            x0 = x1;
         }
     }
 }
@@ -1262,6 +1290,200 @@ pub fn correct_prepared(
         .map(|(_, out)| out)
         .collect();
     Updates(parts)
+}
+
+/// One correction pass: its sub-passes `ps` in order, each [`correct_prepared`] of the state
+/// as the earlier ones left it, with `pass_start` (overwritten) the state as the pass began.
+/// When every sub-pass lists the same whole bricks (the planner's passes do) and voxels hold
+/// one value word, brick by brick instead: a brick's eight sub-passes read one window copied
+/// from the pass-start state, with the brick's own voxels updated in it as they go (the same
+/// results: a brick's sub-passes see only its own voxels' updates), so a pass copies each
+/// window once instead of once per sub-pass.
+pub fn correct_pass(
+    prepared: &Prepared,
+    ps: &[CorrectParams],
+    level: &[u32],
+    state: &mut [u32],
+    pass_start: &mut Vec<u32>,
+    bricks: &[u32],
+) {
+    pass_start.clear();
+    pass_start.extend_from_slice(state);
+    if !whole_brick_pass(ps, bricks) {
+        for p in ps {
+            let updates = correct_prepared(prepared, p, level, state, pass_start, bricks);
+            apply(p, level, state, &updates);
+        }
+        return;
+    }
+    let p0 = &ps[0];
+    assert!(prepared.fits(p0), "prepared for another level layout");
+    let pass_start: &[u32] = pass_start;
+    // (Reads go through the window, copied from the pass-start state.)
+    let ctxs: Vec<Ctx> = ps
+        .iter()
+        .map(|p| Ctx {
+            p,
+            level,
+            level_bytes: bytemuck::cast_slice(level),
+            prepared,
+            state: pass_start,
+            pass_start,
+            bricks,
+            grid_lo: [p.grid_lo_x, p.grid_lo_y, p.grid_lo_z],
+            grid_dims: [p.grid_x, p.grid_y, p.grid_z],
+        })
+        .collect();
+    let first = &ctxs[0];
+    let mut runs: Vec<(u32, u32)> = Vec::new();
+    let mut i = 0;
+    while i < p0.list_count {
+        if first.mask(i) == 0 {
+            i += 1;
+            continue;
+        }
+        let b = brick_at(bricks, p0.list_offset, i);
+        let mut n = 1;
+        while n < MAX_RUN as u32
+            && i + n < p0.list_count
+            && first.mask(i + n) != 0
+            && brick_at(bricks, p0.list_offset, i + n) == [b[0] + n as i32, b[1], b[2]]
+        {
+            n += 1;
+        }
+        runs.push((i, n));
+        i += n;
+    }
+    let results: Vec<Vec<(usize, [u32; 256])>> = runs
+        .into_par_iter()
+        .fold(
+            || (Box::new(Window::new()), Vec::new()),
+            |(mut window, mut out), (i, n)| {
+                fused_run_dispatch(&ctxs, &mut window, i, n, &mut out);
+                (window, out)
+            },
+        )
+        .map(|(_, out)| out)
+        .collect();
+    for (base, words) in results.iter().flatten() {
+        state[base * 4..(base + 64) * 4].copy_from_slice(words);
+    }
+}
+
+/// Whether the sub-passes of a pass all list the same bricks, each whole (mask 0xFF) or not at
+/// all, each class once, with one value word per voxel and whole-brick periods: what the
+/// brick-by-brick pass needs.
+fn whole_brick_pass(ps: &[CorrectParams], bricks: &[u32]) -> bool {
+    let Some(p0) = ps.first() else { return false };
+    let mut classes = 0u32;
+    for p in ps {
+        classes |= 1 << (p.class_x | p.class_y << 1 | p.class_z << 2);
+    }
+    let mask = |p: &CorrectParams, i: u32| {
+        (bricks[(p.mask_offset + i / 4) as usize] >> ((i % 4) * 8)) & 0xFF
+    };
+    classes.count_ones() as usize == ps.len()
+        && ps.iter().all(|p| {
+            p.pixel_words == 1
+                && p.period % 4 == 0
+                && p.list_count == p0.list_count
+                && (0..p.list_count).all(|i| {
+                    let m = mask(p, i);
+                    (m == 0 || m == 0xFF)
+                        && m == mask(p0, i)
+                        && brick_at(bricks, p.list_offset, i) == brick_at(bricks, p0.list_offset, i)
+                })
+        })
+}
+
+/// [`fused_run`], with AVX2 when the CPU has it (as [`Ctx::correct_run_dispatch`]).
+fn fused_run_dispatch(
+    ctxs: &[Ctx],
+    window: &mut Window,
+    i: u32,
+    n: u32,
+    out: &mut Vec<(usize, [u32; 256])>,
+) {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: the CPU supports AVX2 (checked just above).
+        return unsafe { fused_run_avx2(ctxs, window, i, n, out) };
+    }
+    fused_run::<false>(ctxs, window, i, n, out)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn fused_run_avx2(
+    ctxs: &[Ctx],
+    window: &mut Window,
+    i: u32,
+    n: u32,
+    out: &mut Vec<(usize, [u32; 256])>,
+) {
+    fused_run::<true>(ctxs, window, i, n, out)
+}
+
+/// A pass over the run of `n` bricks from list entry `i`: per brick, its sub-passes in order
+/// on the window, then its 64 voxels (state records) appended to `out` with their first index.
+#[inline(always)]
+fn fused_run<const MADD: bool>(
+    ctxs: &[Ctx],
+    window: &mut Window,
+    i: u32,
+    n: u32,
+    out: &mut Vec<(usize, [u32; 256])>,
+) {
+    let first_ctx = &ctxs[0];
+    let p0 = first_ctx.p;
+    let first = brick_at(first_ctx.bricks, p0.list_offset, i);
+    window.fill_all(first_ctx, first, n as i32);
+    let pixels = [p0.pixels0, p0.pixels1, p0.pixels2];
+    let mut saved = BrickCopy::new();
+    for m in 0..n as i32 {
+        let b = [first[0] + m, first[1], first[2]];
+        let base = first_ctx
+            .state_index(b.map(|v| v * 4))
+            .expect("active bricks are stored");
+        // The brick's pass-start voxels, for the next bricks' reads.
+        for l in 0..64 {
+            let s = Window::brick_slot(m, l);
+            saved.values[l] = window.values[s];
+            saved.triples[l] = window.triples[s];
+        }
+        for ctx in ctxs {
+            let p = ctx.p;
+            let class = [p.class_x as i32, p.class_y as i32, p.class_z as i32];
+            // A sub-pass's voxels read each other's values from before it: all eight first.
+            let mut found = [(0usize, [0u32; 3]); 8];
+            for (k, f) in found.iter_mut().enumerate() {
+                let local = [
+                    class[0] + 2 * (k as i32 & 1),
+                    class[1] + 2 * ((k as i32 >> 1) & 1),
+                    class[2] + 2 * (k as i32 >> 2),
+                ];
+                let pos = [0, 1, 2].map(|a| b[a] * 4 + local[a]);
+                let l = (local[2] * 16 + local[1] * 4 + local[0]) as usize;
+                *f = (l, ctx.correct_voxel::<MADD>(&*window, pos));
+            }
+            for (l, t) in found {
+                let s = Window::brick_slot(m, l);
+                let mut record = [0u32; 4];
+                write_voxel(&mut record, ctx.level, t, pixels, p.ex_width, 1, p.channels);
+                window.triples[s] = t;
+                window.values[s] = record[3];
+            }
+        }
+        let mut words = [0u32; 256];
+        for (l, w) in words.chunks_exact_mut(4).enumerate() {
+            let s = Window::brick_slot(m, l);
+            let t = window.triples[s];
+            w.copy_from_slice(&[t[0], t[1], t[2], window.values[s]]);
+            window.values[s] = saved.values[l];
+            window.triples[s] = saved.triples[l];
+        }
+        out.push((base, words));
+    }
 }
 
 /// Apply a sub-pass's results to the state: each voxel's new triple and its value.

@@ -165,26 +165,17 @@ impl Executor {
         }
     }
 
-    /// Begin a correction pass: its sub-passes read other bricks' voxels as they are now.
-    pub fn begin_pass(&mut self, state: &mut State) -> Result<()> {
-        match (self, state) {
-            (Executor::Cpu { .. }, State::Cpu(v, pass_start)) => {
-                pass_start.clear();
-                pass_start.extend_from_slice(v);
-                Ok(())
-            }
-            (Executor::Gpu(g), State::Gpu(s)) => g.begin_pass(s),
-            _ => unreachable!("state from another backend"),
-        }
-    }
-
-    pub fn correct(
+    /// One correction pass: the sub-passes `ps` in order. Each reads a neighbour in its own
+    /// brick as the earlier sub-passes left it and one in another brick as it was when the pass
+    /// began (brick-local sub-passes, `plan`).
+    pub fn correct_pass(
         &mut self,
         level: usize,
-        p: &CorrectParams,
+        ps: &[CorrectParams],
         state: &mut State,
         index: &IndexBuf,
     ) -> Result<()> {
+        let Some(p0) = ps.first() else { return Ok(()) };
         match (self, state) {
             (
                 Executor::Cpu {
@@ -192,21 +183,25 @@ impl Executor {
                 },
                 State::Cpu(v, pass_start),
             ) => {
-                use crate::cpu::correct::{correct_prepared, Prepared};
+                use crate::cpu::correct::{correct_pass, Prepared};
                 let data = &levels[level];
-                let mut prep = prepared[level].get_or_init(|| Prepared::new(p, data));
+                let mut prep = prepared[level].get_or_init(|| Prepared::new(p0, data));
                 // (A pack's layout does not change between sub-passes; rebuilt if it ever did.)
                 let rebuilt;
-                if !prep.fits(p) {
-                    rebuilt = Prepared::new(p, data);
+                if !prep.fits(p0) {
+                    rebuilt = Prepared::new(p0, data);
                     prep = &rebuilt;
                 }
-                assert_eq!(v.len(), pass_start.len(), "a correction outside a pass");
-                let updates = correct_prepared(prep, p, data, v, pass_start, index.cpu());
-                crate::cpu::correct::apply(p, &levels[level], v, &updates);
+                correct_pass(prep, ps, data, v, pass_start, index.cpu());
                 Ok(())
             }
-            (Executor::Gpu(g), State::Gpu(s)) => g.correct(level, p, s, index.gpu()),
+            (Executor::Gpu(g), State::Gpu(s)) => {
+                g.begin_pass(s)?;
+                for p in ps {
+                    g.correct(level, p, s, index.gpu())?;
+                }
+                Ok(())
+            }
             _ => unreachable!("state from another backend"),
         }
     }

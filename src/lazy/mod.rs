@@ -1416,27 +1416,31 @@ impl Synthesizer {
                 (level as f32 + 0.1) / levels.len() as f32,
             );
             let k3d_used = pack.k3d_used(pack_index + 1 == self.packs.len());
+            // One correction pass at a time: its sub-passes' parameters, then the pass.
+            let mut pass: Vec<CorrectParams> = Vec::with_capacity(SUBPASS_ORDER.len());
             for (s, sp) in lv.subpasses.iter().enumerate() {
-                if s % SUBPASS_ORDER.len() == 0 {
-                    self.exec.begin_pass(&mut state)?;
+                if !sp.is_empty() {
+                    let mut p = correct_params(
+                        pack,
+                        &lv.grid,
+                        (layout.subpass_lists[s].0, layout.subpass_lists[s].1),
+                        sp.class,
+                        k3d_used,
+                        self.border,
+                        self.params.candidates,
+                    );
+                    p.mask_offset = layout.subpass_lists[s].2;
+                    p.period = periodic.read_period(level);
+                    pass.push(p);
                 }
-                if sp.is_empty() {
-                    continue;
+                if (s + 1) % SUBPASS_ORDER.len() == 0 || s + 1 == lv.subpasses.len() {
+                    if !pass.is_empty() {
+                        exec::timed(&mut self.exec, &mut self.times, "correct", |e| {
+                            e.correct_pass(pack_index, &pass, &mut state, &index)
+                        })?;
+                    }
+                    pass.clear();
                 }
-                let mut p = correct_params(
-                    pack,
-                    &lv.grid,
-                    (layout.subpass_lists[s].0, layout.subpass_lists[s].1),
-                    sp.class,
-                    k3d_used,
-                    self.border,
-                    self.params.candidates,
-                );
-                p.mask_offset = layout.subpass_lists[s].2;
-                p.period = periodic.read_period(level);
-                exec::timed(&mut self.exec, &mut self.times, "correct", |e| {
-                    e.correct(pack_index, &p, &mut state, &index)
-                })?;
             }
             if let Some(usage) = self.usage.as_mut() {
                 let words = self.exec.read_state(&state)?;
