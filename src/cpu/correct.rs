@@ -1258,7 +1258,19 @@ pub fn correct_prepared(
         grid_lo: [p.grid_lo_x, p.grid_lo_y, p.grid_lo_z],
         grid_dims: [p.grid_x, p.grid_y, p.grid_z],
     };
-    // Runs of needed bricks consecutive along x (the list is sorted z, y, x), each one window.
+    Updates(over_runs(&ctx, |window, i, n, out| {
+        ctx.correct_run_dispatch(window, i, n, out)
+    }))
+}
+
+/// `f` over the runs of listed bricks (mask not empty) consecutive along x in `ctx`'s list
+/// (sorted z, y, x), at most [`MAX_RUN`] long, each one window: in parallel, one window per
+/// worker; their outputs per worker.
+fn over_runs<T: Send>(
+    ctx: &Ctx,
+    f: impl Fn(&mut Window, u32, u32, &mut Vec<T>) + Sync,
+) -> Vec<Vec<T>> {
+    let p = ctx.p;
     let mut runs: Vec<(u32, u32)> = Vec::new();
     let mut i = 0;
     while i < p.list_count {
@@ -1266,30 +1278,29 @@ pub fn correct_prepared(
             i += 1;
             continue;
         }
-        let first = brick_at(bricks, p.list_offset, i);
+        let first = brick_at(ctx.bricks, p.list_offset, i);
         let mut n = 1;
         while n < MAX_RUN as u32
             && i + n < p.list_count
             && ctx.mask(i + n) != 0
-            && brick_at(bricks, p.list_offset, i + n) == [first[0] + n as i32, first[1], first[2]]
+            && brick_at(ctx.bricks, p.list_offset, i + n)
+                == [first[0] + n as i32, first[1], first[2]]
         {
             n += 1;
         }
         runs.push((i, n));
         i += n;
     }
-    let parts: Vec<Vec<(u32, [u32; 3])>> = runs
-        .into_par_iter()
+    runs.into_par_iter()
         .fold(
             || (Box::new(Window::new()), Vec::new()),
             |(mut window, mut out), (i, n)| {
-                ctx.correct_run_dispatch(&mut window, i, n, &mut out);
+                f(&mut window, i, n, &mut out);
                 (window, out)
             },
         )
         .map(|(_, out)| out)
-        .collect();
-    Updates(parts)
+        .collect()
 }
 
 /// One correction pass: its sub-passes `ps` in order, each [`correct_prepared`] of the state
@@ -1334,37 +1345,9 @@ pub fn correct_pass(
             grid_dims: [p.grid_x, p.grid_y, p.grid_z],
         })
         .collect();
-    let first = &ctxs[0];
-    let mut runs: Vec<(u32, u32)> = Vec::new();
-    let mut i = 0;
-    while i < p0.list_count {
-        if first.mask(i) == 0 {
-            i += 1;
-            continue;
-        }
-        let b = brick_at(bricks, p0.list_offset, i);
-        let mut n = 1;
-        while n < MAX_RUN as u32
-            && i + n < p0.list_count
-            && first.mask(i + n) != 0
-            && brick_at(bricks, p0.list_offset, i + n) == [b[0] + n as i32, b[1], b[2]]
-        {
-            n += 1;
-        }
-        runs.push((i, n));
-        i += n;
-    }
-    let results: Vec<Vec<(usize, [u32; 256])>> = runs
-        .into_par_iter()
-        .fold(
-            || (Box::new(Window::new()), Vec::new()),
-            |(mut window, mut out), (i, n)| {
-                fused_run_dispatch(&ctxs, &mut window, i, n, &mut out);
-                (window, out)
-            },
-        )
-        .map(|(_, out)| out)
-        .collect();
+    let results = over_runs(&ctxs[0], |window, i, n, out| {
+        fused_run_dispatch(&ctxs, window, i, n, out)
+    });
     for (base, words) in results.iter().flatten() {
         state[base * 4..(base + 64) * 4].copy_from_slice(words);
     }
