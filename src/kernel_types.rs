@@ -121,7 +121,9 @@ gpu_struct! {
         mask_offset: u32,
         /// Tileable solids: the level's period in voxels (0: not periodic); reads wrap.
         period: u32,
-        _pad3: u32, _pad4: u32,
+        /// A whole pass in one dispatch (the kernel's FUSED constant): its sub-passes' classes,
+        /// 3 bits each in order, and their count. Unused otherwise.
+        fused_classes: u32, fused_count: u32,
     }
 }
 

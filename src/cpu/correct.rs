@@ -1356,7 +1356,7 @@ pub fn correct_pass(
 /// Whether the sub-passes of a pass all list the same bricks, each whole (mask 0xFF) or not at
 /// all, each class once, with one value word per voxel and whole-brick periods: what the
 /// brick-by-brick pass needs.
-fn whole_brick_pass(ps: &[CorrectParams], bricks: &[u32]) -> bool {
+pub(crate) fn whole_brick_pass(ps: &[CorrectParams], bricks: &[u32]) -> bool {
     let Some(p0) = ps.first() else { return false };
     let mut classes = 0u32;
     for p in ps {

@@ -96,6 +96,11 @@ pub struct GpuSynth {
     arena: wgpu::Buffer,
     /// Kept buffers, in a warm session ([`GpuSynth::keep_buffers`]).
     pool: Option<BufferPool>,
+    /// Whether [`GpuSynth::correct_pass`] runs a pass of whole bricks in one dispatch. Off by
+    /// default (`SOLIDSYNTH_FUSED_PASSES=1` turns it on): on lavapipe it was slower (session 25:
+    /// warm 256^2 cut 184 -> 198 ms, 128^3 4.25 -> 5.14 s); it is meant for a GPU's
+    /// dispatch-bound requests (16 dispatches a pass become one) and awaits a lent one.
+    pub(crate) fused_passes: bool,
 }
 
 /// Dispatches recorded and not yet submitted, with their kernels' names and parameters.
@@ -301,6 +306,7 @@ impl GpuSynth {
             pending: std::sync::Mutex::new(None),
             arena,
             pool: None,
+            fused_passes: std::env::var("SOLIDSYNTH_FUSED_PASSES").is_ok_and(|v| v == "1"),
         })
     }
 
@@ -556,9 +562,71 @@ impl GpuSynth {
         )
     }
 
+    /// One correction pass: the sub-passes `ps` in order, after a copy of the state as the pass
+    /// begins (`begin_pass`). When every sub-pass lists the same whole bricks (`whole_bricks`)
+    /// and a voxel is 4 words, one dispatch runs them all (`correct` with FUSED: the bricks in
+    /// workgroup memory, results written straight into the state); else a `correct` and a
+    /// `scatter` per sub-pass.
+    pub fn correct_pass(
+        &mut self,
+        level: usize,
+        ps: &[CorrectParams],
+        whole_bricks: bool,
+        s: &mut GpuState,
+        index: &wgpu::Buffer,
+    ) -> Result<()> {
+        self.begin_pass(s)?;
+        let p0 = &ps[0];
+        if !(self.fused_passes && whole_bricks && p0.pixel_words == 1 && ps.len() <= 8) {
+            for p in ps {
+                self.correct(level, p, s, index)?;
+            }
+            return Ok(());
+        }
+        let mut p = *p0;
+        p.fused_classes = ps
+            .iter()
+            .enumerate()
+            .map(|(i, q)| (q.class_x | q.class_y << 1 | q.class_z << 2) << (3 * i))
+            .sum();
+        p.fused_count = ps.len() as u32;
+        let (candidates, slots) = &self.candidates[level];
+        if p.mode == 0 && p.k3d_used > *slots {
+            return Err(Error::Gpu(format!(
+                "the correction scores {} 3D candidates per pixel; level {level}'s tables hold {slots}",
+                p.k3d_used
+            )));
+        }
+        let (projection, packed) = &self.projections[level];
+        let start = s.pass_start.as_ref().expect("begin_pass made it");
+        self.run(
+            "correct",
+            &[
+                ("CHANNELS", p.channels as f64),
+                ("PCA_OUT", p.pca_out as f64),
+                ("K2D", p.k2d as f64),
+                ("PACKED_WEIGHTS", if *packed { 1.0 } else { 0.0 }),
+                ("FUSED", 1.0),
+                ("OWN_WORDS", (8 * 64 * 4) as f64),
+            ],
+            &p,
+            &[
+                (1, &self.levels[level]),
+                // (`state` is not read when fused; two read-only bindings may share a buffer.)
+                (2, start),
+                (3, &s.current),
+                (4, index),
+                (5, projection),
+                (6, candidates),
+                (7, start),
+            ],
+            groups(p.list_count as u64 * 8),
+        )
+    }
+
     /// Begin a correction pass: record a copy of the state as it is now, which the pass's
     /// sub-passes read for voxels outside their own bricks.
-    pub fn begin_pass(&mut self, s: &mut GpuState) -> Result<()> {
+    fn begin_pass(&mut self, s: &mut GpuState) -> Result<()> {
         if s.pass_start.is_none() {
             s.pass_start = Some(self.scratch_buffer("pass-start state", s.words));
         }

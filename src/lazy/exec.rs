@@ -86,6 +86,13 @@ impl Executor {
         }
     }
 
+    /// See [`GpuSynth::correct_pass`] (the CPU backend always runs a pass brick by brick).
+    pub fn set_fused_passes(&mut self, on: bool) {
+        if let Executor::Gpu(g) = self {
+            g.fused_passes = on;
+        }
+    }
+
     /// See [`GpuSynth::set_parameter_arena_bytes`] (the CPU backend has no arena).
     pub fn set_parameter_arena_bytes(&mut self, bytes: u64) -> Result<()> {
         match self {
@@ -168,10 +175,13 @@ impl Executor {
     /// One correction pass: the sub-passes `ps` in order. Each reads a neighbour in its own
     /// brick as the earlier sub-passes left it and one in another brick as it was when the pass
     /// began (brick-local sub-passes, `plan`).
+    /// `whole_bricks`: whether every sub-pass lists the same bricks, each whole (the GPU then
+    /// runs the pass in one dispatch; the CPU checks its index itself).
     pub fn correct_pass(
         &mut self,
         level: usize,
         ps: &[CorrectParams],
+        whole_bricks: bool,
         state: &mut State,
         index: &IndexBuf,
     ) -> Result<()> {
@@ -196,11 +206,7 @@ impl Executor {
                 Ok(())
             }
             (Executor::Gpu(g), State::Gpu(s)) => {
-                g.begin_pass(s)?;
-                for p in ps {
-                    g.correct(level, p, s, index.gpu())?;
-                }
-                Ok(())
+                g.correct_pass(level, ps, whole_bricks, s, index.gpu())
             }
             _ => unreachable!("state from another backend"),
         }

@@ -926,6 +926,14 @@ impl Synthesizer {
         self.exec.keep_buffers();
     }
 
+    /// Run each correction pass of whole bricks in one GPU dispatch (`GpuSynth::correct_pass`;
+    /// off unless `SOLIDSYNTH_FUSED_PASSES=1`: slower on lavapipe, not yet measured on a GPU).
+    /// The same results either way.
+    #[doc(hidden)]
+    pub fn set_fused_passes(&mut self, on: bool) {
+        self.exec.set_fused_passes(on);
+    }
+
     /// Tests: a GPU parameter arena of `bytes`, so that batches fill up (see
     /// `GpuSynth::set_parameter_arena_bytes`).
     #[doc(hidden)]
@@ -1435,8 +1443,10 @@ impl Synthesizer {
                 }
                 if (s + 1) % SUBPASS_ORDER.len() == 0 || s + 1 == lv.subpasses.len() {
                     if !pass.is_empty() {
+                        let first = s + 1 - (s % SUBPASS_ORDER.len() + 1);
+                        let whole = whole_brick_pass(&lv.subpasses[first..=s]);
                         exec::timed(&mut self.exec, &mut self.times, "correct", |e| {
-                            e.correct_pass(pack_index, &pass, &mut state, &index)
+                            e.correct_pass(pack_index, &pass, whole, &mut state, &index)
                         })?;
                     }
                     pass.clear();
@@ -2075,9 +2085,26 @@ pub fn correct_params(
         // The caller points this at the list's voxel masks.
         mask_offset: 0,
         period: 0,
-        _pad3: 0,
-        _pad4: 0,
+        fused_classes: 0,
+        fused_count: 0,
     }
+}
+
+/// Whether the sub-passes of one pass all compute the same bricks, each whole: every class once,
+/// the same list, every mask empty or full (the planner's passes; `Executor::correct_pass`).
+fn whole_brick_pass(subpasses: &[bricks::SubpassPlan]) -> bool {
+    let Some(first) = subpasses.first() else {
+        return false;
+    };
+    let mut classes = 0u32;
+    subpasses.iter().for_each(|sp| classes |= 1 << sp.class);
+    classes.count_ones() as usize == subpasses.len()
+        && subpasses.iter().all(|sp| {
+            sp.over_storage == first.over_storage
+                && sp.bricks == first.bricks
+                && sp.masks == first.masks
+                && sp.masks.iter().all(|&m| m == 0 || m == 0xFF)
+        })
 }
 
 /// Padding per side assumed when sizing chunks (the plan's exact padding is at most this).
