@@ -590,25 +590,12 @@ impl GpuSynth {
             .map(|(i, q)| (q.class_x | q.class_y << 1 | q.class_z << 2) << (3 * i))
             .sum();
         p.fused_count = ps.len() as u32;
-        let (candidates, slots) = &self.candidates[level];
-        if p.mode == 0 && p.k3d_used > *slots {
-            return Err(Error::Gpu(format!(
-                "the correction scores {} 3D candidates per pixel; level {level}'s tables hold {slots}",
-                p.k3d_used
-            )));
-        }
-        let (projection, packed) = &self.projections[level];
+        let (candidates, projection, mut constants) = self.correct_inputs(level, &p)?;
+        constants.extend([("FUSED", 1.0), ("OWN_WORDS", (8 * 64 * 4) as f64)]);
         let start = s.pass_start.as_ref().expect("begin_pass made it");
         self.run(
             "correct",
-            &[
-                ("CHANNELS", p.channels as f64),
-                ("PCA_OUT", p.pca_out as f64),
-                ("K2D", p.k2d as f64),
-                ("PACKED_WEIGHTS", if *packed { 1.0 } else { 0.0 }),
-                ("FUSED", 1.0),
-                ("OWN_WORDS", (8 * 64 * 4) as f64),
-            ],
+            &constants,
             &p,
             &[
                 (1, &self.levels[level]),
@@ -622,6 +609,31 @@ impl GpuSynth {
             ],
             groups(p.list_count as u64 * 8),
         )
+    }
+
+    /// What every `correct` dispatch of `level` binds besides the states (its candidate tables
+    /// and projection weights) and its pipeline constants; an error when `p` scores more 3D
+    /// candidates than the tables hold.
+    fn correct_inputs(
+        &self,
+        level: usize,
+        p: &CorrectParams,
+    ) -> Result<(&wgpu::Buffer, &wgpu::Buffer, Vec<(&'static str, f64)>)> {
+        let (candidates, slots) = &self.candidates[level];
+        if p.mode == 0 && p.k3d_used > *slots {
+            return Err(Error::Gpu(format!(
+                "the correction scores {} 3D candidates per pixel; level {level}'s tables hold {slots}",
+                p.k3d_used
+            )));
+        }
+        let (projection, packed) = &self.projections[level];
+        let constants = vec![
+            ("CHANNELS", p.channels as f64),
+            ("PCA_OUT", p.pca_out as f64),
+            ("K2D", p.k2d as f64),
+            ("PACKED_WEIGHTS", if *packed { 1.0 } else { 0.0 }),
+        ];
+        Ok((candidates, projection, constants))
     }
 
     /// Begin a correction pass: record a copy of the state as it is now, which the pass's
@@ -661,22 +673,10 @@ impl GpuSynth {
             }
         }
         let records = s.records.as_ref().unwrap();
-        let (candidates, slots) = &self.candidates[level];
-        if p.mode == 0 && p.k3d_used > *slots {
-            return Err(Error::Gpu(format!(
-                "the correction scores {} 3D candidates per pixel; level {level}'s tables hold {slots}",
-                p.k3d_used
-            )));
-        }
-        let (projection, packed) = &self.projections[level];
+        let (candidates, projection, constants) = self.correct_inputs(level, p)?;
         self.run(
             "correct",
-            &[
-                ("CHANNELS", p.channels as f64),
-                ("PCA_OUT", p.pca_out as f64),
-                ("K2D", p.k2d as f64),
-                ("PACKED_WEIGHTS", if *packed { 1.0 } else { 0.0 }),
-            ],
+            &constants,
             p,
             &[
                 (1, &self.levels[level]),
