@@ -224,6 +224,7 @@ fn synthesis_kernels_bit_exact_on_gpu_and_cpu() {
     // padding, initial level wrapping): what a solid too large for one buffer goes through.
     same_on_both("tileable in groups", &a, &params, &gpu, |s| {
         s.set_max_chunk_side(16);
+        s.set_shared_coarse_levels(false);
         s.synthesize_tileable(32, &|_, _| {}, false).unwrap().0
     });
     // One colour source per channel, the matched table among them, on three different
@@ -268,6 +269,8 @@ fn gpu_boxes_are_windows_of_larger_gpu_boxes() {
         let mut s = Synthesizer::new(&a, params.clone(), &gpu).unwrap();
         if let Some(g) = max_group {
             s.set_max_chunk_side(g);
+            // Each group's own coarse levels (shared ones below).
+            s.set_shared_coarse_levels(false);
         }
         s.synthesize(b, &|_, _| {}).unwrap()
     };

@@ -70,9 +70,9 @@ pub struct SolidParams {
     pub coarse_cache: Option<u32>,
     /// Largest group of the request synthesized at once: a cube of this edge in voxels (a
     /// multiple of 4; default 512). Smaller groups bound the working memory of large boxes and
-    /// surfaces, at the cost of each group recomputing its own dependency padding (coarse
-    /// levels included: without this flag, groups share their coarse levels); the output is
-    /// the same whatever the grouping.
+    /// surfaces, at the cost of each group recomputing the finest level's dependency padding
+    /// (the coarser levels are synthesized once for all groups, in groups of the same extent);
+    /// the output is the same whatever the grouping.
     #[arg(long, value_name = "VOXELS", value_parser = clap::value_parser!(u32).range(4..=512))]
     pub max_group: Option<u32>,
 }
@@ -251,13 +251,13 @@ pub fn check_memory(what: &str, b: Box3, args: &SolidArgs) -> solidsynth::Result
 /// Bytes of the shared coarse levels (see `Synthesizer::set_shared_coarse_levels`) of a
 /// request of `finest_voxels` finest-level voxels (padding included) whose groups' working sets
 /// are `group_working` bytes: held only when the request takes several groups, counted
-/// whenever it may (without `--max-group` or the coarse cache). The parent level's triples (6
+/// whenever it may (without the coarse cache). The parent level's triples (6
 /// or, for exemplars over 512 pixels, 12 bytes per voxel, an eighth of the finest voxels, and
 /// the level below it while it is built: at most 1.7 bytes per finest voxel, 2 with the
 /// padding) and one group's parent state built on the host (an
 /// eighth of its voxels, one copy: a sixteenth of its working set).
 pub fn shared_levels_bytes(params: &SolidParams, finest_voxels: u64, group_working: u64) -> u64 {
-    if params.max_group.is_some() || params.coarse_cache.is_some() {
+    if params.coarse_cache.is_some() {
         return 0;
     }
     finest_voxels * 2 + group_working / 16
@@ -290,7 +290,7 @@ pub fn check_sparse_memory(
     // bricks, and stores their padding too, about eight times their voxels at the finest
     // level (13 voxels of padding around a 4-voxel brick layer before session 25's brick-local
     // sub-passes, 6 to 9 since, so this over-estimates; the coarser levels halving),
-    // 16 bytes a voxel, two copies (the state and its pass-start copy, on either backend).
+    // 16 bytes a voxel, two copies (the GPU's state and its pass-start copy; the CPU holds one).
     let group_side = params.max_group.unwrap_or(512);
     let share = (group_side as f64 / extent.max(1.0)).powi(2).min(1.0);
     let group_bricks = ((bricks as f64 * share) as u64).min((group_side as u64 / 4).pow(3));
@@ -429,17 +429,31 @@ fn run_box(args: &SolidArgs, region: Box3, tileable: bool, quiet: bool) -> anyho
     if args.profile {
         synth.enable_profiling();
     }
+    // The synthesizer keeps what it reads; of the analysis the outputs need only the
+    // exemplars' size (triples) and images (sheet), so the rest (11 MiB for the built-in
+    // exemplar) is not held through the synthesis.
+    let finest = &analysis.exemplar(0).levels[0].image;
+    let exemplar_size = [finest.width, finest.height];
+    let sheet_exemplars: Option<Vec<_>> = args.sheet.as_ref().map(|_| {
+        (0..if analysis.shared { 1 } else { 3 })
+            .map(|a| {
+                analysis.exemplar(a).levels[0]
+                    .image
+                    .select_channels(0..analysis.color_channels)
+            })
+            .collect()
+    });
+    drop(analysis);
     // The volume is written as it is synthesized, a slab of z slices at a time (bounded
     // memory with --max-group); it is kept whole only for the outputs that need all of it.
     let dims = region.size();
     let channels = synth.color_channels();
     let mut nrrd_out = nrrd::SlabWriter::create(&args.output, dims, channels)?;
     // Triples cost memory (and a read-back): only when asked for.
-    let finest = &analysis.exemplar(0).levels[0].image;
     let mut triples_out = args
         .triples
         .as_deref()
-        .map(|p| TriplesWriter::create(p, dims, [finest.width, finest.height]))
+        .map(|p| TriplesWriter::create(p, dims, exemplar_size))
         .transpose()?;
     let want_triples = triples_out.is_some();
     let keep_volume = args.vti.is_some()
@@ -480,15 +494,8 @@ fn run_box(args: &SolidArgs, region: Box3, tileable: bool, quiet: bool) -> anyho
     if let Some(p) = &args.flipbook {
         outputs.save_png(p, &flipbook(&volume))?;
     }
-    if let Some(p) = &args.sheet {
-        let exemplars: Vec<_> = (0..if analysis.shared { 1 } else { 3 })
-            .map(|a| {
-                analysis.exemplar(a).levels[0]
-                    .image
-                    .select_channels(0..analysis.color_channels)
-            })
-            .collect();
-        outputs.save_png(p, &contact_sheet(&volume, &exemplars))?;
+    if let (Some(p), Some(exemplars)) = (&args.sheet, &sheet_exemplars) {
+        outputs.save_png(p, &contact_sheet(&volume, exemplars))?;
     }
     if let Some(dir) = &args.slices {
         let staging = outputs.directory(dir)?;

@@ -1263,13 +1263,9 @@ pub fn correct_prepared(
     }))
 }
 
-/// `f` over the runs of listed bricks (mask not empty) consecutive along x in `ctx`'s list
-/// (sorted z, y, x), at most [`MAX_RUN`] long, each one window: in parallel, one window per
-/// worker; their outputs per worker.
-fn over_runs<T: Send>(
-    ctx: &Ctx,
-    f: impl Fn(&mut Window, u32, u32, &mut Vec<T>) + Sync,
-) -> Vec<Vec<T>> {
+/// The list's entries with a class voxel to correct, as runs (first entry, count) of up to
+/// [`MAX_RUN`] bricks consecutive along x, in list order.
+fn runs_of(ctx: &Ctx) -> Vec<(u32, u32)> {
     let p = ctx.p;
     let mut runs: Vec<(u32, u32)> = Vec::new();
     let mut i = 0;
@@ -1291,10 +1287,19 @@ fn over_runs<T: Send>(
         runs.push((i, n));
         i += n;
     }
-    runs.into_par_iter()
+    runs
+}
+
+/// `f` over `runs` in parallel, each thread with a window of its own; the outputs of each
+/// thread's share, in order.
+fn in_parallel<T: Send>(
+    runs: &[(u32, u32)],
+    f: impl Fn(&mut Window, u32, u32, &mut Vec<T>) + Sync,
+) -> Vec<Vec<T>> {
+    runs.par_iter()
         .fold(
             || (Box::new(Window::new()), Vec::new()),
-            |(mut window, mut out), (i, n)| {
+            |(mut window, mut out), &(i, n)| {
                 f(&mut window, i, n, &mut out);
                 (window, out)
             },
@@ -1303,13 +1308,22 @@ fn over_runs<T: Send>(
         .collect()
 }
 
+/// [`runs_of`] `ctx`'s list, `f` over them in parallel ([`in_parallel`]).
+fn over_runs<T: Send>(
+    ctx: &Ctx,
+    f: impl Fn(&mut Window, u32, u32, &mut Vec<T>) + Sync,
+) -> Vec<Vec<T>> {
+    in_parallel(&runs_of(ctx), f)
+}
+
 /// One correction pass: its sub-passes `ps` in order, each [`correct_prepared`] of the state
 /// as the earlier ones left it, with `pass_start` (overwritten) the state as the pass began.
 /// When every sub-pass lists the same whole bricks (the planner's passes do) and voxels hold
 /// one value word, brick by brick instead: a brick's eight sub-passes read one window copied
 /// from the pass-start state, with the brick's own voxels updated in it as they go (the same
 /// results: a brick's sub-passes see only its own voxels' updates), so a pass copies each
-/// window once instead of once per sub-pass.
+/// window once instead of once per sub-pass. That path needs no pass-start copy either
+/// ([`whole_brick_pass_in_place`]); `pass_start` is then left empty.
 pub fn correct_pass(
     prepared: &Prepared,
     ps: &[CorrectParams],
@@ -1318,36 +1332,95 @@ pub fn correct_pass(
     pass_start: &mut Vec<u32>,
     bricks: &[u32],
 ) {
-    pass_start.clear();
-    pass_start.extend_from_slice(state);
-    if !whole_brick_pass(ps, bricks) {
-        for p in ps {
-            let updates = correct_prepared(prepared, p, level, state, pass_start, bricks);
-            apply(p, level, state, &updates);
-        }
+    if whole_brick_pass(ps, bricks) {
+        assert!(prepared.fits(&ps[0]), "prepared for another level layout");
+        pass_start.clear();
+        pass_start.shrink_to_fit();
+        whole_brick_pass_in_place(prepared, ps, level, state, bricks);
         return;
     }
-    let p0 = &ps[0];
-    assert!(prepared.fits(p0), "prepared for another level layout");
-    let pass_start: &[u32] = pass_start;
-    // (Reads go through the window, copied from the pass-start state.)
-    let ctxs: Vec<Ctx> = ps
-        .iter()
+    pass_start.clear();
+    pass_start.extend_from_slice(state);
+    for p in ps {
+        let updates = correct_prepared(prepared, p, level, state, pass_start, bricks);
+        apply(p, level, state, &updates);
+    }
+}
+
+/// A whole-brick pass without a copy of the state: bricks are corrected a z layer of bricks at
+/// a time (the layer's runs in parallel), and a layer's results are held back until the next
+/// layer is done. A voxel's reads reach 2 voxels, so the bricks of layer k read layers k - 1 to
+/// k + 1 only: when layer k is corrected, layers k - 1 and k still hold their pass-start
+/// values in `state` (their results are held), and layer k - 1's results can be written, no
+/// layer left to read it. A periodic state's first layer is read by its last (the wrap), so
+/// its results wait for the end. Memory: two layers' results instead of two whole states.
+fn whole_brick_pass_in_place(
+    prepared: &Prepared,
+    ps: &[CorrectParams],
+    level: &[u32],
+    state: &mut [u32],
+    bricks: &[u32],
+) {
+    // The runs, by z layer of bricks (ascending; list order within a layer).
+    let mut layers: std::collections::BTreeMap<i32, Vec<(u32, u32)>> = Default::default();
+    {
+        let ctxs = sub_pass_contexts(prepared, ps, level, state, bricks);
+        for (i, n) in runs_of(&ctxs[0]) {
+            let z = brick_at(bricks, ps[0].list_offset, i)[2];
+            layers.entry(z).or_default().push((i, n));
+        }
+    }
+    let periodic = ps[0].period != 0;
+    type Results = Vec<Vec<(usize, [u32; 256])>>;
+    let mut previous: Option<Results> = None;
+    let mut first: Option<Results> = None;
+    for (k, runs) in layers.values().enumerate() {
+        let results = {
+            let ctxs = sub_pass_contexts(prepared, ps, level, state, bricks);
+            in_parallel(runs, |window, i, n, out| {
+                fused_run_dispatch(&ctxs, window, i, n, out)
+            })
+        };
+        // The layer below has no reader left.
+        if let Some(below) = previous.take() {
+            write_bricks(state, &below);
+        }
+        if periodic && k == 0 {
+            first = Some(results);
+        } else {
+            previous = Some(results);
+        }
+    }
+    for results in [previous, first].into_iter().flatten() {
+        write_bricks(state, &results);
+    }
+}
+
+/// The sub-passes' contexts, reading the state `state` (also as the pass-start state).
+fn sub_pass_contexts<'a>(
+    prepared: &'a Prepared,
+    ps: &'a [CorrectParams],
+    level: &'a [u32],
+    state: &'a [u32],
+    bricks: &'a [u32],
+) -> Vec<Ctx<'a>> {
+    ps.iter()
         .map(|p| Ctx {
             p,
             level,
             level_bytes: bytemuck::cast_slice(level),
             prepared,
-            state: pass_start,
-            pass_start,
+            state,
+            pass_start: state,
             bricks,
             grid_lo: [p.grid_lo_x, p.grid_lo_y, p.grid_lo_z],
             grid_dims: [p.grid_x, p.grid_y, p.grid_z],
         })
-        .collect();
-    let results = over_runs(&ctxs[0], |window, i, n, out| {
-        fused_run_dispatch(&ctxs, window, i, n, out)
-    });
+        .collect()
+}
+
+/// Write corrected bricks (their first state index and 64 voxels' words) into the state.
+fn write_bricks(state: &mut [u32], results: &[Vec<(usize, [u32; 256])>]) {
     for (base, words) in results.iter().flatten() {
         state[base * 4..(base + 64) * 4].copy_from_slice(words);
     }

@@ -48,15 +48,25 @@ pub enum Executor {
 }
 
 impl Executor {
-    pub fn new(compute: &Compute, packs: &[LevelPack], table: &[u32]) -> Result<Executor> {
-        Ok(match compute {
+    /// Takes the packs' level data ([`LevelPack::words`], left empty): the CPU keeps it, the
+    /// GPU uploads it. The caller keeps the layouts, which is all the planning reads, so the
+    /// level data is held once (14 MiB for the built-in exemplar), not twice.
+    pub fn new(compute: &Compute, packs: &mut [LevelPack], table: &[u32]) -> Result<Executor> {
+        let exec = match compute {
             Compute::Cpu => Executor::Cpu {
-                levels: packs.iter().map(|p| p.words.clone()).collect(),
+                levels: packs
+                    .iter_mut()
+                    .map(|p| std::mem::take(&mut p.words))
+                    .collect(),
                 table: table.to_vec(),
                 prepared: packs.iter().map(|_| Default::default()).collect(),
             },
             Compute::Gpu(ctx) => Executor::Gpu(Box::new(GpuSynth::new(ctx.clone(), packs, table)?)),
-        })
+        };
+        for p in packs.iter_mut() {
+            p.words = Vec::new();
+        }
+        Ok(exec)
     }
 
     /// Largest state (one triple buffer) a chunk may use.
@@ -98,6 +108,17 @@ impl Executor {
         match self {
             Executor::Gpu(g) => g.set_parameter_arena_bytes(bytes),
             Executor::Cpu { .. } => Ok(()),
+        }
+    }
+
+    /// Copies of a level's state a correction pass holds: the GPU's state and its pass-start
+    /// copy; on the CPU the state alone (a pass of whole bricks holds back two layers of
+    /// corrected bricks instead, `cpu::correct::correct_pass`), two where voxels hold more
+    /// than one value word (a pass-start copy).
+    pub fn state_copies(&self, pixel_words: u32) -> u64 {
+        match self {
+            Executor::Cpu { .. } if pixel_words == 1 => 1,
+            _ => 2,
         }
     }
 

@@ -376,7 +376,7 @@ pub struct Synthesizer {
     /// Upper bound on chunk edges (None: as large as the backend allows).
     max_chunk_side: Option<u32>,
     /// Whether several groups share their coarse levels (see
-    /// [`Self::set_shared_coarse_levels`]); None: shared unless the groups were capped.
+    /// [`Self::set_shared_coarse_levels`]); None: shared.
     shared_coarse: Option<bool>,
     /// Per-kernel times when profiling (each kernel then waits for the device).
     times: Option<exec::KernelTimes>,
@@ -454,7 +454,7 @@ impl Synthesizer {
             finest.words[at..at + table.len()].copy_from_slice(&table);
         }
         let table = jitter::table();
-        let exec = exec::Executor::new(compute, &packs, &table)?;
+        let exec = exec::Executor::new(compute, &mut packs, &table)?;
         Ok(Synthesizer {
             params,
             packs,
@@ -532,9 +532,10 @@ impl Synthesizer {
         self.packs[0].color_channels
     }
 
-    /// Bytes of working memory one chunk of `side`^3 needs at the finest level: two state
-    /// buffers of the padded box (the state and its pass-start copy), each voxel a triple and a
-    /// value word (one word covers up to four channels; the estimate assumes that).
+    /// Bytes of working memory one chunk of `side`^3 needs at the finest level, at most: two
+    /// state buffers of the padded box (the GPU's state and its pass-start copy; the CPU
+    /// backend holds one), each voxel a triple and a value word (one word covers up to four
+    /// channels; the estimate assumes that).
     pub fn chunk_bytes(side: u32) -> u64 {
         grouping::padded_state_bytes([side as u64; 3]) * 2
     }
@@ -736,7 +737,7 @@ impl Synthesizer {
         };
         // The cache replaces the infinite solid's coarse levels already.
         let cached = self.params.coarse_cache.is_some() && matches!(periodic, Periodic::No);
-        let shared = self.shared_coarse.unwrap_or(self.max_chunk_side.is_none());
+        let shared = self.shared_coarse.unwrap_or(true);
         if groups.len() > 1 && shared && !cached {
             self.for_each_group_shared(
                 &groups,
@@ -952,9 +953,8 @@ impl Synthesizer {
     }
 
     /// Cap the group edge in voxels, rounded down to whole bricks (at least one); the result is
-    /// the same whatever the grouping (tests prove it). Capped groups bound the working memory:
-    /// unless [`Self::set_shared_coarse_levels`] says otherwise, each then synthesizes its own
-    /// coarse levels, dependency padding included.
+    /// the same whatever the grouping (tests prove it). Capped groups bound the working memory
+    /// (the shared coarse levels' groups too, see [`Self::set_shared_coarse_levels`]).
     pub fn set_max_chunk_side(&mut self, side: u32) {
         self.max_chunk_side = Some(side.max(1));
     }
@@ -979,8 +979,11 @@ impl Synthesizer {
     /// levels' repeated padding (a quarter of the time of a 256^3 box in eight groups on
     /// lavapipe) for about 0.9 bytes of host memory per finest-level voxel (1.7 for exemplars
     /// over 512 pixels), and each group's
-    /// parent state built on the host. Default: shared, unless the
-    /// groups were capped with [`Self::set_max_chunk_side`]. The result is the same either way.
+    /// parent state built on the host. A shared level is itself split into groups of the
+    /// finest groups' extent, so [`Self::set_max_chunk_side`] bounds its working memory too.
+    /// Default: shared (since session 26 also when the groups are capped: a 256^3 box in
+    /// 64-voxel groups on the CPU backend took 20.7 s with each group's own coarse levels,
+    /// 15.3 s shared, for 6 MiB more). The result is the same either way.
     pub fn set_shared_coarse_levels(&mut self, shared: bool) {
         self.shared_coarse = Some(shared);
     }
@@ -1303,12 +1306,13 @@ impl Synthesizer {
             if l > 0 || matches!(start, FirstLevel::Init) {
                 stats.voxels_per_level[first_pack + l] += lv.voxels();
             }
-            let words = lv.voxels() * (3 + self.packs[first_pack + l].pixel_words as u64);
-            state_bytes = state_bytes.max(words * 4);
+            let pixel_words = self.packs[first_pack + l].pixel_words;
+            let words = lv.voxels() * (3 + pixel_words as u64);
+            // With its pass-start copy where the backend keeps one (the GPU's correction
+            // records, an eighth more, are left out).
+            state_bytes = state_bytes.max(words * 4 * self.exec.state_copies(pixel_words));
         }
-        // The state and its pass-start copy (the GPU's correction records, an eighth more, are
-        // left out).
-        stats.peak_state_bytes = stats.peak_state_bytes.max(state_bytes * 2);
+        stats.peak_state_bytes = stats.peak_state_bytes.max(state_bytes);
         let (mut layout, mut index) = index_of(&mut self.exec, &levels, 0);
         let seed_lo = self.params.seed as u32;
         let seed_hi = (self.params.seed >> 32) as u32;

@@ -28,6 +28,8 @@ pub struct LevelOffsets {
 /// One pyramid level's exemplar data for synthesis.
 #[derive(Clone, Debug)]
 pub struct LevelPack {
+    /// The level data. A [`crate::lazy::Synthesizer`]'s packs are layouts only: it hands the
+    /// words to its executor ([`crate::lazy::exec::Executor::new`]).
     pub words: Vec<u32>,
     pub offsets: LevelOffsets,
     pub width: u32,
