@@ -1347,13 +1347,15 @@ pub fn correct_pass(
     }
 }
 
-/// A whole-brick pass without a copy of the state: bricks are corrected a z layer of bricks at
-/// a time (the layer's runs in parallel), and a layer's results are held back until the next
-/// layer is done. A voxel's reads reach 2 voxels, so the bricks of layer k read layers k - 1 to
-/// k + 1 only: when layer k is corrected, layers k - 1 and k still hold their pass-start
-/// values in `state` (their results are held), and layer k - 1's results can be written, no
-/// layer left to read it. A periodic state's first layer is read by its last (the wrap), so
-/// its results wait for the end. Memory: two layers' results instead of two whole states.
+/// A whole-brick pass without a copy of the state: bricks are corrected a block of z layers of
+/// bricks at a time (the block's runs in parallel), and a block's results are held back until
+/// the next block is done. A voxel's reads reach 2 voxels, so the bricks of a layer read the
+/// layers beside it only: when a block is corrected, it and the block before it still hold
+/// their pass-start values in `state` (their results are held), and the block before can then
+/// be written, no block left to read it. A periodic state's first block is read by its last
+/// (the wrap), so its results wait for the end. Memory: two blocks' results instead of two
+/// whole states. A block is one layer, or as many as it takes to give every thread a few runs
+/// (a thin shell's groups have few bricks per layer, and each block ends with a wait).
 fn whole_brick_pass_in_place(
     prepared: &Prepared,
     ps: &[CorrectParams],
@@ -1370,18 +1372,26 @@ fn whole_brick_pass_in_place(
             layers.entry(z).or_default().push((i, n));
         }
     }
+    let min_runs = 8 * rayon::current_num_threads();
+    let mut blocks: Vec<Vec<(u32, u32)>> = Vec::new();
+    for runs in layers.into_values() {
+        match blocks.last_mut() {
+            Some(block) if block.len() < min_runs => block.extend(runs),
+            _ => blocks.push(runs),
+        }
+    }
     let periodic = ps[0].period != 0;
     type Results = Vec<Vec<(usize, [u32; 256])>>;
     let mut previous: Option<Results> = None;
     let mut first: Option<Results> = None;
-    for (k, runs) in layers.values().enumerate() {
+    for (k, runs) in blocks.iter().enumerate() {
         let results = {
             let ctxs = sub_pass_contexts(prepared, ps, level, state, bricks);
             in_parallel(runs, |window, i, n, out| {
                 fused_run_dispatch(&ctxs, window, i, n, out)
             })
         };
-        // The layer below has no reader left.
+        // The block below has no reader left.
         if let Some(below) = previous.take() {
             write_bricks(state, &below);
         }
