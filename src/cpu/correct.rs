@@ -575,7 +575,9 @@ impl Ctx<'_> {
         let cand2d = [p.cand2d0, p.cand2d1, p.cand2d2][a];
         let (mut best, mut best_d) = (0u32, u32::MAX);
         // Neighbours of a coherent patch all propose the same source pixel: its candidates
-        // are scored once (a repeat could not win: ties keep the first found).
+        // are scored once (a repeat could not win: ties keep the first found). All sources
+        // first, their candidate runs asked of the cache, then scored: the (mostly missing)
+        // reads overlap.
         let mut seen = [u32::MAX; 9];
         let mut seen_count = 0;
         for dv in -1..=1 {
@@ -596,33 +598,58 @@ impl Ctx<'_> {
                 }
                 seen[seen_count] = src;
                 seen_count += 1;
-                let (px, py) = coord(src);
-                let pixel = py as u32 * p.ex_width + px as u32;
                 if let Some(table) = self.prepared.candidates_2d_of[a] {
-                    let k = p.k2d as usize;
-                    let range = pixel as usize * k..(pixel as usize + 1) * k;
-                    let found = match &self.prepared.candidates_2d {
-                        Tables2d::Short(t) => best_2d_of_run(&t[table][range], q, best_d),
-                        Tables2d::Long(t) => best_2d_of_run(&t[table][range], q, best_d),
-                    };
-                    if let Some((d, c)) = found {
-                        best_d = d;
-                        best = c;
-                    }
-                    continue;
-                }
-                let list = cand2d + pixel * p.k2d;
-                for j in 0..p.k2d {
-                    let c = self.level[(list + j) as usize];
-                    let d = self.distance(q, a, c) * (16 + self.penalty(a, c));
-                    if d < best_d {
-                        best_d = d;
-                        best = c;
+                    let (px, py) = coord(src);
+                    let at = (py as u32 * p.ex_width + px as u32) as usize * p.k2d as usize;
+                    match &self.prepared.candidates_2d {
+                        Tables2d::Short(t) => prefetch_lines(&t[table][at..], 1),
+                        Tables2d::Long(t) => prefetch_lines(&t[table][at..], 1),
                     }
                 }
             }
         }
+        for &src in &seen[..seen_count] {
+            let (px, py) = coord(src);
+            let pixel = py as u32 * p.ex_width + px as u32;
+            if let Some(table) = self.prepared.candidates_2d_of[a] {
+                let k = p.k2d as usize;
+                let range = pixel as usize * k..(pixel as usize + 1) * k;
+                let found = match &self.prepared.candidates_2d {
+                    Tables2d::Short(t) => best_2d_of_run(&t[table][range], q, best_d),
+                    Tables2d::Long(t) => best_2d_of_run(&t[table][range], q, best_d),
+                };
+                if let Some((d, c)) = found {
+                    best_d = d;
+                    best = c;
+                }
+                continue;
+            }
+            let list = cand2d + pixel * p.k2d;
+            for j in 0..p.k2d {
+                let c = self.level[(list + j) as usize];
+                let d = self.distance(q, a, c) * (16 + self.penalty(a, c));
+                if d < best_d {
+                    best_d = d;
+                    best = c;
+                }
+            }
+        }
         best
+    }
+
+    /// Ask the cache for the [`Tables3d`] run of pixel `c` of exemplar `a` (its first two
+    /// lines: the four candidates of the finest level, the first ones above).
+    #[inline(always)]
+    fn prefetch_3d(&self, a: usize, c: u32) {
+        let p = self.p;
+        let set = if p.shared_sets != 0 { 0 } else { a };
+        let (x, y) = coord(c);
+        let at = (y as u32 * p.ex_width + x as u32) as usize * p.k3d_used as usize;
+        match &self.prepared.candidates_3d {
+            Tables3d::Short(t) if set < t.len() => prefetch_lines(&t[set][at..], 2),
+            Tables3d::Long(t) if set < t.len() => prefetch_lines(&t[set][at..], 2),
+            _ => {}
+        }
     }
 
     #[inline(always)]
@@ -654,11 +681,23 @@ impl Ctx<'_> {
             self.project_plane::<MADD>(r, pos, 1),
             self.project_plane::<MADD>(r, pos, 2),
         ];
-        let best2d = [
-            self.best_2d(r, pos, 0, &q[0]),
-            self.best_2d(r, pos, 1, &q[1]),
-            self.best_2d(r, pos, 2, &q[2]),
-        ];
+        // Each plane's 3D candidates are fetched as soon as its best 2D pixel is known, so the
+        // (mostly cache-missing) reads overlap the other planes' 2D searches.
+        // (Unrolled: a loop over the planes is 20% slower, each call no longer specialized.)
+        let prefetch = p.mode != 1;
+        let best0 = self.best_2d(r, pos, 0, &q[0]);
+        if prefetch {
+            self.prefetch_3d(0, best0);
+        }
+        let best1 = self.best_2d(r, pos, 1, &q[1]);
+        if prefetch {
+            self.prefetch_3d(1, best1);
+        }
+        let best2 = self.best_2d(r, pos, 2, &q[2]);
+        if prefetch {
+            self.prefetch_3d(2, best2);
+        }
+        let best2d = [best0, best1, best2];
         if p.mode == 1 {
             return best2d;
         }
@@ -937,6 +976,24 @@ fn best_of_run<const P: usize>(
         }
     }
     best
+}
+
+/// Ask the cache for the first `lines` 64-byte lines of `run` (no more than it holds): a hint
+/// with no effect on results.
+#[inline(always)]
+fn prefetch_lines<T>(run: &[T], lines: usize) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+        let bytes = std::mem::size_of_val(run);
+        let start = run.as_ptr() as *const i8;
+        for line in 0..lines.min(bytes.div_ceil(64)) {
+            // SAFETY: a prefetch never faults, and the address is inside `run` anyway.
+            unsafe { _mm_prefetch::<_MM_HINT_T0>(start.add(line * 64)) };
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = (run, lines);
 }
 
 /// Sum of squared differences of the first K projection bytes (|difference| <= 255).
