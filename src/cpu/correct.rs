@@ -64,15 +64,15 @@ fn best_2d_of_run<const P: usize>(
     q: &Projection,
     mut best_d: u32,
 ) -> Option<(u32, u32)> {
-    let mut best = None;
-    for c in run {
+    // Branch-free selection (the comparisons are unpredictable; selects become cmovs).
+    let mut best = usize::MAX;
+    for (i, c) in run.iter().enumerate() {
         let d = squared_distance::<P>(q, &c.projection) * c.factor as u32;
-        if d < best_d {
-            best_d = d;
-            best = Some((d, c.coord));
-        }
+        let better = d < best_d;
+        best_d = if better { d } else { best_d };
+        best = if better { i } else { best };
     }
-    best
+    (best != usize::MAX).then(|| (best_d, run[best].coord))
 }
 
 /// A 3D candidate of a pixel of E_a (a triple whose a coordinate is that pixel) with copies of
@@ -966,16 +966,16 @@ fn best_of_run<const P: usize>(
     own: u32,
     mut best_d: u32,
 ) -> Option<(u32, [u32; 3])> {
-    let mut best = None;
-    for e in run {
+    // Branch-free selection, as in [`best_2d_of_run`].
+    let mut best = usize::MAX;
+    for (i, e) in run.iter().enumerate() {
         let d = (own + squared_distance::<P>(qb, &e.next) + squared_distance::<P>(qc, &e.last))
             * e.factor;
-        if d < best_d {
-            best_d = d;
-            best = Some((d, e.triple));
-        }
+        let better = d < best_d;
+        best_d = if better { d } else { best_d };
+        best = if better { i } else { best };
     }
-    best
+    (best != usize::MAX).then(|| (best_d, run[best].triple))
 }
 
 /// Ask the cache for the first `lines` 64-byte lines of `run` (no more than it holds): a hint
