@@ -116,6 +116,34 @@ trait Neighbours {
     fn triple(&self, pos: [i32; 3]) -> [u32; 3];
     /// Value word `w` (of `pixel_words`).
     fn word(&self, pos: [i32; 3], w: usize) -> u32;
+
+    /// Coordinate `a` of the triples of the 3x3 plane through `pos` spanned by axes `ua`
+    /// (columns) and `va` (rows), row-major from (-1, -1).
+    #[inline(always)]
+    fn plane_coords(&self, pos: [i32; 3], ua: usize, va: usize, a: usize) -> [u32; 9] {
+        let mut coords = [0u32; 9];
+        for (i, c) in coords.iter_mut().enumerate() {
+            let mut n = pos;
+            n[ua] += i as i32 % 3 - 1;
+            n[va] += i as i32 / 3 - 1;
+            *c = self.triple(n)[a];
+        }
+        coords
+    }
+
+    /// Value word 0 of the 5x5 plane through `pos` spanned by axes `ua` (columns) and `va`
+    /// (rows), row-major from (-2, -2).
+    #[inline(always)]
+    fn plane_words(&self, pos: [i32; 3], ua: usize, va: usize) -> [u32; 25] {
+        let mut words = [0u32; 25];
+        for (i, w) in words.iter_mut().enumerate() {
+            let mut n = pos;
+            n[ua] += i as i32 % 5 - 2;
+            n[va] += i as i32 / 5 - 2;
+            *w = self.word(n, 0);
+        }
+        words
+    }
 }
 
 /// Edge of a [`Window`] along y and z: a brick (4) and the 2 voxels on each side that the
@@ -304,6 +332,25 @@ impl Window {
     }
 }
 
+impl Window {
+    /// The slot of the corner (-reach, -reach) of the plane through `pos` spanned by axes `ua`
+    /// and `va`, and the slot strides along them.
+    #[inline(always)]
+    fn plane_slots(
+        &self,
+        pos: [i32; 3],
+        ua: usize,
+        va: usize,
+        reach: i32,
+    ) -> (isize, isize, isize) {
+        const STRIDES: [isize; 3] = [1, ROW as isize, (WINDOW * ROW) as isize];
+        let mut corner = pos;
+        corner[ua] -= reach;
+        corner[va] -= reach;
+        (self.slot(corner) as isize, STRIDES[ua], STRIDES[va])
+    }
+}
+
 impl Neighbours for Window {
     #[inline(always)]
     fn triple(&self, pos: [i32; 3]) -> [u32; 3] {
@@ -314,6 +361,34 @@ impl Neighbours for Window {
     fn word(&self, pos: [i32; 3], w: usize) -> u32 {
         debug_assert_eq!(w, 0);
         self.values[self.slot(pos)]
+    }
+
+    /// As [`Window::plane_words`].
+    #[inline(always)]
+    fn plane_coords(&self, pos: [i32; 3], ua: usize, va: usize, a: usize) -> [u32; 9] {
+        let (first, su, sv) = self.plane_slots(pos, ua, va, 1);
+        let mut coords = [0u32; 9];
+        for v in 0..3 {
+            let row = first + v as isize * sv;
+            for u in 0..3 {
+                coords[v * 3 + u] = self.triples[(row + u as isize * su) as usize][a];
+            }
+        }
+        coords
+    }
+
+    /// From the corner's slot and the two axes' strides: no position arithmetic per read.
+    #[inline(always)]
+    fn plane_words(&self, pos: [i32; 3], ua: usize, va: usize) -> [u32; 25] {
+        let (first, su, sv) = self.plane_slots(pos, ua, va, 2);
+        let mut words = [0u32; 25];
+        for v in 0..5 {
+            let row = first + v as isize * sv;
+            for u in 0..5 {
+                words[v * 5 + u] = self.values[(row + u as isize * su) as usize];
+            }
+        }
+        words
     }
 }
 
@@ -440,17 +515,7 @@ impl Ctx<'_> {
         if MADD {
             if let Some(pairs) = &self.prepared.pair_weights {
                 let (ua, va) = ((a + 1) % 3, (a + 2) % 3);
-                let mut words = [0u32; 25];
-                let mut i = 0;
-                for dv in -2..=2 {
-                    for du in -2..=2 {
-                        let mut n = pos;
-                        n[ua] += du;
-                        n[va] += dv;
-                        words[i] = r.word(n, 0);
-                        i += 1;
-                    }
-                }
+                let words = r.plane_words(pos, ua, va);
                 // SAFETY: MADD is only set on the AVX2 path (`correct_run_avx2`), entered after
                 // detecting AVX2.
                 let acc = unsafe {
@@ -580,12 +645,10 @@ impl Ctx<'_> {
         // reads overlap.
         let mut seen = [u32::MAX; 9];
         let mut seen_count = 0;
+        let coords = r.plane_coords(pos, ua, va, a);
         for dv in -1..=1 {
             for du in -1..=1 {
-                let mut n = pos;
-                n[ua] += du;
-                n[va] += dv;
-                let (cx, cy) = coord(r.triple(n)[a]);
+                let (cx, cy) = coord(coords[(3 * (dv + 1) + du + 1) as usize]);
                 let (sx, sy) = (cx - du, cy - dv);
                 if p.border != 0
                     && (sx < 0 || sy < 0 || sx >= p.ex_width as i32 || sy >= p.ex_height as i32)
