@@ -6,7 +6,7 @@
 //! projections, three penalties), each at an unrelated address. On an H100 the correction kernel
 //! ran far below its arithmetic rate, waiting on such scattered reads of level data too large
 //! for the L1 cache; the CPU backend had already gathered each candidate's data into one record
-//! (`Prepared` in src/cpu/correct.rs). These tables do the same for the GPU: every value is the
+//! (`Prepared` in src/cpu/correct/prepared.rs). These tables do the same for the GPU: every value is the
 //! one the kernel read before (the CPU reference still reads the level data, so the
 //! kernels-tests compare the two paths), only its place changes.
 //!
