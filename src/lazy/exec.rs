@@ -1,6 +1,8 @@
 //! Running the synthesis kernels on the chosen backend. The CPU executor calls the references in
-//! `cpu/`; the GPU executor keeps the level data resident. Both keep, during a correction pass,
-//! a copy of the state as the pass began (`begin_pass`).
+//! `cpu/`; the GPU executor keeps the level data resident. The GPU keeps, during a correction
+//! pass, a copy of the state as the pass began (`begin_pass`); the CPU only for passes that are
+//! not whole bricks (its whole-brick passes hold back blocks of results instead,
+//! `cpu::correct::correct_pass`).
 
 use super::pack::LevelPack;
 use crate::backend::Compute;
@@ -29,8 +31,9 @@ impl IndexBuf {
     }
 }
 
-/// A level's triples on the backend. The CPU's holds its words and, during a correction pass,
-/// a copy of them as the pass began (brick-local sub-passes read other bricks there).
+/// A level's triples on the backend. The CPU's holds its words and, during a correction pass
+/// that is not of whole bricks, a copy of them as the pass began (brick-local sub-passes read
+/// other bricks there; empty otherwise).
 pub enum State {
     Cpu(Vec<u32>, Vec<u32>),
     Gpu(crate::gpu::synth::GpuState),
@@ -96,7 +99,8 @@ impl Executor {
         }
     }
 
-    /// See [`GpuSynth::correct_pass`] (the CPU backend always runs a pass brick by brick).
+    /// See [`GpuSynth::correct_pass`] (the CPU backend runs every pass of whole bricks brick by
+    /// brick).
     pub fn set_fused_passes(&mut self, on: bool) {
         if let Executor::Gpu(g) = self {
             g.fused_passes = on;
@@ -112,9 +116,10 @@ impl Executor {
     }
 
     /// Copies of a level's state a correction pass holds: the GPU's state and its pass-start
-    /// copy; on the CPU the state alone (a pass of whole bricks holds back two layers of
-    /// corrected bricks instead, `cpu::correct::correct_pass`), two where voxels hold more
-    /// than one value word (a pass-start copy).
+    /// copy; on the CPU the state alone (a pass of whole bricks holds back two blocks of z
+    /// layers of corrected bricks instead, at most about a quarter of a state,
+    /// `cpu::correct::correct_pass`), two where voxels hold more than one value word (a
+    /// pass-start copy).
     pub fn state_copies(&self, pixel_words: u32) -> u64 {
         match self {
             Executor::Cpu { .. } if pixel_words == 1 => 1,

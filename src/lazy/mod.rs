@@ -1959,7 +1959,8 @@ impl IndexLayout {
 #[derive(Clone, Debug, Default, serde::Serialize)]
 pub struct SynthStats {
     pub voxels_per_level: Vec<u64>,
-    /// Largest state of one level with its pass-start copy (both backends), bytes.
+    /// Largest state of one level with its pass-start copy where the backend keeps one (the
+    /// GPU; the CPU only where voxels hold more than one value word), bytes.
     pub peak_state_bytes: u64,
     /// Groups of bricks synthesized independently.
     pub groups: usize,

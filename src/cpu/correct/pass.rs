@@ -95,7 +95,8 @@ pub fn correct_pass(
 /// be written, no block left to read it. A periodic state's first block is read by its last
 /// (the wrap), so its results wait for the end. Memory: two blocks' results instead of two
 /// whole states. A block is one layer, or as many as it takes to give every thread a few runs
-/// (a thin shell's groups have few bricks per layer, and each block ends with a wait).
+/// (a thin shell's groups have few bricks per layer, and each block ends with a wait), up to an
+/// eighth of the pass's runs: the held results stay under about a quarter of the state.
 pub(super) fn whole_brick_pass_in_place(
     prepared: &Prepared,
     ps: &[CorrectParams],
@@ -112,7 +113,11 @@ pub(super) fn whole_brick_pass_in_place(
             layers.entry(z).or_default().push((i, n));
         }
     }
-    let min_runs = 8 * rayon::current_num_threads();
+    // A few runs per thread, but no more than an eighth of the pass (so that the held results
+    // stay within about a quarter of the state on a many-core machine, which would otherwise
+    // merge a small group's layers into one block).
+    let total: usize = layers.values().map(Vec::len).sum();
+    let min_runs = (8 * rayon::current_num_threads()).min(total / 8);
     let mut blocks: Vec<Vec<(u32, u32)>> = Vec::new();
     for runs in layers.into_values() {
         match blocks.last_mut() {
