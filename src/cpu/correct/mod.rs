@@ -169,21 +169,13 @@ impl Ctx<'_> {
         let (ua, va) = ((a + 1) % 3, (a + 2) % 3);
         let (wt, mean) = (&self.prepared.weights_t[a], &self.prepared.means[a]);
         let mut acc = [0i32; K];
-        let mut i = 0usize;
-        for dv in -2..=2 {
-            for du in -2..=2 {
-                let mut n = pos;
-                n[ua] += du;
-                n[va] += dv;
-                let word = r.word(n, 0);
-                for ch in 0..C {
-                    let centred = ((word >> (ch * 8)) & 0xFF) as i32 - mean[i];
-                    let row: &[i32; K] =
-                        wt[i * MAX_PCA_OUT..i * MAX_PCA_OUT + K].try_into().unwrap();
-                    for j in 0..K {
-                        acc[j] = acc[j].wrapping_add(centred.wrapping_mul(row[j]));
-                    }
-                    i += 1;
+        for (pixel, word) in r.plane_words(pos, ua, va).into_iter().enumerate() {
+            for ch in 0..C {
+                let i = pixel * C + ch;
+                let centred = ((word >> (ch * 8)) & 0xFF) as i32 - mean[i];
+                let row: &[i32; K] = wt[i * MAX_PCA_OUT..i * MAX_PCA_OUT + K].try_into().unwrap();
+                for j in 0..K {
+                    acc[j] = acc[j].wrapping_add(centred.wrapping_mul(row[j]));
                 }
             }
         }
