@@ -46,6 +46,9 @@ pub enum Executor {
         /// Per level, the correction's derived tables, built at the level's first sub-pass and
         /// kept for the executor's life (a warm cut session reuses them).
         prepared: Vec<std::sync::OnceLock<crate::cpu::correct::Prepared>>,
+        /// Tests: every pass sub-pass by sub-pass against a pass-start copy (the reference the
+        /// brick-by-brick passes must equal), see [`Executor::set_sub_pass_reference`].
+        sub_pass_reference: bool,
     },
     Gpu(Box<GpuSynth>),
 }
@@ -63,6 +66,7 @@ impl Executor {
                     .collect(),
                 table: table.to_vec(),
                 prepared: packs.iter().map(|_| Default::default()).collect(),
+                sub_pass_reference: false,
             },
             Compute::Gpu(ctx) => Executor::Gpu(Box::new(GpuSynth::new(ctx.clone(), packs, table)?)),
         };
@@ -104,6 +108,18 @@ impl Executor {
     pub fn set_fused_passes(&mut self, on: bool) {
         if let Executor::Gpu(g) = self {
             g.fused_passes = on;
+        }
+    }
+
+    /// Tests: the CPU backend runs every correction pass sub-pass by sub-pass against a copy of
+    /// the state as the pass began, never brick by brick in place (the same results; the GPU
+    /// is unaffected).
+    pub fn set_sub_pass_reference(&mut self, on: bool) {
+        if let Executor::Cpu {
+            sub_pass_reference, ..
+        } = self
+        {
+            *sub_pass_reference = on;
         }
     }
 
@@ -215,7 +231,10 @@ impl Executor {
         match (self, state) {
             (
                 Executor::Cpu {
-                    levels, prepared, ..
+                    levels,
+                    prepared,
+                    sub_pass_reference,
+                    ..
                 },
                 State::Cpu(v, pass_start),
             ) => {
@@ -228,7 +247,15 @@ impl Executor {
                     rebuilt = Prepared::new(p0, data);
                     prep = &rebuilt;
                 }
-                correct_pass(prep, ps, data, v, pass_start, index.cpu());
+                correct_pass(
+                    prep,
+                    ps,
+                    data,
+                    v,
+                    pass_start,
+                    index.cpu(),
+                    !*sub_pass_reference,
+                );
                 Ok(())
             }
             (Executor::Gpu(g), State::Gpu(s)) => {

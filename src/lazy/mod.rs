@@ -935,6 +935,13 @@ impl Synthesizer {
         self.exec.set_fused_passes(on);
     }
 
+    /// Tests: on the CPU backend, every correction pass sub-pass by sub-pass against a copy of
+    /// the state as the pass began (the reference of the brick-by-brick passes; same results).
+    #[doc(hidden)]
+    pub fn set_sub_pass_reference(&mut self, on: bool) {
+        self.exec.set_sub_pass_reference(on);
+    }
+
     /// Tests: a GPU parameter arena of `bytes`, so that batches fill up (see
     /// `GpuSynth::set_parameter_arena_bytes`).
     #[doc(hidden)]
