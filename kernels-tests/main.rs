@@ -3,6 +3,7 @@
 //! test must never look like a passing one.
 
 mod bucket;
+mod buffers;
 mod compare;
 mod lapped_render;
 mod project;

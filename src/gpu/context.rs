@@ -274,6 +274,40 @@ impl GpuContext {
             })
     }
 
+    /// [`Self::storage_buffer`] for large contents kept for long (a synthesis' level data and
+    /// candidate tables): uploaded in pieces of [`UPLOAD_PIECE_BYTES`], each waited for. wgpu
+    /// stages an upload in memory of its own until its copy has run, so an upload made whole
+    /// holds its bytes twice, and on lavapipe, whose device memory is host memory, the staging
+    /// pages stay with the process: the built-in exemplar's 31 MiB of level data and tables
+    /// took 61 MiB of device memory; in pieces, 31 plus one piece.
+    pub fn storage_buffer_in_pieces(&self, label: &str, bytes: &[u8]) -> Result<wgpu::Buffer> {
+        let buffer = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(label),
+            size: bytes.len().next_multiple_of(4).max(4) as u64,
+            // (COPY_SRC: the kernels-tests read it back.)
+            usage: wgpu::BufferUsages::STORAGE
+                | wgpu::BufferUsages::COPY_DST
+                | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        self.checked(label, || {
+            for (i, piece) in bytes.chunks(UPLOAD_PIECE_BYTES).enumerate() {
+                let offset = (i * UPLOAD_PIECE_BYTES) as u64;
+                if piece.len() % 4 == 0 {
+                    self.queue.write_buffer(&buffer, offset, piece);
+                } else {
+                    let mut padded = piece.to_vec();
+                    padded.resize(piece.len().next_multiple_of(4), 0);
+                    self.queue.write_buffer(&buffer, offset, &padded);
+                }
+                let index = self.queue.submit(None);
+                self.wait(Some(index))?;
+            }
+            Ok(())
+        })?;
+        Ok(buffer)
+    }
+
     /// A storage buffer holding `parts` end to end (at least one word), copied straight into
     /// the mapped buffer: no joined copy on the host.
     pub fn storage_buffer_parts(&self, label: &str, parts: &[&[u32]]) -> Result<wgpu::Buffer> {
@@ -484,6 +518,9 @@ impl GpuContext {
         result
     }
 }
+
+/// The piece size of [`GpuContext::storage_buffer_in_pieces`].
+pub const UPLOAD_PIECE_BYTES: usize = 4 << 20;
 
 /// Split `total` items of `bytes_per_item` bytes into consecutive ranges each at most
 /// `max_bytes` long (at least one item per range).

@@ -269,8 +269,8 @@ impl GpuSynth {
         }
         let levels = packs
             .iter()
-            .map(|p| ctx.storage_buffer("level data", bytemuck::cast_slice(&p.words)))
-            .collect();
+            .map(|p| ctx.storage_buffer_in_pieces("level data", bytemuck::cast_slice(&p.words)))
+            .collect::<Result<_>>()?;
         let mut candidates = Vec::with_capacity(packs.len());
         for (i, p) in packs.iter().enumerate() {
             let slots = p.k3d_used(i + 1 == packs.len());
@@ -292,7 +292,8 @@ impl GpuSynth {
                     ),
                 ));
             }
-            let buffer = ctx.storage_buffer("candidate tables", bytemuck::cast_slice(&words));
+            let buffer =
+                ctx.storage_buffer_in_pieces("candidate tables", bytemuck::cast_slice(&words))?;
             candidates.push((buffer, slots));
         }
         let table = ctx.storage_buffer("jitter table", bytemuck::cast_slice(table));
@@ -450,6 +451,18 @@ impl GpuSynth {
             .checked(&format!("kernels {}", names.join(", ")), || {
                 self.ctx.queue.write_buffer(&self.arena, 0, &batch.params);
                 self.ctx.queue.submit(Some(batch.encoder.finish()));
+                if tracing::enabled!(tracing::Level::DEBUG) {
+                    if let Some(r) = self.ctx.device.generate_allocator_report() {
+                        tracing::debug!(
+                            "device memory after submitting {}: {:.1} MiB in {} buffers, {:.1} MiB \
+                             of blocks",
+                            names.join(", "),
+                            r.total_allocated_bytes as f64 / (1 << 20) as f64,
+                            r.allocations.len(),
+                            r.total_reserved_bytes as f64 / (1 << 20) as f64
+                        );
+                    }
+                }
                 Ok(())
             })
     }
