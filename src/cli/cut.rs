@@ -92,6 +92,8 @@ pub fn run(args: CutArgs, quiet: bool) -> anyhow::Result<()> {
     let compute = args.solid.input.backend.open()?;
     let analysis = load_or_analyze(&args.solid.input, &compute, quiet || args.json)?;
     let mut session = CutSession::new(args.solid.synthesizer(&analysis, &compute)?);
+    // The session keeps what it reads: the analysis is not held through the cuts.
+    drop(analysis);
     if args.profile {
         session.synthesizer_mut().enable_profiling();
     }

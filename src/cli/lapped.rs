@@ -382,7 +382,10 @@ fn bake(args: BakeArgs, quiet: bool) -> anyhow::Result<()> {
     let atlas = mesh_bake::Atlas::new(surface.triangles.len(), texels)?;
     let image = lapped::bake::bake(&model, &surface, &tets, &atlas)?;
     let png = atomic::png_bytes(&image)?;
-    atomic::write_file(&args.output, &mesh::glb::glb_bytes(&surface, &atlas, &png))?;
+    drop(image);
+    atomic::write_with(&args.output, |f| {
+        mesh::glb::write_glb(f, &surface, &atlas, &png)
+    })?;
     let seconds = start.elapsed().as_secs_f64();
     if args.json {
         println!(

@@ -134,8 +134,16 @@ pub fn run(args: SurfaceArgs, quiet: bool) -> anyhow::Result<()> {
         bar.set_message(m.to_string());
     };
     let mut synth = args.solid.synthesizer(&analysis, &compute)?;
+    // The synthesizer keeps what it reads: the analysis (10 MiB for the built-in exemplar) is
+    // not held through the synthesis.
+    drop(analysis);
     let result = synth.synthesize_bricks(&wanted, &report, false)?;
     drop(wanted);
+    // Of the synthesizer, baking needs only these: its level data and tables (on a GPU, its
+    // buffers) are freed before the atlas and its PNG are made.
+    let stats = synth.last_stats().cloned().unwrap_or_default();
+    let channels = synth.color_channels();
+    drop(synth);
     let mut colors = vec![0u32; atlas.width as usize * atlas.height as usize];
     let mut last = None;
     atlas.for_each_texel_voxel(&mesh, &place, |i, p| {
@@ -144,10 +152,15 @@ pub fn run(args: SurfaceArgs, quiet: bool) -> anyhow::Result<()> {
     drop(result);
     bar.finish_and_clear();
     let seconds = (start.elapsed() - analysis_time).as_secs_f64();
-    let image = bake::atlas_image(&atlas, &colors, synth.color_channels()).to_rgba8();
-    let png = atomic::png_bytes(&image)?;
+    let png = {
+        let image = bake::atlas_image(&atlas, &colors, channels).to_rgba8();
+        drop(colors);
+        atomic::png_bytes(&image)?
+    };
     match &extra {
-        None => atomic::write_file(&args.output, &mesh::glb::glb_bytes(&mesh, &atlas, &png))?,
+        None => atomic::write_with(&args.output, |f| {
+            mesh::glb::write_glb(f, &mesh, &atlas, &png)
+        })?,
         Some((mtl, png_path)) => {
             // The three files appear together or not at all.
             let name = |p: &Path| p.file_name().unwrap().to_string_lossy().into_owned();
@@ -161,7 +174,6 @@ pub fn run(args: SurfaceArgs, quiet: bool) -> anyhow::Result<()> {
             outputs.commit()?;
         }
     }
-    let stats = synth.last_stats().cloned().unwrap_or_default();
     let finest = stats.voxels_per_level.last().copied().unwrap_or(0);
     let fraction = finest as f64 / (args.resolution as f64).powi(3);
     if args.json {

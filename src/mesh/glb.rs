@@ -7,8 +7,22 @@ use serde_json::json;
 
 /// The .glb bytes of `mesh` textured by `png` through `atlas`.
 pub fn glb_bytes(mesh: &Mesh, atlas: &Atlas, png: &[u8]) -> Vec<u8> {
+    let mut out = Vec::new();
+    write_glb(&mut out, mesh, atlas, png).expect("writing to memory");
+    out
+}
+
+/// Write the .glb of [`glb_bytes`] to `out`, the PNG straight from `png` (a large atlas's PNG is
+/// not copied into the file's bytes first).
+pub fn write_glb(
+    out: &mut impl std::io::Write,
+    mesh: &Mesh,
+    atlas: &Atlas,
+    png: &[u8],
+) -> std::io::Result<()> {
     let corners = mesh.triangles.len() * 3;
-    let mut bin = Vec::with_capacity(corners * 20 + png.len() + 8);
+    // The binary chunk: positions, texture coordinates, the PNG, zeros to a whole word.
+    let mut geometry = Vec::with_capacity(corners * 20);
     let mut lo = [f32::INFINITY; 3];
     let mut hi = [f32::NEG_INFINITY; 3];
     for t in &mesh.triangles {
@@ -17,22 +31,20 @@ pub fn glb_bytes(mesh: &Mesh, atlas: &Atlas, png: &[u8]) -> Vec<u8> {
             for k in 0..3 {
                 lo[k] = lo[k].min(p[k]);
                 hi[k] = hi[k].max(p[k]);
-                bin.extend_from_slice(&p[k].to_le_bytes());
+                geometry.extend_from_slice(&p[k].to_le_bytes());
             }
         }
     }
-    let uv_offset = bin.len();
+    let uv_offset = geometry.len();
     for uv in &atlas.uvs {
         for c in uv {
-            bin.extend_from_slice(&c[0].to_le_bytes());
-            bin.extend_from_slice(&c[1].to_le_bytes());
+            geometry.extend_from_slice(&c[0].to_le_bytes());
+            geometry.extend_from_slice(&c[1].to_le_bytes());
         }
     }
-    let png_offset = bin.len();
-    bin.extend_from_slice(png);
-    while bin.len() % 4 != 0 {
-        bin.push(0);
-    }
+    let png_offset = geometry.len();
+    let padding = (4 - (png_offset + png.len()) % 4) % 4;
+    let bin_len = png_offset + png.len() + padding;
     let doc = json!({
         "asset": {"version": "2.0", "generator": "solidsynth"},
         "scene": 0,
@@ -55,7 +67,7 @@ pub fn glb_bytes(mesh: &Mesh, atlas: &Atlas, png: &[u8]) -> Vec<u8> {
         // Linear filtering, clamped: the atlas keeps each triangle's texels inside its cell.
         "samplers": [{"magFilter": 9729, "minFilter": 9729, "wrapS": 33071, "wrapT": 33071}],
         "images": [{"bufferView": 2, "mimeType": "image/png"}],
-        "buffers": [{"byteLength": bin.len()}],
+        "buffers": [{"byteLength": bin_len}],
         "bufferViews": [
             {"buffer": 0, "byteOffset": 0, "byteLength": uv_offset, "target": 34962},
             {"buffer": 0, "byteOffset": uv_offset, "byteLength": png_offset - uv_offset, "target": 34962},
@@ -71,18 +83,18 @@ pub fn glb_bytes(mesh: &Mesh, atlas: &Atlas, png: &[u8]) -> Vec<u8> {
     while json_bytes.len() % 4 != 0 {
         json_bytes.push(b' ');
     }
-    let total = 12 + 8 + json_bytes.len() + 8 + bin.len();
-    let mut out = Vec::with_capacity(total);
-    out.extend_from_slice(b"glTF");
-    out.extend_from_slice(&2u32.to_le_bytes());
-    out.extend_from_slice(&(total as u32).to_le_bytes());
-    out.extend_from_slice(&(json_bytes.len() as u32).to_le_bytes());
-    out.extend_from_slice(b"JSON");
-    out.extend_from_slice(&json_bytes);
-    out.extend_from_slice(&(bin.len() as u32).to_le_bytes());
-    out.extend_from_slice(b"BIN\0");
-    out.extend_from_slice(&bin);
-    out
+    let total = 12 + 8 + json_bytes.len() + 8 + bin_len;
+    out.write_all(b"glTF")?;
+    out.write_all(&2u32.to_le_bytes())?;
+    out.write_all(&(total as u32).to_le_bytes())?;
+    out.write_all(&(json_bytes.len() as u32).to_le_bytes())?;
+    out.write_all(b"JSON")?;
+    out.write_all(&json_bytes)?;
+    out.write_all(&(bin_len as u32).to_le_bytes())?;
+    out.write_all(b"BIN\0")?;
+    out.write_all(&geometry)?;
+    out.write_all(png)?;
+    out.write_all(&[0u8; 3][..padding])
 }
 
 #[cfg(test)]
