@@ -65,7 +65,7 @@ fn whole_analysis(c: &mut Criterion) {
 /// End-to-end synthesis of a 24^3 box (every kernel) on the CPU backend and on the GPU adapter,
 /// then each kernel's share of it ("synthesis kernels 24^3/KERNEL BACKEND": the kernel's total
 /// time per synthesis, from the synthesizer's profiling, which waits for the device after every
-/// kernel; on the GPU `correct` includes its `scatter`). `solidsynth bench synth` prints the same
+/// kernel). `solidsynth bench synth` prints the same
 /// split with CPU/GPU ratios for larger volumes.
 fn synthesis(c: &mut Criterion) {
     use solidsynth::lazy::{Box3, SynthParams, Synthesizer};

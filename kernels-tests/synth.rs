@@ -498,53 +498,6 @@ fn each_synthesis_kernel_matches_its_reference() {
     let gpu_child_index = g.upload_index(&child_index);
     let gpu_up = g.upsample(0, &up, gpu_state, &gpu_child_index).unwrap();
     words_equal("upsample", &cpu_up, &g.read_state(&gpu_up).unwrap()).unwrap();
-
-    // Scatter: one class's records written back under per-brick masks (one brick skipped,
-    // the others partly or fully updated).
-    let mut index = child_index.clone();
-    let mask_offset = index.len() as u32;
-    let masks: Vec<u8> = (0..child_bricks.len())
-        .map(|b| match b % 3 {
-            0 => 0,
-            1 => 0xFF,
-            _ => 0b1010_0110,
-        })
-        .collect();
-    index.extend(masks.chunks(4).map(|m| {
-        m.iter()
-            .enumerate()
-            .fold(0u32, |w, (i, &b)| w | (b as u32) << (8 * i))
-    }));
-    let count = child_bricks.len() as u32;
-    let scatter = solidsynth::kernel_types::ScatterParams {
-        grid_lo_x: child_grid.lo[0],
-        grid_lo_y: child_grid.lo[1],
-        grid_lo_z: child_grid.lo[2],
-        grid_x: child_grid.dims[0],
-        grid_y: child_grid.dims[1],
-        grid_z: child_grid.dims[2],
-        table_offset: 0,
-        list_offset: child_list,
-        list_count: count,
-        class_x: 1,
-        class_y: 0,
-        class_z: 1,
-        mask_offset,
-        grid_stride: solidsynth::gpu::context::dispatch_grid(count * 8).2,
-        stride: 3 + pack.pixel_words,
-        _pad: 0,
-    };
-    let records: Vec<u32> = (0..count * 8 * scatter.stride)
-        .map(|i| i.wrapping_mul(0x9E37_79B9))
-        .collect();
-    let mut cpu_scattered = cpu_up.clone();
-    solidsynth::cpu::scatter::scatter(&scatter, &records, &mut cpu_scattered, &index);
-    assert!(words_equal("scatter writes", &cpu_up, &cpu_scattered).is_err());
-    let gpu_index = g.upload_index(&index);
-    let gpu_scattered = g
-        .scatter_words(&scatter, &records, &cpu_up, &gpu_index)
-        .unwrap();
-    words_equal("scatter", &cpu_scattered, &gpu_scattered).unwrap();
 }
 
 /// A warm GPU cut session keeps its buffers from one cut to the next (`CutSession`): cuts of

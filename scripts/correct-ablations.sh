@@ -10,7 +10,7 @@
 #   proj1   the projection reads one neighbour per plane instead of 25
 #   no2d    the 2D search looks at the voxel's own candidates only, not its 8 neighbours'
 #   no3d    no 3D search (the three best 2D coordinates are taken)
-#   empty   the kernel returns before any work (dispatch and scatter overhead)
+#   empty   the kernel returns before any work (dispatch overhead)
 # A pattern that no longer matches the kernel stops the script: update it with the kernel.
 set -euo pipefail
 cd "$(dirname "$0")/.."

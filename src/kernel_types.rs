@@ -128,45 +128,6 @@ gpu_struct! {
 }
 
 gpu_struct! {
-    /// Uniforms of `wgsl/scatter.wgsl`: a correction sub-pass's records written into the state
-    /// (the same grid, list, class and mask as its `CorrectParams`).
-    ScatterParams size 64 {
-        grid_lo_x: i32, grid_lo_y: i32, grid_lo_z: i32,
-        grid_x: u32, grid_y: u32, grid_z: u32,
-        table_offset: u32,
-        list_offset: u32, list_count: u32,
-        class_x: u32, class_y: u32, class_z: u32,
-        mask_offset: u32, grid_stride: u32,
-        /// Words per voxel: 3 + pixel_words.
-        stride: u32, _pad: u32,
-    }
-}
-
-impl ScatterParams {
-    /// The write-back of the sub-pass `p` describes.
-    pub fn of(p: &CorrectParams) -> ScatterParams {
-        ScatterParams {
-            grid_lo_x: p.grid_lo_x,
-            grid_lo_y: p.grid_lo_y,
-            grid_lo_z: p.grid_lo_z,
-            grid_x: p.grid_x,
-            grid_y: p.grid_y,
-            grid_z: p.grid_z,
-            table_offset: p.table_offset,
-            list_offset: p.list_offset,
-            list_count: p.list_count,
-            class_x: p.class_x,
-            class_y: p.class_y,
-            class_z: p.class_z,
-            mask_offset: p.mask_offset,
-            grid_stride: p.grid_stride,
-            stride: 3 + p.pixel_words,
-            _pad: 0,
-        }
-    }
-}
-
-gpu_struct! {
     /// Uniforms of `wgsl/colorize.wgsl`: voxel colours of a list of bricks.
     ColorizeParams size 80 {
         /// The finest level's brick grid and table (as in CorrectParams).
@@ -289,12 +250,6 @@ pub fn all_layouts() -> Vec<(
             "CorrectParams",
             CorrectParams::layout(),
             size_of::<CorrectParams>(),
-        ),
-        (
-            "scatter",
-            "ScatterParams",
-            ScatterParams::layout(),
-            size_of::<ScatterParams>(),
         ),
         (
             "colorize",

@@ -33,8 +33,8 @@ override K2D: u32 = 2u;
 override PACKED_WEIGHTS: bool = false;
 // A whole pass in one dispatch (`fused_pass`): the workgroup's eight bricks in workgroup memory
 // (OWN_WORDS = 8 bricks x 64 voxels x 4 words; one value word per voxel), updated sub-pass by
-// sub-pass, and the results written straight into the state (bound at binding 3), since every
-// read of another brick goes to the pass-start copy.
+// sub-pass, and the results written into the state too, since every read of another brick
+// goes to the pass-start copy.
 override FUSED: bool = false;
 override OWN_WORDS: u32 = 4u;
 var<workgroup> own_voxels: array<u32, OWN_WORDS>;
@@ -43,11 +43,9 @@ var<private> own_base: u32;
 
 @group(0) @binding(0) var<uniform> params: CorrectParams;
 // (binding 1: level data, declared by the prelude)
-@group(0) @binding(2) var<storage, read> state: array<u32>;
-// The sub-pass's results: one record (stride words, as a state voxel) per listed class voxel,
-// in list order (`tid`), which `scatter` then writes into the state. Records of voxels the plan
-// does not need stay unwritten.
-@group(0) @binding(3) var<storage, read_write> updates: array<u32>;
+// The state, corrected in place: a sub-pass writes its voxels' new values straight into it (see
+// `neighbour_word` for why none of its reads sees one of its writes).
+@group(0) @binding(3) var<storage, read_write> state: array<u32>;
 // (binding 4: the level's brick index, declared by the prelude)
 // The level's candidate tables (src/gpu/candidate_tables.rs): each 2D and 3D candidate with its
 // scale and projections in one run of words, so scoring it reads one place. Header: plane a's
@@ -55,8 +53,9 @@ var<private> own_base: u32;
 // padded to whole vec4s (entry_2d, entry_3d there).
 @group(0) @binding(6) var<storage, read> tables: array<u32>;
 // The state as the pass began: a voxel reads its neighbours outside its own brick here, those
-// inside from `state` (brick-local sub-passes, src/cpu/correct.rs), so a pass depends on its
-// bricks and 2 voxels around them only (src/lazy/plan.rs).
+// inside as the pass's earlier sub-passes left them (brick-local sub-passes,
+// src/cpu/correct/mod.rs), so a pass depends on its bricks and 2 voxels around them only
+// (src/lazy/plan.rs).
 @group(0) @binding(7) var<storage, read> pass_start: array<u32>;
 
 // Index of voxel p in the state (ABSENT when its brick is not stored).
@@ -133,14 +132,23 @@ fn in_own_brick(r: Around, a: u32, du: i32, dv: i32) -> bool {
     return nu >= 0 && nu <= 3 && nv >= 0 && nv <= 3;
 }
 
-// Word w of the stored voxel s (not ABSENT): from the current state in the own brick, else as
-// the pass began.
-fn neighbour_word(s: u32, w: u32, own: bool) -> u32 {
+// Word w of the stored voxel s (not ABSENT) as the sub-pass sees it: in the own brick as the
+// pass's earlier sub-passes left it, elsewhere as the pass began. `same_class`: s is of the
+// sub-pass's class (its offset from the corrected voxel is even along every axis). A pass
+// corrects each class once (`GpuSynth::correct_pass` checks it), so such a voxel still holds
+// its pass-start value and is read from the pass-start copy; a sub-pass writes only voxels of
+// its class, so none of its reads of `state` sees one of its writes, and its results go
+// straight into the state: no records, no second dispatch to write them back, whose stores
+// lavapipe makes lane by lane (session 27: same bytes, one dispatch per sub-pass instead of
+// two, the same time on lavapipe).
+fn neighbour_word(s: u32, w: u32, own: bool, same_class: bool) -> u32 {
     if (own) {
         if (FUSED) {
             return own_voxels[(own_base + (s & 63u)) * 4u + w];
         }
-        return state[s * stride() + w];
+        if (!same_class) {
+            return state[s * stride() + w];
+        }
     }
     return pass_start[s * stride() + w];
 }
@@ -184,15 +192,16 @@ fn project_plane(r: Around, a: u32) -> Projected {
             // Absent voxels read as zero.
             let s = plane_neighbour(r, a, du, dv);
             let own = in_own_brick(r, a, du, dv);
+            let same_class = ((du | dv) & 1) == 0;
             // The neighbour's first value word, read once for its (up to 4) channels.
             var word = 0u;
             if (s != ABSENT) {
-                word = neighbour_word(s, 3u, own);
+                word = neighbour_word(s, 3u, own, same_class);
             }
             for (var ch = 0u; ch < CHANNELS; ch++) {
                 var byte = 0u;
                 if (ch >= 4u && s != ABSENT) {
-                    byte = (neighbour_word(s, 3u + ch / 4u, own) >> ((ch % 4u) * 8u)) & 0xFFu;
+                    byte = (neighbour_word(s, 3u + ch / 4u, own, same_class) >> ((ch % 4u) * 8u)) & 0xFFu;
                 } else if (ch < 4u) {
                     byte = (word >> (ch * 8u)) & 0xFFu;
                 }
@@ -289,7 +298,7 @@ fn best_2d(r: Around, a: u32, q: Projected) -> vec2<u32> {
             let s = plane_neighbour(r, a, du, dv);
             var c = 0u;
             if (s != ABSENT) {
-                c = neighbour_word(s, a, in_own_brick(r, a, du, dv));
+                c = neighbour_word(s, a, in_own_brick(r, a, du, dv), du == 0 && dv == 0);
             }
             let sx = coord_x(c) - du;
             let sy = coord_y(c) - dv;
@@ -339,7 +348,8 @@ fn correct_voxel(pos: vec3<i32>, r: Around) -> vec3<u32> {
     if (params.mode == 0u) {
         // The voxel's current triple (active bricks are stored).
         let o = r.own + u32(r.local.z * 16 + r.local.y * 4 + r.local.x);
-        best = vec3<u32>(neighbour_word(o, 0u, true), neighbour_word(o, 1u, true), neighbour_word(o, 2u, true));
+        best = vec3<u32>(neighbour_word(o, 0u, true, true), neighbour_word(o, 1u, true, true),
+            neighbour_word(o, 2u, true, true));
         var best_d = (distance(q0, 0u, best.x) + distance(q1, 1u, best.y) + distance(q2, 2u, best.z)) * factor(best);
         let entry = (4u + 2u * params.proj_words + 3u) & ~3u;
         let slots = tables[6];
@@ -429,7 +439,7 @@ fn fused_pass(thread: u32, li: u32) {
             let record = vec4<u32>(t, value);
             for (var w = 0u; w < 4u; w++) {
                 own_voxels[(own_base + l) * 4u + w] = record[w];
-                updates[(base + l) * 4u + w] = record[w];
+                state[(base + l) * 4u + w] = record[w];
             }
         }
         workgroupBarrier();
@@ -448,9 +458,8 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation
     if (b >= params.list_count) {
         return;
     }
-    let tid = b * 8u + k;
     if (CHANNELS != params.channels || PCA_OUT != params.pca_out || K2D != params.k2d) {
-        return; // a pipeline built for other constants: leave the voxel unwritten (sentinel shows)
+        return; // a pipeline built for other constants: leave the voxel as it was
     }
     if (((bricks[params.mask_offset + b / 4u] >> ((b % 4u) * 8u + k)) & 1u) == 0u) {
         return; // a voxel the plan does not need
@@ -458,13 +467,15 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation
     let cls = vec3<u32>(params.class_x, params.class_y, params.class_z);
     let pos = brick_at(params.list_offset, b) * 4
         + vec3<i32>(cls + 2u * vec3<u32>(k & 1u, (k >> 1u) & 1u, k >> 2u));
-    let best = correct_voxel(pos, around(pos));
-    let i = tid * stride();
-    updates[i] = best.x;
-    updates[i + 1u] = best.y;
-    updates[i + 2u] = best.z;
+    let r = around(pos);
+    let best = correct_voxel(pos, r);
+    // (A voxel the plan needs is stored.)
+    let i = (r.own + u32(r.local.z * 16 + r.local.y * 4 + r.local.x)) * stride();
+    state[i] = best.x;
+    state[i + 1u] = best.y;
+    state[i + 2u] = best.z;
     let pixels = vec3<u32>(params.pixels0, params.pixels1, params.pixels2);
     for (var wd = 0u; wd < params.pixel_words; wd++) {
-        updates[i + 3u + wd] = value_word(best, wd, pixels, params.ex_width, params.pixel_words, params.channels);
+        state[i + 3u + wd] = value_word(best, wd, pixels, params.ex_width, params.pixel_words, params.channels);
     }
 }

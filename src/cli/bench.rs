@@ -308,7 +308,7 @@ fn bench_synth(args: BenchSynthArgs) -> anyhow::Result<()> {
     };
     // Warm the analysis cache so the runs time synthesis only.
     child(16, "cpu", false)?;
-    println!("synthesis benchmark: median of {} run(s), analysis excluded; per-kernel times from one --profile run (on the GPU, correct includes its scatter)", args.runs);
+    println!("synthesis benchmark: median of {} run(s), analysis excluded; per-kernel times from one --profile run", args.runs);
     println!(
         "{:>6}  {:>8}  {:>10}  {:>12}  kernels (s): init / upsample / correct / colorize",
         "size", "backend", "median s", "peak RSS MiB"

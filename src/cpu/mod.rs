@@ -9,7 +9,6 @@ pub mod init;
 pub mod lapped_render;
 pub mod project;
 pub mod ptm_relight;
-pub mod scatter;
 pub mod synth_common;
 pub mod tricubic_eval;
 pub mod upsample;

@@ -17,7 +17,6 @@ pub const KERNELS: &[(&str, &str)] = &[
     ("init", with_prelude!("../../wgsl/init.wgsl")),
     ("upsample", with_prelude!("../../wgsl/upsample.wgsl")),
     ("correct", with_prelude!("../../wgsl/correct.wgsl")),
-    ("scatter", with_prelude!("../../wgsl/scatter.wgsl")),
     ("colorize", with_prelude!("../../wgsl/colorize.wgsl")),
     (
         "tricubic_eval",

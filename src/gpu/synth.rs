@@ -1,26 +1,21 @@
-//! Dispatch of the synthesis kernels `init`, `upsample`, `correct`, `scatter`, `colorize` (CPU
-//! references in `src/cpu/`). Level data stays resident; a level's state is one buffer, plus the
-//! corrections' records and, during a pass, a copy of the state as the pass began (`begin_pass`:
-//! brick-local sub-passes read other bricks there): `correct` reads the state and writes
-//! records, `scatter` writes them back, so no invocation reads a value written in the same
-//! sub-pass. Dispatches are recorded
+//! Dispatch of the synthesis kernels `init`, `upsample`, `correct`, `colorize` (CPU references
+//! in `src/cpu/`). Level data stays resident; a level's state is one buffer, plus, during a
+//! correction pass, a copy of the state as the pass began (`begin_pass`): brick-local sub-passes
+//! read other bricks there, and their own brick's voxels of their own class, so that `correct`
+//! writes its results straight into the state without any of its reads seeing them (see
+//! `neighbour_word` in wgsl/correct.wgsl). Dispatches are recorded
 //! into one command encoder and submitted together (`flush`: once per level, and before any
 //! read) without waiting; the only wait is the bounded read-back of the colours.
 
 use super::candidate_tables::candidate_tables;
 use super::context::GpuContext;
 use crate::error::{Error, Result};
-use crate::kernel_types::{
-    ColorizeParams, CorrectParams, InitParams, ScatterParams, UpsampleParams,
-};
+use crate::kernel_types::{ColorizeParams, CorrectParams, InitParams, UpsampleParams};
 use crate::lazy::pack::LevelPack;
 use std::sync::Arc;
 
 pub struct GpuState {
     current: wgpu::Buffer,
-    /// The corrections' records (`wgsl/correct.wgsl`, then `scatter`), grown to the largest
-    /// sub-pass of the state so far: at most an eighth of the state.
-    records: Option<wgpu::Buffer>,
     /// A copy of the state as the current correction pass began (`begin_pass`): brick-local
     /// sub-passes read other bricks' voxels there.
     pass_start: Option<wgpu::Buffer>,
@@ -33,9 +28,6 @@ impl Drop for GpuState {
     fn drop(&mut self) {
         if let Some(pool) = &self.pool {
             pool.give(self.current.clone());
-            if let Some(r) = self.records.take() {
-                pool.give(r);
-            }
             if let Some(b) = self.pass_start.take() {
                 pool.give(b);
             }
@@ -44,7 +36,7 @@ impl Drop for GpuState {
 }
 
 /// Device buffers a warm session keeps between its requests ([`GpuSynth::keep_buffers`]): a
-/// request's states, correction records and colours come back here when it is done with them,
+/// request's states and colours come back here when it is done with them,
 /// and the next request takes one of the same size instead of allocating (and having wgpu zero)
 /// a new one. Every kernel writes the words it later reads (the kernels-tests run on poisoned
 /// memory, and a test compares a warm session's repeated cuts with fresh ones), so what a buffer
@@ -54,7 +46,7 @@ impl Drop for GpuState {
 struct BufferPool(Arc<std::sync::Mutex<Vec<wgpu::Buffer>>>);
 
 const POOLED_BUFFERS: usize = 8;
-/// A 256^2 cut keeps about 45 MiB (a state, its pass-start copy, records, colours), an
+/// A 256^2 cut keeps about 45 MiB (a state, its pass-start copy, colours), an
 /// oblique 512^2 one more;
 /// `serve` holds one pool per loaded solid, so the cap stays well below a device's memory.
 const POOLED_BYTES: u64 = 256 << 20;
@@ -99,7 +91,7 @@ pub struct GpuSynth {
     /// Whether [`GpuSynth::correct_pass`] runs a pass of whole bricks in one dispatch. Off by
     /// default (`SOLIDSYNTH_FUSED_PASSES=1` turns it on): on lavapipe it was slower (session 25:
     /// warm 256^2 cut 184 -> 198 ms, 128^3 4.25 -> 5.14 s); it is meant for a GPU's
-    /// dispatch-bound requests (16 dispatches a pass become one) and awaits a lent one.
+    /// dispatch-bound requests (8 dispatches a pass become one) and awaits a lent one.
     pub(crate) fused_passes: bool,
 }
 
@@ -483,7 +475,6 @@ impl GpuSynth {
             });
         GpuState {
             current,
-            records: None,
             pass_start: None,
             words: words.len() as u64,
             pool: self.pool.clone(),
@@ -520,7 +511,6 @@ impl GpuSynth {
         self.run(kernel, constants, params, &buffers, groups(voxels))?;
         Ok(GpuState {
             current: out,
-            records: None,
             pass_start: None,
             words,
             pool: self.pool.clone(),
@@ -578,8 +568,7 @@ impl GpuSynth {
     /// One correction pass: the sub-passes `ps` in order, after a copy of the state as the pass
     /// begins (`begin_pass`). When every sub-pass lists the same whole bricks (`whole_bricks`)
     /// and a voxel is 4 words, one dispatch runs them all (`correct` with FUSED: the bricks in
-    /// workgroup memory, results written straight into the state); else a `correct` and a
-    /// `scatter` per sub-pass.
+    /// workgroup memory); else a `correct` per sub-pass.
     pub fn correct_pass(
         &mut self,
         level: usize,
@@ -588,6 +577,17 @@ impl GpuSynth {
         s: &mut GpuState,
         index: &wgpu::Buffer,
     ) -> Result<()> {
+        // Each class at most once: `correct` reads a voxel of its sub-pass's class from the
+        // pass-start copy, which holds its current value only until that class is corrected.
+        let classes: Vec<_> = ps
+            .iter()
+            .map(|p| (p.class_x, p.class_y, p.class_z))
+            .collect();
+        if (1..classes.len()).any(|i| classes[..i].contains(&classes[i])) {
+            return Err(Error::Internal(format!(
+                "a correction pass lists a class twice: {classes:?}"
+            )));
+        }
         self.begin_pass(s)?;
         let p0 = &ps[0];
         if !(self.fused_passes && whole_bricks && p0.pixel_words == 1 && ps.len() <= 8) {
@@ -612,8 +612,6 @@ impl GpuSynth {
             &p,
             &[
                 (1, &self.levels[level]),
-                // (`state` is not read when fused; two read-only bindings may share a buffer.)
-                (2, start),
                 (3, &s.current),
                 (4, index),
                 (5, projection),
@@ -664,79 +662,34 @@ impl GpuSynth {
         Ok(())
     }
 
-    /// One correction sub-pass: `correct` reads the state and writes one record per listed
-    /// class voxel, then `scatter` writes the needed records into the state (queue order keeps
-    /// the two apart), so no invocation reads a value written in the same sub-pass.
-    pub fn correct(
+    /// One correction sub-pass: `correct` corrects the listed class voxels in place (inside a
+    /// pass, after [`Self::begin_pass`]).
+    fn correct(
         &mut self,
         level: usize,
         p: &CorrectParams,
         s: &mut GpuState,
         index: &wgpu::Buffer,
     ) -> Result<()> {
-        let threads = p.list_count as u64 * 8;
-        let record_words = (threads * (3 + p.pixel_words as u64)).max(1);
-        if s.records
-            .as_ref()
-            .is_none_or(|b| b.size() < record_words * 4)
-        {
-            let grown = self.scratch_buffer("correction records", record_words);
-            if let (Some(pool), Some(old)) = (&self.pool, s.records.replace(grown)) {
-                pool.give(old);
-            }
-        }
-        let records = s.records.as_ref().unwrap();
         let (candidates, projection, constants) = self.correct_inputs(level, p)?;
+        let start = s
+            .pass_start
+            .as_ref()
+            .expect("a correction runs inside a pass (begin_pass)");
         self.run(
             "correct",
             &constants,
             p,
             &[
                 (1, &self.levels[level]),
-                (2, &s.current),
-                (3, records),
+                (3, &s.current),
                 (4, index),
                 (5, projection),
                 (6, candidates),
-                (
-                    7,
-                    s.pass_start
-                        .as_ref()
-                        .expect("a correction runs inside a pass (begin_pass)"),
-                ),
+                (7, start),
             ],
-            groups(threads),
-        )?;
-        self.run(
-            "scatter",
-            &[],
-            &ScatterParams::of(p),
-            &[(2, records), (3, &s.current), (4, index)],
-            groups(threads),
-        )
-    }
-
-    /// Run `scatter` alone on host data (the kernels-test of its reference): returns the state
-    /// after writing `records` into `state`.
-    pub fn scatter_words(
-        &self,
-        p: &ScatterParams,
-        records: &[u32],
-        state: &[u32],
-        index: &wgpu::Buffer,
-    ) -> Result<Vec<u32>> {
-        let records = self
-            .ctx
-            .storage_buffer("records", bytemuck::cast_slice(records));
-        let s = self.upload_state(state);
-        self.run(
-            "scatter",
-            &[],
-            p,
-            &[(2, &records), (3, &s.current), (4, index)],
             groups(p.list_count as u64 * 8),
-        )?;
-        self.read_state(&s)
+        )
     }
 
     pub fn colorize(

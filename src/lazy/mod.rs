@@ -1315,8 +1315,7 @@ impl Synthesizer {
             }
             let pixel_words = self.packs[first_pack + l].pixel_words;
             let words = lv.voxels() * (3 + pixel_words as u64);
-            // With its pass-start copy where the backend keeps one (the GPU's correction
-            // records, an eighth more, are left out).
+            // With its pass-start copy where the backend keeps one.
             state_bytes = state_bytes.max(words * 4 * self.exec.state_copies(pixel_words));
         }
         stats.peak_state_bytes = stats.peak_state_bytes.max(state_bytes);

@@ -67,8 +67,8 @@ fn brick_at(list: u32, i: u32) -> vec3<i32> {
     return vec3<i32>(bitcast<i32>(bricks[e]), bitcast<i32>(bricks[e + 1u]), bitcast<i32>(bricks[e + 2u]));
 }
 
-// (listed brick b, class voxel k) of thread `thread` of a correction sub-pass (`correct`,
-// `scatter`): a workgroup takes eight listed bricks, its threads class voxel k-major (thread t
+// (listed brick b, class voxel k) of thread `thread` of a correction sub-pass (`correct`): a
+// workgroup takes eight listed bricks, its threads class voxel k-major (thread t
 // is voxel k = t / 8 of brick t % 8), so the lanes of a SIMD group sit at the same position in
 // neighbouring bricks. A thin request needs some of a brick's class voxels and not others (a
 // slice's last sub-pass: the four on one z layer), mostly the same k in neighbouring bricks, so
@@ -76,7 +76,7 @@ fn brick_at(list: u32, i: u32) -> vec3<i32> {
 // axis-aligned 256^2 and 512^2 cuts got 20-30% faster (99.5% of the lanes busy instead of 90%,
 // and the lanes' neighbour lookups agree); boxes, oblique cuts and surfaces are unchanged
 // within noise (BENCHMARKS.md, session 23). The grid's rows are whole workgroups
-// (`dispatch_grid`), so this is a bijection; records stay in list order (b * 8 + k).
+// (`dispatch_grid`), so this is a bijection.
 fn class_voxel(thread: u32) -> vec2<u32> {
     return vec2<u32>((thread / 64u) * 8u + thread % 8u, (thread / 8u) % 8u);
 }
