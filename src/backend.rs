@@ -50,6 +50,19 @@ impl Compute {
         }
     }
 
+    /// Whether the kernels' memory is the host's: the CPU backend, or a software or integrated
+    /// GPU adapter (lavapipe, a laptop's GPU), where a request's working memory competes with
+    /// everything else the machine holds.
+    pub fn memory_is_hosts(&self) -> bool {
+        match self {
+            Compute::Cpu => true,
+            Compute::Gpu(g) => matches!(
+                g.info.device_type,
+                wgpu::DeviceType::Cpu | wgpu::DeviceType::IntegratedGpu
+            ),
+        }
+    }
+
     pub fn describe(&self) -> String {
         match self {
             Compute::Cpu => format!("cpu ({} threads)", rayon::current_num_threads()),

@@ -88,6 +88,7 @@ pub fn run(args: CutArgs, quiet: bool) -> anyhow::Result<()> {
         // The image, its PNG and the sample positions.
         pixels * 24,
         &args.solid,
+        args.solid.max_group.unwrap_or(512),
     )?;
     let compute = args.solid.input.backend.open()?;
     let analysis = load_or_analyze(&args.solid.input, &compute, quiet || args.json)?;

@@ -69,10 +69,11 @@ pub struct SolidParams {
     #[arg(long, value_name = "N")]
     pub coarse_cache: Option<u32>,
     /// Largest group of the request synthesized at once: a cube of this edge in voxels (a
-    /// multiple of 4; default 512). Smaller groups bound the working memory of large boxes and
-    /// surfaces, at the cost of each group recomputing the finest level's dependency padding
-    /// (the coarser levels are synthesized once for all groups, in groups of the same extent);
-    /// the output is the same whatever the grouping.
+    /// multiple of 4). Smaller groups bound the working memory of large boxes and surfaces, at
+    /// the cost of each group recomputing the finest level's dependency padding (the coarser
+    /// levels are synthesized once for all groups, in groups of the same extent); the output is
+    /// the same whatever the grouping. Default: for boxes and surfaces 128 where the device's
+    /// memory is the host's (the CPU backend, lavapipe, an integrated GPU), else 512.
     #[arg(long, value_name = "VOXELS", value_parser = clap::value_parser!(u32).range(4..=512))]
     pub max_group: Option<u32>,
 }
@@ -89,6 +90,35 @@ impl SolidParams {
             synth.set_max_chunk_side(side);
         }
         Ok(synth)
+    }
+
+    /// [`Self::synthesizer`] for boxes and surfaces, whose default group is
+    /// [`HOST_MEMORY_GROUP`] where the device's memory is the host's: measured on the CPU
+    /// backend, `synth --size 256` 12.5 s and 468 MB in one group, 12.7 s and 153 MB in groups
+    /// of 128; the bunny's surface at 1024 33 s either way, 451 or 240 MB; on lavapipe 256^3
+    /// 30.6 s either way, 594 or 441 MB (BENCHMARKS.md, session 27). A discrete GPU keeps its
+    /// own memory and runs fewer, larger dispatches best. Cuts keep one group: small already,
+    /// and grouping slowed them (CPU, 256^2 with the paper's passes: 655 -> 715 ms).
+    pub fn volume_synthesizer(
+        &self,
+        analysis: &solidsynth::analysis::Analysis,
+        compute: &solidsynth::backend::Compute,
+    ) -> solidsynth::Result<Synthesizer> {
+        let mut synth = self.synthesizer(analysis, compute)?;
+        if self.max_group.is_none() && compute.memory_is_hosts() {
+            synth.set_max_chunk_side(HOST_MEMORY_GROUP);
+        }
+        Ok(synth)
+    }
+
+    /// The group edge the memory checks of boxes and surfaces assume, before the backend is
+    /// open: [`HOST_MEMORY_GROUP`] for `--backend cpu`, else the largest (a conservative
+    /// estimate).
+    pub fn planned_group(&self) -> u32 {
+        self.max_group.unwrap_or(match self.input.backend.backend {
+            solidsynth::backend::BackendChoice::Cpu => HOST_MEMORY_GROUP,
+            _ => 512,
+        })
     }
 
     pub fn synth_params(&self) -> SynthParams {
@@ -170,6 +200,10 @@ impl TriplesWriter {
     }
 }
 
+/// The default group edge of boxes and surfaces where the device's memory is the host's
+/// ([`SolidParams::volume_synthesizer`]).
+pub const HOST_MEMORY_GROUP: u32 = 128;
+
 /// Largest --size accepted before the memory estimate is even computed.
 pub const MAX_SIZE: u32 = 2048;
 
@@ -210,7 +244,7 @@ pub fn check_size(size: u32) -> solidsynth::Result<()> {
 pub fn check_memory(what: &str, b: Box3, args: &SolidArgs) -> solidsynth::Result<u64> {
     let size = b.size().map(|d| d as u64);
     let largest = size.into_iter().max().unwrap_or(0) as u32;
-    let group = args.solid.max_group.unwrap_or(512).min(largest);
+    let group = args.solid.planned_group().min(largest);
     // Four bytes a voxel covers up to four channels; triples add twelve.
     let per_voxel = 4 + if args.triples.is_some() { 12 } else { 0 };
     let slab = size[0] * size[1] * size[2].min(group as u64) * per_voxel;
@@ -276,13 +310,14 @@ pub fn coarse_cache_bytes(params: &SolidParams) -> u64 {
 /// allocating for it: the colours and bookkeeping of its `bricks` requested 4^3-voxel bricks
 /// spread over a surface `extent` voxels wide, one group's working set (the group's bricks
 /// with their dependency padding, at most a dense padded cube), the coarse cache and `extra`
-/// bytes of outputs. `what` names the request.
+/// bytes of outputs, in groups of `group_side` voxels. `what` names the request.
 pub fn check_sparse_memory(
     what: &str,
     bricks: u64,
     extent: f64,
     extra: u64,
     params: &SolidParams,
+    group_side: u32,
 ) -> solidsynth::Result<u64> {
     // Per requested brick: 64 colours and its list and lookup entries.
     let requested = bricks * (256 + 32);
@@ -291,7 +326,6 @@ pub fn check_sparse_memory(
     // level (13 voxels of padding around a 4-voxel brick layer before session 25's brick-local
     // sub-passes, 6 to 9 since, so this over-estimates; the coarser levels halving),
     // 16 bytes a voxel, two copies (the GPU's state and its pass-start copy; the CPU holds one).
-    let group_side = params.max_group.unwrap_or(512);
     let share = (group_side as f64 / extent.max(1.0)).powi(2).min(1.0);
     let group_bricks = ((bricks as f64 * share) as u64).min((group_side as u64 / 4).pow(3));
     let working = Synthesizer::chunk_bytes(group_side).min(group_bricks * 64 * 16 * 2 * 8);
@@ -425,7 +459,7 @@ fn run_box(args: &SolidArgs, region: Box3, tileable: bool, quiet: bool) -> anyho
         bar.set_message(m.to_string());
     };
     let synth_start = Instant::now();
-    let mut synth = args.solid.synthesizer(&analysis, &compute)?;
+    let mut synth = args.solid.volume_synthesizer(&analysis, &compute)?;
     if args.profile {
         synth.enable_profiling();
     }
