@@ -249,6 +249,37 @@ fn synthesis_kernels_bit_exact_on_gpu_and_cpu() {
     same_on_both("coarse cache", &a, &params, &gpu, |s| {
         s.synthesize(b, &|_, _| {}).unwrap()
     });
+    // Once the cache is built (or a request's shared coarse levels are done) the GPU releases
+    // the pipelines only the coarse levels use: a later request of the session that corrects
+    // those levels again (a tileable volume, which does not read the cache; a box in groups)
+    // builds them again.
+    same_on_both(
+        "coarse levels corrected again after a release",
+        &a,
+        &params,
+        &gpu,
+        |s| {
+            let mut v = s.synthesize(b, &|_, _| {}).unwrap();
+            let t = s.synthesize_tileable(32, &|_, _| {}, false).unwrap().0;
+            v.data.extend_from_slice(&t.data);
+            v
+        },
+    );
+    let params = SynthParams {
+        seed: 9,
+        ..Default::default()
+    };
+    same_on_both("shared coarse levels, twice", &a, &params, &gpu, |s| {
+        s.set_max_chunk_side(16);
+        let mut v = s
+            .synthesize(Box3::new([-9, -3, 0], [20, 12, 24]), &|_, _| {})
+            .unwrap();
+        let w = s
+            .synthesize(Box3::new([3, -20, -4], [30, 1, 9]), &|_, _| {})
+            .unwrap();
+        v.data.extend_from_slice(&w.data);
+        v
+    });
 }
 
 /// Spatial determinism on the GPU backend itself (the CPU backend's is tested in

@@ -209,6 +209,16 @@ impl GpuContext {
         self.max_binding_bytes
     }
 
+    /// Forget the cached pipeline of kernel `name` with `constants` (as given to
+    /// [`Self::pipeline_with`]): it is destroyed once the work that uses it is done, and built
+    /// again if it is asked for again.
+    pub fn release_pipeline(&self, name: &'static str, constants: &[(&str, f64)]) {
+        self.pipelines
+            .lock()
+            .unwrap()
+            .remove(&format!("{name}{constants:?}"));
+    }
+
     /// The compute pipeline of kernel `name` (entry point `main`), built once and cached.
     pub fn pipeline(&self, name: &'static str) -> Result<Arc<wgpu::ComputePipeline>> {
         self.pipeline_with(name, &[])

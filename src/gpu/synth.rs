@@ -78,6 +78,8 @@ pub struct GpuSynth {
     /// Per level, the `correct` kernel's candidate tables ([`candidate_tables`]) and their 3D
     /// slots per pixel.
     candidates: Vec<(wgpu::Buffer, u32)>,
+    /// Per level, the `correct` pipeline's constants ([`GpuSynth::correct_inputs`]).
+    correct_constants: Vec<Vec<(&'static str, f64)>>,
     table: wgpu::Buffer,
     /// Dispatches recorded but not yet submitted, with their kernels' names: one submission
     /// per [`GpuSynth::flush`] (the executor flushes once per level, and every read flushes
@@ -195,6 +197,27 @@ struct ProjectionLayout {
     packed: bool,
 }
 
+/// The `correct` pipeline's override constants (see wgsl/correct.wgsl).
+fn correct_constants(
+    channels: u32,
+    pca_out: u32,
+    k2d: u32,
+    packed: bool,
+) -> Vec<(&'static str, f64)> {
+    vec![
+        ("CHANNELS", channels as f64),
+        ("PCA_OUT", pca_out as f64),
+        ("K2D", k2d as f64),
+        ("PACKED_WEIGHTS", if packed { 1.0 } else { 0.0 }),
+    ]
+}
+
+/// The constants of the FUSED variant of the `correct` pipeline with `constants`.
+fn fused(mut constants: Vec<(&'static str, f64)>) -> Vec<(&'static str, f64)> {
+    constants.extend([("FUSED", 1.0), ("OWN_WORDS", (8 * 64 * 4) as f64)]);
+    constants
+}
+
 fn entries<'a>(buffers: &[(u32, &'a wgpu::Buffer)]) -> Vec<wgpu::BindGroupEntry<'a>> {
     buffers
         .iter()
@@ -290,6 +313,11 @@ impl GpuSynth {
         }
         let table = ctx.storage_buffer("jitter table", bytemuck::cast_slice(table));
         let arena = parameter_arena(&ctx, ARENA_BYTES as u64);
+        let correct_constants = packs
+            .iter()
+            .zip(&projections)
+            .map(|(p, (_, packed))| correct_constants(p.channels, p.pca_out, p.k2d, *packed))
+            .collect();
         Ok(GpuSynth {
             ctx,
             levels,
@@ -300,7 +328,23 @@ impl GpuSynth {
             arena,
             pool: None,
             fused_passes: std::env::var("SOLIDSYNTH_FUSED_PASSES").is_ok_and(|v| v == "1"),
+            correct_constants,
         })
+    }
+
+    /// Release the `correct` pipelines that only the levels above `level` use (their constants
+    /// differ from every later level's): for when no coarser level will be corrected again (the
+    /// coarse cache built, a request's shared coarse levels done). On lavapipe each compiled
+    /// variant keeps its compiler's memory, ~14-22 MB of the peak (BENCHMARKS.md, session 27).
+    pub fn release_coarse_pipelines(&self, level: usize) {
+        let later = &self.correct_constants[level..];
+        for (i, c) in self.correct_constants[..level].iter().enumerate() {
+            let repeated = self.correct_constants[..i].contains(c);
+            if !later.contains(c) && !repeated {
+                self.ctx.release_pipeline("correct", c);
+                self.ctx.release_pipeline("correct", &fused(c.clone()));
+            }
+        }
     }
 
     /// Shrink the parameter arena to `bytes` (after a flush), so that batches are submitted
@@ -603,8 +647,8 @@ impl GpuSynth {
             .map(|(i, q)| (q.class_x | q.class_y << 1 | q.class_z << 2) << (3 * i))
             .sum();
         p.fused_count = ps.len() as u32;
-        let (candidates, projection, mut constants) = self.correct_inputs(level, &p)?;
-        constants.extend([("FUSED", 1.0), ("OWN_WORDS", (8 * 64 * 4) as f64)]);
+        let (candidates, projection, constants) = self.correct_inputs(level, &p)?;
+        let constants = fused(constants);
         let start = s.pass_start.as_ref().expect("begin_pass made it");
         self.run(
             "correct",
@@ -638,12 +682,7 @@ impl GpuSynth {
             )));
         }
         let (projection, packed) = &self.projections[level];
-        let constants = vec![
-            ("CHANNELS", p.channels as f64),
-            ("PCA_OUT", p.pca_out as f64),
-            ("K2D", p.k2d as f64),
-            ("PACKED_WEIGHTS", if *packed { 1.0 } else { 0.0 }),
-        ];
+        let constants = correct_constants(p.channels, p.pca_out, p.k2d, *packed);
         Ok((candidates, projection, constants))
     }
 

@@ -95,6 +95,14 @@ impl Executor {
         }
     }
 
+    /// No level above `level` will be corrected again: the GPU releases their `correct`
+    /// pipelines ([`crate::gpu::synth::GpuSynth::release_coarse_pipelines`]).
+    pub fn release_coarse_pipelines(&self, level: usize) {
+        if let Executor::Gpu(g) = self {
+            g.release_coarse_pipelines(level);
+        }
+    }
+
     /// Keep device buffers from one request to the next (a warm session; the CPU backend's
     /// states are plain vectors).
     pub fn keep_buffers(&mut self) {

@@ -803,6 +803,8 @@ impl Synthesizer {
             &|m, f| progress(m, coarse_share * f),
             stats,
         )?;
+        // (A later request of a session that needs them builds them again.)
+        self.exec.release_coarse_pipelines(finest);
         for (g, group) in groups.iter().enumerate() {
             let base = coarse_share + (1.0 - coarse_share) * g as f32 / groups.len() as f32;
             let scale = (1.0 - coarse_share) / groups.len() as f32;
@@ -1229,6 +1231,8 @@ impl Synthesizer {
                 false,
                 &mut stats,
             )?;
+            // Requests read the coarse levels from the cache from now on.
+            self.exec.release_coarse_pipelines(levels_above);
             let stride = 3 + self.packs[levels_above - 1].pixel_words as usize;
             let mut triples = Vec::with_capacity((n as usize).pow(3) * 3);
             for z in 0..n as i32 {
