@@ -1100,6 +1100,33 @@ fn surface_bakes_the_solid_at_each_texel_and_refuses_bad_meshes() {
             "texel {x},{y} voxel {p:?}"
         );
     }
+    // The same in groups of one brick (each group's texels placed as it finishes), and an open
+    // mesh of three triangles, whose atlas has a cell no triangle owns (its texels take the
+    // voxel of the first triangle's first corner): every texel is still the solid at its voxel.
+    let open_text = "v 0 0 0\nv 2 0 0\nv 0 2 0\nv 0 0 2\nf 1 3 2\nf 1 2 4\nf 1 4 3\n";
+    let open_path = d.join("open.obj");
+    std::fs::write(&open_path, open_text).unwrap();
+    for (text, path) in [(obj_text, &mesh_path), (open_text, &open_path)] {
+        let out = d.join("grouped.obj");
+        let mut args = vec!["surface", s, "--mesh", path.to_str().unwrap()];
+        args.extend_from_slice(&common);
+        args.extend_from_slice(&["--max-group", "4", "-o", out.to_str().unwrap()]);
+        let o = run(&args);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let img = image::open(d.join("grouped.png")).unwrap().to_rgba8();
+        let mesh = solidsynth::mesh::parse_obj(text.as_bytes(), "t").unwrap();
+        let atlas = Atlas::new(mesh.triangles.len(), 5).unwrap();
+        let voxels = atlas.texel_voxels(&mesh, &Placement::fit(&mesh, 16));
+        for (k, p) in voxels.iter().enumerate() {
+            let (x, y) = (k as u32 % atlas.width, k as u32 / atlas.width);
+            let want = v.at(p[0] as u32, p[1] as u32, p[2] as u32);
+            assert_eq!(
+                &img.get_pixel(x, y).0[..3],
+                want,
+                "grouped: texel {x},{y} voxel {p:?}"
+            );
+        }
+    }
     // Binary glTF.
     let glb = d.join("baked.glb");
     let mut args = vec!["surface", s, "--mesh", mesh_path.to_str().unwrap()];

@@ -65,9 +65,10 @@ pub fn run(args: SurfaceArgs, quiet: bool) -> anyhow::Result<()> {
     params.validate()?;
     let mesh = mesh::load(&args.mesh)?;
     let place = Placement::fit(&mesh, args.resolution);
-    // Per texel: its voxel (12 bytes), colour (4), image pixel (4) and PNG buffers, plus the
-    // requested bricks' bookkeeping: refuse before allocating when that cannot fit.
-    let bytes_per_texel = 40;
+    // Per texel: its image pixel (4 bytes, filled group by group), its PNG (at most about as
+    // much again) and a bit of bookkeeping; the requested bricks' are checked below. Refuse
+    // before allocating when that cannot fit.
+    let bytes_per_texel = 12;
     let available = super::synth::available_memory();
     // The layout, how to say it, and the flag that chose it (for errors).
     let fewer = if args.texels.is_some() {
@@ -138,26 +139,67 @@ pub fn run(args: SurfaceArgs, quiet: bool) -> anyhow::Result<()> {
     // The synthesizer keeps what it reads: the analysis (10 MiB for the built-in exemplar) is
     // not held through the synthesis.
     drop(analysis);
-    let result = synth.synthesize_bricks(&wanted, &report, false)?;
-    drop(wanted);
-    // Of the synthesizer, baking needs only these: its level data and tables (on a GPU, its
-    // buffers) are freed before the atlas and its PNG are made.
-    let stats = synth.last_stats().cloned().unwrap_or_default();
+    // Each group's colours go into the atlas as the group finishes (the texels of the
+    // triangles near it whose voxels it holds), so the request's colours are never held whole
+    // (the bunny at 1024: 52 MB of them). Every texel's voxel is in exactly one group; texels
+    // outside every cell take the colour of one surface voxel, as `for_each_texel_voxel` says.
+    let texels = atlas.texel_count() as usize;
     let channels = synth.color_channels();
+    let mut image = image::RgbaImage::new(atlas.width, atlas.height);
+    let pixels: &mut [u8] = &mut image;
+    let mut placed = vec![0u64; texels.div_ceil(64)];
+    let uncovered_voxel = atlas.uncovered_texel_voxel(&mesh, &place);
+    let mut uncovered_color = None;
+    synth.synthesize_bricks_by_group(&wanted, &report, |group| {
+        use rayon::prelude::*;
+        let (lo, hi) = solidsynth::lazy::bricks::bounds(&group.bricks).expect("a group has bricks");
+        let (lo, hi) = (lo.map(|v| v * 4), hi.map(|v| v * 4 + 3));
+        // The group's texels, found in parallel (the cores are otherwise idle between groups),
+        // then placed.
+        let found: Vec<Vec<(usize, u32)>> = atlas
+            .triangles_near(&mesh, &place, lo, hi)
+            .par_iter()
+            .map(|&t| {
+                let mut last = None;
+                let mut out = Vec::new();
+                atlas.for_each_texel_voxel_of(&mesh, &place, t, |i, p| {
+                    // (Most texels of the triangles at the group's edges fall outside it.)
+                    if (0..3).any(|k| p[k] < lo[k] || p[k] > hi[k]) {
+                        return;
+                    }
+                    if let Some(c) = group.color_near(p, &mut last) {
+                        out.push((i, c));
+                    }
+                });
+                out
+            })
+            .collect();
+        for (i, c) in found.into_iter().flatten() {
+            pixels[4 * i..4 * i + 4].copy_from_slice(&bake::atlas_pixel(c, channels));
+            placed[i / 64] |= 1 << (i % 64);
+        }
+        if uncovered_color.is_none() {
+            uncovered_color = group.color(uncovered_voxel);
+        }
+        Ok(())
+    })?;
+    drop(wanted);
+    let uncovered_color = uncovered_color.expect("the uncovered texels' voxel is requested");
+    let uncovered_pixel = bake::atlas_pixel(uncovered_color, channels);
+    for (i, p) in pixels.chunks_exact_mut(4).enumerate() {
+        if placed[i / 64] & (1 << (i % 64)) == 0 {
+            p.copy_from_slice(&uncovered_pixel);
+        }
+    }
+    drop(placed);
+    // Of the synthesizer, baking needs only these: its level data and tables (on a GPU, its
+    // buffers) are freed before the atlas's PNG is made.
+    let stats = synth.last_stats().cloned().unwrap_or_default();
     drop(synth);
-    let mut colors = vec![0u32; atlas.width as usize * atlas.height as usize];
-    let mut last = None;
-    atlas.for_each_texel_voxel(&mesh, &place, |i, p| {
-        colors[i] = result.color_near(p, &mut last).expect("requested voxel");
-    });
-    drop(result);
     bar.finish_and_clear();
     let seconds = (start.elapsed() - analysis_time).as_secs_f64();
-    let png = {
-        let image = bake::atlas_image(&atlas, &colors, channels).to_rgba8();
-        drop(colors);
-        atomic::png_bytes(&image)?
-    };
+    let png = atomic::png_bytes(&image)?;
+    drop(image);
     match &extra {
         None => atomic::write_with(&args.output, |f| {
             mesh::glb::write_glb(f, &mesh, &atlas, &png)

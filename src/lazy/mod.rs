@@ -664,6 +664,31 @@ impl Synthesizer {
         self.synthesize_bricks_of(requested, None, progress, want_triples)
     }
 
+    /// [`Self::synthesize_bricks`] group by group: `sink` gets each group's requested bricks and
+    /// their colours as soon as the group is done, so a caller that consumes them as they come
+    /// (a surface's atlas) never holds the whole request's colours.
+    pub fn synthesize_bricks_by_group(
+        &mut self,
+        requested: &[Brick],
+        progress: Progress,
+        mut sink: impl FnMut(BrickColors) -> Result<()>,
+    ) -> Result<()> {
+        let mut all = requested.to_vec();
+        bricks::normalize(&mut all);
+        self.for_each_group(&all, None, Periodic::No, progress, false, |group, c, _| {
+            // (Groups keep the request's order: BrickColors' lookups need it.)
+            debug_assert!(group
+                .windows(2)
+                .all(|w| (w[0][2], w[0][1], w[0][0]) < (w[1][2], w[1][1], w[1][0])));
+            sink(BrickColors {
+                bricks: group.to_vec(),
+                grid: BrickColors::lookup(group),
+                colors: c.to_vec(),
+                triples: Vec::new(),
+            })
+        })
+    }
+
     /// [`Self::synthesize_bricks`]; `exact`: the request is the voxels of this box (see
     /// [`Self::for_each_group`]; only they are meaningful in the result).
     fn synthesize_bricks_of(

@@ -16,7 +16,6 @@
 
 use super::{Mesh, Placement};
 use crate::error::{Error, Result};
-use crate::exemplar::Image;
 use glam::DVec3;
 
 /// Largest atlas side accepted.
@@ -292,10 +291,7 @@ impl Atlas {
         place: &Placement,
         mut visit: impl FnMut(usize, [i32; 3]),
     ) {
-        let fallback = place
-            .to_voxels(mesh.positions[mesh.triangles[0][0] as usize])
-            .floor();
-        let fallback = [fallback.x as i32, fallback.y as i32, fallback.z as i32];
+        let fallback = self.uncovered_texel_voxel(mesh, place);
         for i in 0..self.texel_count() as usize {
             visit(i, fallback);
         }
@@ -311,6 +307,56 @@ impl Atlas {
                 }
             }
         }
+    }
+
+    /// The triangles whose texels' voxels may lie in `lo..=hi`: their corners' voxel bounds
+    /// meet that box (a texel's point lies on its triangle, so its voxel lies within them).
+    pub fn triangles_near(
+        &self,
+        mesh: &Mesh,
+        place: &Placement,
+        lo: [i32; 3],
+        hi: [i32; 3],
+    ) -> Vec<usize> {
+        (0..mesh.triangles.len())
+            .filter(|&t| {
+                let corners =
+                    mesh.triangles[t].map(|i| place.to_voxels(mesh.positions[i as usize]));
+                let low = corners[0].min(corners[1]).min(corners[2]).floor();
+                let high = corners[0].max(corners[1]).max(corners[2]).floor();
+                let (low, high) = ([low.x, low.y, low.z], [high.x, high.y, high.z]);
+                (0..3).all(|k| high[k] >= lo[k] as f64 && low[k] <= hi[k] as f64)
+            })
+            .collect()
+    }
+
+    /// [`Self::for_each_texel_voxel`] for the texels of triangle `t` only.
+    pub fn for_each_texel_voxel_of(
+        &self,
+        mesh: &Mesh,
+        place: &Placement,
+        t: usize,
+        mut visit: impl FnMut(usize, [i32; 3]),
+    ) {
+        let cell = &self.cells[t];
+        let corners = mesh.triangles[t].map(|i| place.to_voxels(mesh.positions[i as usize]));
+        for j in 0..cell.height {
+            for i in 0..cell.width {
+                let p = cell.point(&corners, i, j).floor();
+                visit(
+                    self.texel_index(cell, i, j),
+                    [p.x as i32, p.y as i32, p.z as i32],
+                );
+            }
+        }
+    }
+
+    /// The voxel that [`Self::for_each_texel_voxel`] gives the texels outside every cell.
+    pub fn uncovered_texel_voxel(&self, mesh: &Mesh, place: &Placement) -> [i32; 3] {
+        let p = place
+            .to_voxels(mesh.positions[mesh.triangles[0][0] as usize])
+            .floor();
+        [p.x as i32, p.y as i32, p.z as i32]
     }
 
     /// Every texel's point in the mesh's own coordinates, with its triangle (row-major; texels
@@ -385,14 +431,16 @@ fn shelf_pack(sizes: &[[u32; 2]]) -> Option<(u32, u32, Vec<[u32; 2]>)> {
     Some((used.max(1) as u32, height.max(1) as u32, corners))
 }
 
-/// The baked atlas image from the packed colours of its texels.
-pub fn atlas_image(atlas: &Atlas, colors: &[u32], channels: u32) -> Image {
-    let mut img = Image::new(atlas.width, atlas.height, channels);
-    let c = channels as usize;
-    for (k, w) in colors.iter().enumerate() {
-        img.pixels[k * c..(k + 1) * c].copy_from_slice(&w.to_le_bytes()[..c]);
+/// The atlas pixel of a packed colour of `channels` channels (little-endian bytes), as
+/// [`crate::exemplar::Image::to_rgba8`] shows an image of that many channels: grey for one or two, opaque for
+/// three.
+pub fn atlas_pixel(color: u32, channels: u32) -> [u8; 4] {
+    let b = color.to_le_bytes();
+    match channels {
+        1 | 2 => [b[0], b[0], b[0], 255],
+        3 => [b[0], b[1], b[2], 255],
+        _ => b,
     }
-    img
 }
 
 /// OBJ + MTL referring to the atlas PNG (`png_name`, beside them); corners get their own
