@@ -1084,22 +1084,25 @@ fn surface_bakes_the_solid_at_each_texel_and_refuses_bad_meshes() {
     assert!(std::fs::read_to_string(d.join("baked.mtl"))
         .unwrap()
         .contains("map_Kd baked.png"));
-    let img = image::open(d.join("baked.png")).unwrap().to_rgba8();
     // Every texel is the solid's voxel at its 3D point: compare with a region holding the mesh.
     let v = region16(s, "3", d);
-    let mesh = solidsynth::mesh::parse_obj(obj_text.as_bytes(), "t").unwrap();
-    let atlas = Atlas::new(mesh.triangles.len(), 5).unwrap();
-    assert_eq!((img.width(), img.height()), (atlas.width, atlas.height));
-    let voxels = atlas.texel_voxels(&mesh, &Placement::fit(&mesh, 16));
-    for (k, p) in voxels.iter().enumerate() {
-        let (x, y) = (k as u32 % atlas.width, k as u32 / atlas.width);
-        let want = v.at(p[0] as u32, p[1] as u32, p[2] as u32);
-        assert_eq!(
-            &img.get_pixel(x, y).0[..3],
-            want,
-            "texel {x},{y} voxel {p:?}"
-        );
-    }
+    let texels_are_the_solid = |png: &str, mesh_text: &str| {
+        let img = image::open(d.join(png)).unwrap().to_rgba8();
+        let mesh = solidsynth::mesh::parse_obj(mesh_text.as_bytes(), "t").unwrap();
+        let atlas = Atlas::new(mesh.triangles.len(), 5).unwrap();
+        assert_eq!((img.width(), img.height()), (atlas.width, atlas.height));
+        let voxels = atlas.texel_voxels(&mesh, &Placement::fit(&mesh, 16));
+        for (k, p) in voxels.iter().enumerate() {
+            let (x, y) = (k as u32 % atlas.width, k as u32 / atlas.width);
+            let want = v.at(p[0] as u32, p[1] as u32, p[2] as u32);
+            assert_eq!(
+                &img.get_pixel(x, y).0[..3],
+                want,
+                "{png}: texel {x},{y} voxel {p:?}"
+            );
+        }
+    };
+    texels_are_the_solid("baked.png", obj_text);
     // The same in groups of one brick (each group's texels placed as it finishes), and an open
     // mesh of three triangles, whose atlas has a cell no triangle owns (its texels take the
     // voxel of the first triangle's first corner): every texel is still the solid at its voxel.
@@ -1113,19 +1116,7 @@ fn surface_bakes_the_solid_at_each_texel_and_refuses_bad_meshes() {
         args.extend_from_slice(&["--max-group", "4", "-o", out.to_str().unwrap()]);
         let o = run(&args);
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-        let img = image::open(d.join("grouped.png")).unwrap().to_rgba8();
-        let mesh = solidsynth::mesh::parse_obj(text.as_bytes(), "t").unwrap();
-        let atlas = Atlas::new(mesh.triangles.len(), 5).unwrap();
-        let voxels = atlas.texel_voxels(&mesh, &Placement::fit(&mesh, 16));
-        for (k, p) in voxels.iter().enumerate() {
-            let (x, y) = (k as u32 % atlas.width, k as u32 / atlas.width);
-            let want = v.at(p[0] as u32, p[1] as u32, p[2] as u32);
-            assert_eq!(
-                &img.get_pixel(x, y).0[..3],
-                want,
-                "grouped: texel {x},{y} voxel {p:?}"
-            );
-        }
+        texels_are_the_solid("grouped.png", text);
     }
     // Binary glTF.
     let glb = d.join("baked.glb");
@@ -1156,6 +1147,7 @@ fn surface_bakes_the_solid_at_each_texel_and_refuses_bad_meshes() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let summary: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert_eq!(summary["texel_size"], 1.0);
+    let mesh = solidsynth::mesh::parse_obj(obj_text.as_bytes(), "t").unwrap();
     let place = Placement::fit(&mesh, 16);
     let atlas = Atlas::fitted(&mesh, &place, 1.0).unwrap();
     let img = image::open(d.join("fitted.png")).unwrap().to_rgba8();

@@ -295,17 +295,8 @@ impl Atlas {
         for i in 0..self.texel_count() as usize {
             visit(i, fallback);
         }
-        for (tri, cell) in mesh.triangles.iter().zip(&self.cells) {
-            let corners = tri.map(|i| place.to_voxels(mesh.positions[i as usize]));
-            for j in 0..cell.height {
-                for i in 0..cell.width {
-                    let p = cell.point(&corners, i, j).floor();
-                    visit(
-                        self.texel_index(cell, i, j),
-                        [p.x as i32, p.y as i32, p.z as i32],
-                    );
-                }
-            }
+        for t in 0..mesh.triangles.len() {
+            self.for_each_texel_voxel_of(mesh, place, t, &mut visit);
         }
     }
 
