@@ -1,6 +1,6 @@
 // One correction sub-pass over the voxels of one parity class in a box (paper 5.1, two-step
 // search with 3D candidates; or independent 2D candidates, mode 1). CPU reference, with the
-// description of each step: src/cpu/correct.rs.
+// description of each step: src/cpu/correct/mod.rs.
 
 struct CorrectParams {
     grid_lo_x: i32, grid_lo_y: i32, grid_lo_z: i32,
@@ -468,8 +468,10 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation
     let pos = brick_at(params.list_offset, b) * 4
         + vec3<i32>(cls + 2u * vec3<u32>(k & 1u, (k >> 1u) & 1u, k >> 2u));
     let r = around(pos);
+    if (r.own == ABSENT) {
+        return; // never expected: the voxels the plan needs are stored
+    }
     let best = correct_voxel(pos, r);
-    // (A voxel the plan needs is stored.)
     let i = (r.own + u32(r.local.z * 16 + r.local.y * 4 + r.local.x)) * stride();
     state[i] = best.x;
     state[i + 1u] = best.y;

@@ -65,10 +65,11 @@ pub fn run(args: SurfaceArgs, quiet: bool) -> anyhow::Result<()> {
     params.validate()?;
     let mesh = mesh::load(&args.mesh)?;
     let place = Placement::fit(&mesh, args.resolution);
-    // Per texel: its image pixel (4 bytes, filled group by group), its PNG (at most about as
-    // much again) and a bit of bookkeeping; the requested bricks' are checked below. Refuse
-    // before allocating when that cannot fit.
-    let bytes_per_texel = 12;
+    // Per texel: its image pixel (4 bytes), its index and colour while its group places it (8;
+    // a group may hold the whole surface), then its PNG (at most about 4), and a bit of
+    // bookkeeping; the requested bricks' are checked below. Refuse before allocating when that
+    // cannot fit.
+    let bytes_per_texel = 16;
     let available = super::synth::available_memory();
     // The layout, how to say it, and the flag that chose it (for errors).
     let fewer = if args.texels.is_some() {
@@ -156,7 +157,8 @@ pub fn run(args: SurfaceArgs, quiet: bool) -> anyhow::Result<()> {
         let (lo, hi) = (lo.map(|v| v * 4), hi.map(|v| v * 4 + 3));
         // The group's texels, found in parallel (the cores are otherwise idle between groups),
         // then placed.
-        let found: Vec<Vec<(usize, u32)>> = atlas
+        // (Texel indices fit u32: atlases are at most 16384^2.)
+        let found: Vec<Vec<(u32, u32)>> = atlas
             .triangles_near(&mesh, &place, lo, hi)
             .par_iter()
             .map(|&t| {
@@ -168,13 +170,14 @@ pub fn run(args: SurfaceArgs, quiet: bool) -> anyhow::Result<()> {
                         return;
                     }
                     if let Some(c) = group.color_near(p, &mut last) {
-                        out.push((i, c));
+                        out.push((i as u32, c));
                     }
                 });
                 out
             })
             .collect();
         for (i, c) in found.into_iter().flatten() {
+            let i = i as usize;
             pixels[4 * i..4 * i + 4].copy_from_slice(&bake::atlas_pixel(c, channels));
             placed[i / 64] |= 1 << (i % 64);
         }

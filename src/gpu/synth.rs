@@ -46,8 +46,8 @@ impl Drop for GpuState {
 struct BufferPool(Arc<std::sync::Mutex<Vec<wgpu::Buffer>>>);
 
 const POOLED_BUFFERS: usize = 8;
-/// A 256^2 cut keeps about 45 MiB (a state, its pass-start copy, colours), an
-/// oblique 512^2 one more;
+/// A 256^2 cut keeps about 45 MiB (a state, its pass-start copy, colours; measured with
+/// the correction records that session 27 removed, so less now), an oblique 512^2 one more;
 /// `serve` holds one pool per loaded solid, so the cap stays well below a device's memory.
 const POOLED_BYTES: u64 = 256 << 20;
 
@@ -330,6 +330,11 @@ impl GpuSynth {
             fused_passes: std::env::var("SOLIDSYNTH_FUSED_PASSES").is_ok_and(|v| v == "1"),
             correct_constants,
         })
+    }
+
+    /// Whether buffers are kept between requests (a warm session, [`Self::keep_buffers`]).
+    pub fn keeps_buffers(&self) -> bool {
+        self.pool.is_some()
     }
 
     /// Release the `correct` pipelines that only the levels above `level` use (their constants

@@ -95,6 +95,14 @@ impl Executor {
         }
     }
 
+    /// Whether device buffers are kept from one request to the next ([`Self::keep_buffers`]).
+    pub fn keeps_buffers(&self) -> bool {
+        match self {
+            Executor::Cpu { .. } => false,
+            Executor::Gpu(g) => g.keeps_buffers(),
+        }
+    }
+
     /// No level above `level` will be corrected again: the GPU releases their `correct`
     /// pipelines ([`crate::gpu::synth::GpuSynth::release_coarse_pipelines`]).
     pub fn release_coarse_pipelines(&self, level: usize) {

@@ -828,8 +828,10 @@ impl Synthesizer {
             &|m, f| progress(m, coarse_share * f),
             stats,
         )?;
-        // (A later request of a session that needs them builds them again.)
-        self.exec.release_coarse_pipelines(finest);
+        // (Not in a warm session, whose next request of several groups would build them again.)
+        if !self.exec.keeps_buffers() {
+            self.exec.release_coarse_pipelines(finest);
+        }
         for (g, group) in groups.iter().enumerate() {
             let base = coarse_share + (1.0 - coarse_share) * g as f32 / groups.len() as f32;
             let scale = (1.0 - coarse_share) / groups.len() as f32;
@@ -948,7 +950,7 @@ impl Synthesizer {
         self.last_stats.as_ref()
     }
 
-    /// Keep the GPU's state, record and colour buffers from one request for the next ones of the
+    /// Keep the GPU's state and colour buffers from one request for the next ones of the
     /// same sizes, as a warm session does (`CutSession`): no allocation and zeroing per request.
     pub fn keep_buffers(&mut self) {
         self.exec.keep_buffers();
