@@ -250,9 +250,10 @@ fn synthesis_kernels_bit_exact_on_gpu_and_cpu() {
         s.synthesize(b, &|_, _| {}).unwrap()
     });
     // Once the cache is built (or a request's shared coarse levels are done) the GPU releases
-    // the pipelines only the coarse levels use: a later request of the session that corrects
-    // those levels again (a tileable volume, which does not read the cache; a box in groups)
-    // builds them again.
+    // the pipelines only the coarse levels use, and after the cache their candidate tables too
+    // (the CPU its prepared tables): a later request of the session that corrects those levels
+    // again (a tileable volume, which does not read the cache; a box in groups) builds them
+    // again, the GPU's tables from the level data on the device.
     same_on_both(
         "coarse levels corrected again after a release",
         &a,

@@ -146,8 +146,10 @@ pub fn run(args: SurfaceArgs, quiet: bool) -> anyhow::Result<()> {
     // outside every cell take the colour of one surface voxel, as `for_each_texel_voxel` says.
     let texels = atlas.texel_count() as usize;
     let channels = synth.color_channels();
-    let mut image = image::RgbaImage::new(atlas.width, atlas.height);
-    let pixels: &mut [u8] = &mut image;
+    // Three bytes a texel unless the solid has a fourth channel: the atlas is the largest
+    // buffer the bake holds (the bunny at 1024: 16 MB as RGB, 22 MB as RGBA).
+    let texel_bytes = if channels >= 4 { 4 } else { 3 };
+    let mut pixels = vec![0u8; texels * texel_bytes];
     let mut placed = vec![0u64; texels.div_ceil(64)];
     let uncovered_voxel = atlas.uncovered_texel_voxel(&mesh, &place);
     let mut uncovered_color = None;
@@ -178,7 +180,8 @@ pub fn run(args: SurfaceArgs, quiet: bool) -> anyhow::Result<()> {
             .collect();
         for (i, c) in found.into_iter().flatten() {
             let i = i as usize;
-            pixels[4 * i..4 * i + 4].copy_from_slice(&bake::atlas_pixel(c, channels));
+            pixels[texel_bytes * i..texel_bytes * (i + 1)]
+                .copy_from_slice(&bake::atlas_pixel(c, channels)[..texel_bytes]);
             placed[i / 64] |= 1 << (i % 64);
         }
         if uncovered_color.is_none() {
@@ -189,9 +192,9 @@ pub fn run(args: SurfaceArgs, quiet: bool) -> anyhow::Result<()> {
     drop(wanted);
     let uncovered_color = uncovered_color.expect("the uncovered texels' voxel is requested");
     let uncovered_pixel = bake::atlas_pixel(uncovered_color, channels);
-    for (i, p) in pixels.chunks_exact_mut(4).enumerate() {
+    for (i, p) in pixels.chunks_exact_mut(texel_bytes).enumerate() {
         if placed[i / 64] & (1 << (i % 64)) == 0 {
-            p.copy_from_slice(&uncovered_pixel);
+            p.copy_from_slice(&uncovered_pixel[..texel_bytes]);
         }
     }
     drop(placed);
@@ -201,8 +204,12 @@ pub fn run(args: SurfaceArgs, quiet: bool) -> anyhow::Result<()> {
     drop(synth);
     bar.finish_and_clear();
     let seconds = (start.elapsed() - analysis_time).as_secs_f64();
-    let png = atomic::png_bytes(&image)?;
-    drop(image);
+    let (width, height) = (atlas.width, atlas.height);
+    let png = if texel_bytes == 4 {
+        atomic::png_bytes(&image::RgbaImage::from_raw(width, height, pixels).expect("sized"))?
+    } else {
+        atomic::png_bytes(&image::RgbImage::from_raw(width, height, pixels).expect("sized"))?
+    };
     match &extra {
         None => atomic::write_with(&args.output, |f| {
             mesh::glb::write_glb(f, &mesh, &atlas, &png)

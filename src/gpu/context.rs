@@ -118,6 +118,20 @@ fn type_rank(t: wgpu::DeviceType) -> u32 {
     }
 }
 
+/// How wgpu sub-allocates device memory. Where device memory is the host's (lavapipe, an
+/// integrated GPU) small blocks: wgpu's default blocks of 64-128 MiB are touched page by page as
+/// buffers come and go and stay resident whole until the device closes, while a buffer larger
+/// than a 4 MiB block gets its own, returned to the system when it is dropped (the candidate
+/// tables of the levels a request no longer corrects, a finished group's states).
+fn memory_hints(device_type: wgpu::DeviceType) -> wgpu::MemoryHints {
+    match device_type {
+        wgpu::DeviceType::Cpu | wgpu::DeviceType::IntegratedGpu => wgpu::MemoryHints::Manual {
+            suballocated_device_memory_block_size: (4 << 20)..(8 << 20),
+        },
+        _ => wgpu::MemoryHints::Performance,
+    }
+}
+
 impl GpuContext {
     /// Pick the best adapter matching the filter (discrete > integrated > virtual > CPU, e.g.
     /// lavapipe) and open a device with the adapter's own limits.
@@ -157,6 +171,7 @@ impl GpuContext {
             label: Some("solidsynth"),
             required_features: wgpu::Features::empty(),
             required_limits: limits.clone(),
+            memory_hints: memory_hints(info.device_type),
             ..Default::default()
         }))
         .map_err(|e| Error::Gpu(format!("cannot open device on {}: {e}", info.name)))?;
@@ -260,6 +275,10 @@ impl GpuContext {
             return Err(Error::Gpu(format!("kernel {name}: {err}")));
         }
         let pipeline = Arc::new(pipeline);
+        // A software driver's shader compiler (lavapipe's LLVM) frees tens of MB as it
+        // finishes, which glibc would otherwise keep for the rest of the run.
+        drop(module);
+        crate::util::memory::return_free_heap();
         self.pipelines.lock().unwrap().insert(key, pipeline.clone());
         Ok(pipeline)
     }

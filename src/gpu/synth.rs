@@ -76,8 +76,11 @@ pub struct GpuSynth {
     /// whether they are packed.
     projections: Vec<(wgpu::Buffer, bool)>,
     /// Per level, the `correct` kernel's candidate tables ([`candidate_tables`]) and their 3D
-    /// slots per pixel.
-    candidates: Vec<(wgpu::Buffer, u32)>,
+    /// slots per pixel; None once released ([`GpuSynth::release_coarse_tables`]) until a
+    /// correction of the level needs them again ([`GpuSynth::level_tables`]).
+    candidates: std::sync::Mutex<Vec<Option<(wgpu::Buffer, u32)>>>,
+    /// The levels' layouts (packs without their words), to build released tables again.
+    layouts: Vec<LevelPack>,
     /// Per level, the `correct` pipeline's constants ([`GpuSynth::correct_inputs`]).
     correct_constants: Vec<Vec<(&'static str, f64)>>,
     table: wgpu::Buffer,
@@ -234,6 +237,37 @@ fn groups(threads: u64) -> (u32, u32, u32) {
     (x, y, 1)
 }
 
+/// Level `level`'s candidate tables (of `levels`), built from its pack and uploaded, with their
+/// 3D slots per pixel.
+fn upload_tables(
+    ctx: &GpuContext,
+    p: &LevelPack,
+    level: usize,
+    levels: usize,
+) -> Result<(wgpu::Buffer, u32)> {
+    let slots = p.k3d_used(level + 1 == levels);
+    let started = std::time::Instant::now();
+    let words = candidate_tables(p, slots);
+    tracing::debug!(
+        "level {level}: candidate tables of {} KiB built in {:.1} ms",
+        words.len() / 256,
+        started.elapsed().as_secs_f64() * 1e3
+    );
+    let bytes = words.len() as u64 * 4;
+    if bytes > ctx.max_binding_bytes() {
+        return Err(Error::invalid(
+            "exemplar",
+            format!(
+                "its candidate tables need {bytes} bytes per level on the GPU, over the \
+                 adapter's {}-byte binding limit; use a smaller exemplar or --backend cpu",
+                ctx.max_binding_bytes()
+            ),
+        ));
+    }
+    let buffer = ctx.storage_buffer_in_pieces("candidate tables", bytemuck::cast_slice(&words))?;
+    Ok((buffer, slots))
+}
+
 impl GpuSynth {
     pub fn new(ctx: Arc<GpuContext>, packs: &[LevelPack], table: &[u32]) -> Result<GpuSynth> {
         for p in packs {
@@ -286,31 +320,12 @@ impl GpuSynth {
             .iter()
             .map(|p| ctx.storage_buffer_in_pieces("level data", bytemuck::cast_slice(&p.words)))
             .collect::<Result<_>>()?;
-        let mut candidates = Vec::with_capacity(packs.len());
-        for (i, p) in packs.iter().enumerate() {
-            let slots = p.k3d_used(i + 1 == packs.len());
-            let started = std::time::Instant::now();
-            let words = candidate_tables(p, slots);
-            tracing::debug!(
-                "level {i}: candidate tables of {} KiB built in {:.1} ms",
-                words.len() / 256,
-                started.elapsed().as_secs_f64() * 1e3
-            );
-            let bytes = words.len() as u64 * 4;
-            if bytes > ctx.max_binding_bytes() {
-                return Err(Error::invalid(
-                    "exemplar",
-                    format!(
-                        "its candidate tables need {bytes} bytes per level on the GPU, over the \
-                         adapter's {}-byte binding limit; use a smaller exemplar or --backend cpu",
-                        ctx.max_binding_bytes()
-                    ),
-                ));
-            }
-            let buffer =
-                ctx.storage_buffer_in_pieces("candidate tables", bytemuck::cast_slice(&words))?;
-            candidates.push((buffer, slots));
-        }
+        let candidates = packs
+            .iter()
+            .enumerate()
+            .map(|(i, p)| upload_tables(&ctx, p, i, packs.len()).map(Some))
+            .collect::<Result<Vec<_>>>()?;
+        let layouts = packs.iter().map(LevelPack::clone_layout).collect();
         let table = ctx.storage_buffer("jitter table", bytemuck::cast_slice(table));
         let arena = parameter_arena(&ctx, ARENA_BYTES as u64);
         let correct_constants = packs
@@ -322,7 +337,8 @@ impl GpuSynth {
             ctx,
             levels,
             projections,
-            candidates,
+            candidates: std::sync::Mutex::new(candidates),
+            layouts,
             table,
             pending: std::sync::Mutex::new(None),
             arena,
@@ -350,6 +366,34 @@ impl GpuSynth {
                 self.ctx.release_pipeline("correct", &fused(c.clone()));
             }
         }
+    }
+
+    /// Drop the candidate tables of the levels above `level`, which requests of the infinite
+    /// solid no longer correct once the coarse cache is built: 11 of the 19 MiB of tables of the
+    /// built-in exemplar's analysis. A later correction of such a level (a tileable solid)
+    /// builds them again ([`GpuSynth::level_tables`]).
+    pub fn release_coarse_tables(&mut self, level: usize) {
+        for t in &mut self.candidates.get_mut().unwrap()[..level] {
+            *t = None;
+        }
+    }
+
+    /// Level `level`'s candidate tables and their 3D slots per pixel, built again from the
+    /// level data on the device if they were released.
+    fn level_tables(&self, level: usize) -> Result<(wgpu::Buffer, u32)> {
+        let mut candidates = self.candidates.lock().unwrap();
+        if let Some(t) = &candidates[level] {
+            return Ok(t.clone());
+        }
+        let layout = &self.layouts[level];
+        let words = self.levels[level].size() as usize / 4;
+        let pack = LevelPack {
+            words: self.ctx.read_words(&self.levels[level], words)?,
+            ..layout.clone_layout()
+        };
+        let t = upload_tables(&self.ctx, &pack, level, self.layouts.len())?;
+        candidates[level] = Some(t.clone());
+        Ok(t)
     }
 
     /// Shrink the parameter arena to `bytes` (after a flush), so that batches are submitted
@@ -664,7 +708,7 @@ impl GpuSynth {
                 (3, &s.current),
                 (4, index),
                 (5, projection),
-                (6, candidates),
+                (6, &candidates),
                 (7, start),
             ],
             groups(p.list_count as u64 * 8),
@@ -678,9 +722,9 @@ impl GpuSynth {
         &self,
         level: usize,
         p: &CorrectParams,
-    ) -> Result<(&wgpu::Buffer, &wgpu::Buffer, Vec<(&'static str, f64)>)> {
-        let (candidates, slots) = &self.candidates[level];
-        if p.mode == 0 && p.k3d_used > *slots {
+    ) -> Result<(wgpu::Buffer, &wgpu::Buffer, Vec<(&'static str, f64)>)> {
+        let (candidates, slots) = self.level_tables(level)?;
+        if p.mode == 0 && p.k3d_used > slots {
             return Err(Error::Gpu(format!(
                 "the correction scores {} 3D candidates per pixel; level {level}'s tables hold {slots}",
                 p.k3d_used
@@ -729,7 +773,7 @@ impl GpuSynth {
                 (3, &s.current),
                 (4, index),
                 (5, projection),
-                (6, candidates),
+                (6, &candidates),
                 (7, start),
             ],
             groups(p.list_count as u64 * 8),

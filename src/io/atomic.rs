@@ -414,8 +414,11 @@ pub fn save_png(path: &Path, img: &image::RgbaImage) -> Result<()> {
     write_file(path, &png_bytes(img)?)
 }
 
-/// An RGBA image encoded as PNG.
-pub fn png_bytes(img: &image::RgbaImage) -> Result<Vec<u8>> {
+/// An 8-bit image (RGBA, RGB, ...) encoded as PNG.
+pub fn png_bytes<P>(img: &image::ImageBuffer<P, Vec<u8>>) -> Result<Vec<u8>>
+where
+    P: image::Pixel<Subpixel = u8> + image::PixelWithColorType,
+{
     let mut buf = Vec::new();
     img.write_to(&mut std::io::Cursor::new(&mut buf), image::ImageFormat::Png)
         .map_err(|e| Error::Internal(format!("PNG encoding failed: {e}")))?;

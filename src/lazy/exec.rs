@@ -49,6 +49,9 @@ pub enum Executor {
         /// Tests: every pass sub-pass by sub-pass against a pass-start copy (the reference the
         /// brick-by-brick passes must equal), see [`Executor::set_sub_pass_reference`].
         sub_pass_reference: bool,
+        /// A warm session ([`Executor::keep_buffers`]): its states are plain vectors, but its
+        /// requests keep the heap as it is between them.
+        warm: bool,
     },
     Gpu(Box<GpuSynth>),
 }
@@ -67,6 +70,7 @@ impl Executor {
                 table: table.to_vec(),
                 prepared: packs.iter().map(|_| Default::default()).collect(),
                 sub_pass_reference: false,
+                warm: false,
             },
             Compute::Gpu(ctx) => Executor::Gpu(Box::new(GpuSynth::new(ctx.clone(), packs, table)?)),
         };
@@ -95,10 +99,10 @@ impl Executor {
         }
     }
 
-    /// Whether device buffers are kept from one request to the next ([`Self::keep_buffers`]).
+    /// Whether this is a warm session ([`Self::keep_buffers`]).
     pub fn keeps_buffers(&self) -> bool {
         match self {
-            Executor::Cpu { .. } => false,
+            Executor::Cpu { warm, .. } => *warm,
             Executor::Gpu(g) => g.keeps_buffers(),
         }
     }
@@ -108,14 +112,36 @@ impl Executor {
     pub fn release_coarse_pipelines(&self, level: usize) {
         if let Executor::Gpu(g) = self {
             g.release_coarse_pipelines(level);
+            crate::util::memory::return_free_heap();
         }
     }
 
-    /// Keep device buffers from one request to the next (a warm session; the CPU backend's
-    /// states are plain vectors).
+    /// The coarse cache is built: no level above `level` will be corrected again by a request
+    /// of the infinite solid. Release their `correct` pipelines and derived tables: the GPU
+    /// its candidate tables ([`GpuSynth::release_coarse_tables`]; a tileable synthesis on this
+    /// executor is an error from then on), the CPU its prepared tables (built again if a
+    /// tileable synthesis needs them).
+    pub fn release_coarse_levels(&mut self, level: usize) {
+        match self {
+            Executor::Cpu { prepared, .. } => {
+                for p in &mut prepared[..level] {
+                    p.take();
+                }
+            }
+            Executor::Gpu(g) => {
+                g.release_coarse_pipelines(level);
+                g.release_coarse_tables(level);
+            }
+        }
+        crate::util::memory::return_free_heap();
+    }
+
+    /// A warm session: the GPU keeps device buffers from one request to the next (the CPU
+    /// backend's states are plain vectors), and neither hands free heap back between groups.
     pub fn keep_buffers(&mut self) {
-        if let Executor::Gpu(g) = self {
-            g.keep_buffers();
+        match self {
+            Executor::Cpu { warm, .. } => *warm = true,
+            Executor::Gpu(g) => g.keep_buffers(),
         }
     }
 

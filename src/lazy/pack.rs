@@ -122,6 +122,15 @@ impl LevelPack {
 
     /// 3D candidates a correction of this level scores per plane: the paper's reduced search
     /// at the finest level (4), every kept one elsewhere.
+    /// This pack without its words: its layout, which is all planning reads.
+    pub fn clone_layout(&self) -> LevelPack {
+        LevelPack {
+            words: Vec::new(),
+            offsets: self.offsets.clone(),
+            ..*self
+        }
+    }
+
     pub fn k3d_used(&self, finest: bool) -> u32 {
         if finest {
             FINEST_3D_CANDIDATES.min(self.k3d_stride)
