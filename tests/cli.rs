@@ -1085,9 +1085,17 @@ fn surface_bakes_the_solid_at_each_texel_and_refuses_bad_meshes() {
         .unwrap()
         .contains("map_Kd baked.png"));
     // Every texel is the solid's voxel at its 3D point: compare with a region holding the mesh.
+    // The atlas is RGB for a solid of three channels, RGBA for four (below).
     let v = region16(s, "3", d);
-    let texels_are_the_solid = |png: &str, mesh_text: &str| {
-        let img = image::open(d.join(png)).unwrap().to_rgba8();
+    let texels_of = |v: &solidsynth::volume::Volume, png: &str, mesh_text: &str| {
+        let img = image::open(d.join(png)).unwrap();
+        let color = match v.channels {
+            3 => image::ColorType::Rgb8,
+            4 => image::ColorType::Rgba8,
+            n => panic!("a {n}-channel solid"),
+        };
+        assert_eq!(img.color(), color, "{png}");
+        let img = img.to_rgba8();
         let mesh = solidsynth::mesh::parse_obj(mesh_text.as_bytes(), "t").unwrap();
         let atlas = Atlas::new(mesh.triangles.len(), 5).unwrap();
         assert_eq!((img.width(), img.height()), (atlas.width, atlas.height));
@@ -1096,13 +1104,44 @@ fn surface_bakes_the_solid_at_each_texel_and_refuses_bad_meshes() {
             let (x, y) = (k as u32 % atlas.width, k as u32 / atlas.width);
             let want = v.at(p[0] as u32, p[1] as u32, p[2] as u32);
             assert_eq!(
-                &img.get_pixel(x, y).0[..3],
+                &img.get_pixel(x, y).0[..want.len()],
                 want,
                 "{png}: texel {x},{y} voxel {p:?}"
             );
         }
     };
+    let texels_are_the_solid = |png: &str, mesh_text: &str| texels_of(&v, png, mesh_text);
     texels_are_the_solid("baked.png", obj_text);
+    // A solid of four channels (an RGBA exemplar, its alpha varying) keeps its fourth in the
+    // atlas.
+    let cells = image::open(fixture_path("cells32.png")).unwrap().to_rgba8();
+    let rgba = image::RgbaImage::from_fn(32, 32, |x, y| {
+        let [r, g, b, _] = cells.get_pixel(x, y).0;
+        image::Rgba([r, g, b, (x * 8) as u8])
+    });
+    let rgba_path = d.join("rgba-exemplar.png");
+    rgba.save(&rgba_path).unwrap();
+    let rgba_ssa = d.join("rgba.ssa");
+    let o = run(&[
+        "analyze",
+        "--backend",
+        "cpu",
+        "--periodic",
+        rgba_path.to_str().unwrap(),
+        "-o",
+        rgba_ssa.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let r = rgba_ssa.to_str().unwrap();
+    let out = d.join("rgba.obj");
+    let mut args = vec!["surface", r, "--mesh", mesh_path.to_str().unwrap()];
+    args.extend_from_slice(&common);
+    args.extend_from_slice(&["-o", out.to_str().unwrap()]);
+    let o = run(&args);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v4 = region16(r, "3", d);
+    assert_eq!(v4.channels, 4);
+    texels_of(&v4, "rgba.png", obj_text);
     // The same in groups of one brick (each group's texels placed as it finishes), and an open
     // mesh of three triangles, whose atlas has a cell no triangle owns (its texels take the
     // voxel of the first triangle's first corner): every texel is still the solid at its voxel.
