@@ -250,10 +250,11 @@ fn synthesis_kernels_bit_exact_on_gpu_and_cpu() {
         s.synthesize(b, &|_, _| {}).unwrap()
     });
     // Once the cache is built (or a request's shared coarse levels are done) the GPU releases
-    // the pipelines only the coarse levels use, and after the cache their candidate tables too
-    // (the CPU its prepared tables): a later request of the session that corrects those levels
-    // again (a tileable volume, which does not read the cache; a box in groups) builds them
-    // again, the GPU's tables from the level data on the device.
+    // the pipelines only the coarse levels use: a later request of the session that corrects
+    // those levels again (a tileable volume, which does not read the cache; a box in groups)
+    // builds them again. After the cache the GPU releases the coarse levels' candidate tables
+    // too (the CPU its prepared tables), and a tileable volume builds them again from the level
+    // data on the device (checked below).
     same_on_both(
         "coarse levels corrected again after a release",
         &a,
@@ -266,6 +267,17 @@ fn synthesis_kernels_bit_exact_on_gpu_and_cpu() {
             v
         },
     );
+    for compute in [&Compute::Cpu, &gpu] {
+        let mut s = Synthesizer::new(&a, params.clone(), compute).unwrap();
+        s.synthesize(b, &|_, _| {}).unwrap();
+        assert_eq!(
+            s.tables_held(),
+            [false, false, false, true],
+            "after the cache"
+        );
+        s.synthesize_tileable(32, &|_, _| {}, false).unwrap();
+        assert_eq!(s.tables_held(), [true; 4], "after a tileable request");
+    }
     let params = SynthParams {
         seed: 9,
         ..Default::default()

@@ -118,14 +118,17 @@ fn type_rank(t: wgpu::DeviceType) -> u32 {
     }
 }
 
-/// How wgpu sub-allocates device memory. Where device memory is the host's (lavapipe, an
-/// integrated GPU) small blocks: wgpu's default blocks of 64-128 MiB are touched page by page as
-/// buffers come and go and stay resident whole until the device closes, while a buffer larger
-/// than a 4 MiB block gets its own, returned to the system when it is dropped (the candidate
-/// tables of the levels a request no longer corrects, a finished group's states).
+/// How wgpu sub-allocates device memory. On a CPU adapter (lavapipe, whose device memory is the
+/// process's shared memory) small blocks: with wgpu's default, host-visible blocks of 64-128 MiB
+/// (every lavapipe memory type is host-visible), a block's pages are touched as buffers come
+/// and go and stay resident until the device closes; with these hints the blocks are 4 MiB
+/// (gpu-allocator halves the range for host-visible memory), and a buffer larger than one gets
+/// its own, returned to the system when it is dropped (the coarse levels' candidate tables
+/// after the coarse cache, a finished group's states). Integrated GPUs keep the default: not
+/// measured.
 fn memory_hints(device_type: wgpu::DeviceType) -> wgpu::MemoryHints {
     match device_type {
-        wgpu::DeviceType::Cpu | wgpu::DeviceType::IntegratedGpu => wgpu::MemoryHints::Manual {
+        wgpu::DeviceType::Cpu => wgpu::MemoryHints::Manual {
             suballocated_device_memory_block_size: (4 << 20)..(8 << 20),
         },
         _ => wgpu::MemoryHints::Performance,

@@ -77,7 +77,7 @@ pub struct GpuSynth {
     projections: Vec<(wgpu::Buffer, bool)>,
     /// Per level, the `correct` kernel's candidate tables ([`candidate_tables`]) and their 3D
     /// slots per pixel; None once released ([`GpuSynth::release_coarse_tables`]) until a
-    /// correction of the level needs them again ([`GpuSynth::level_tables`]).
+    /// correction of the level needs them again (`GpuSynth::level_tables`).
     candidates: std::sync::Mutex<Vec<Option<(wgpu::Buffer, u32)>>>,
     /// The levels' layouts (packs without their words), to build released tables again.
     layouts: Vec<LevelPack>,
@@ -371,11 +371,22 @@ impl GpuSynth {
     /// Drop the candidate tables of the levels above `level`, which requests of the infinite
     /// solid no longer correct once the coarse cache is built: 11 of the 19 MiB of tables of the
     /// built-in exemplar's analysis. A later correction of such a level (a tileable solid)
-    /// builds them again ([`GpuSynth::level_tables`]).
+    /// builds them again from the level data on the device (and keeps them).
     pub fn release_coarse_tables(&mut self, level: usize) {
         for t in &mut self.candidates.get_mut().unwrap()[..level] {
             *t = None;
         }
+    }
+
+    /// Tests: per level, whether its candidate tables are held now.
+    #[doc(hidden)]
+    pub fn tables_held(&self) -> Vec<bool> {
+        self.candidates
+            .lock()
+            .unwrap()
+            .iter()
+            .map(Option::is_some)
+            .collect()
     }
 
     /// Level `level`'s candidate tables and their 3D slots per pixel, built again from the

@@ -44,7 +44,8 @@ pub enum Executor {
         levels: Vec<Vec<u32>>,
         table: Vec<u32>,
         /// Per level, the correction's derived tables, built at the level's first sub-pass and
-        /// kept for the executor's life (a warm cut session reuses them).
+        /// kept (a warm cut session reuses them) until the coarse cache is built
+        /// ([`Executor::release_coarse_levels`]); built again if needed after that.
         prepared: Vec<std::sync::OnceLock<crate::cpu::correct::Prepared>>,
         /// Tests: every pass sub-pass by sub-pass against a pass-start copy (the reference the
         /// brick-by-brick passes must equal), see [`Executor::set_sub_pass_reference`].
@@ -118,9 +119,9 @@ impl Executor {
 
     /// The coarse cache is built: no level above `level` will be corrected again by a request
     /// of the infinite solid. Release their `correct` pipelines and derived tables: the GPU
-    /// its candidate tables ([`GpuSynth::release_coarse_tables`]; a tileable synthesis on this
-    /// executor is an error from then on), the CPU its prepared tables (built again if a
-    /// tileable synthesis needs them).
+    /// its candidate tables ([`GpuSynth::release_coarse_tables`]), the CPU its prepared
+    /// tables. A tileable synthesis, which corrects those levels again, builds them again (the
+    /// GPU's from the level data on the device).
     pub fn release_coarse_levels(&mut self, level: usize) {
         match self {
             Executor::Cpu { prepared, .. } => {
@@ -134,6 +135,15 @@ impl Executor {
             }
         }
         crate::util::memory::return_free_heap();
+    }
+
+    /// Tests: per level, whether its correction's derived tables are held now (the GPU's
+    /// candidate tables, the CPU's prepared tables, built at a level's first correction).
+    pub fn tables_held(&self) -> Vec<bool> {
+        match self {
+            Executor::Cpu { prepared, .. } => prepared.iter().map(|p| p.get().is_some()).collect(),
+            Executor::Gpu(g) => g.tables_held(),
+        }
     }
 
     /// A warm session: the GPU keeps device buffers from one request to the next (the CPU

@@ -855,9 +855,10 @@ impl Synthesizer {
         Ok(())
     }
 
-    /// Between a request's groups: hand the heap's free pages back ([`crate::util::memory::return_free_heap`]),
-    /// except in a warm session, whose next request would fault them in again (a warm 256^2
-    /// cut on the CPU backend: 81 -> 87 ms when trimmed).
+    /// Between a request's groups: hand the heap's free pages back
+    /// ([`crate::util::memory::return_free_heap`]), except in a warm session, whose next
+    /// request would fault them in again (a warm 256^2 cut on the CPU backend: 81 -> 87 ms when
+    /// trimmed after every group).
     fn return_free_heap(&self) {
         if !self.exec.keeps_buffers() {
             crate::util::memory::return_free_heap();
@@ -959,8 +960,17 @@ impl Synthesizer {
         self.last_stats.as_ref()
     }
 
-    /// Keep the GPU's state and colour buffers from one request for the next ones of the
-    /// same sizes, as a warm session does (`CutSession`): no allocation and zeroing per request.
+    /// Tests: per level (coarsest first), whether the correction's derived tables are held
+    /// now (released once the coarse cache is built, built again when needed).
+    #[doc(hidden)]
+    pub fn tables_held(&self) -> Vec<bool> {
+        self.exec.tables_held()
+    }
+
+    /// A warm session (`CutSession`): the GPU keeps its state and colour buffers from one
+    /// request for the next ones of the same sizes (no allocation and zeroing per request),
+    /// and neither backend hands free heap back between groups (the next request would fault
+    /// the pages in again).
     pub fn keep_buffers(&mut self) {
         self.exec.keep_buffers();
     }

@@ -120,8 +120,6 @@ impl LevelPack {
         pack
     }
 
-    /// 3D candidates a correction of this level scores per plane: the paper's reduced search
-    /// at the finest level (4), every kept one elsewhere.
     /// This pack without its words: its layout, which is all planning reads.
     pub fn clone_layout(&self) -> LevelPack {
         LevelPack {
@@ -131,6 +129,8 @@ impl LevelPack {
         }
     }
 
+    /// 3D candidates a correction of this level scores per plane: the paper's reduced search
+    /// at the finest level (4), every kept one elsewhere.
     pub fn k3d_used(&self, finest: bool) -> u32 {
         if finest {
             FINEST_3D_CANDIDATES.min(self.k3d_stride)

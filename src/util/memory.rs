@@ -17,10 +17,12 @@ pub fn peak_rss_bytes() -> Option<u64> {
 /// 13% slower on the CPU backend, faulting the same pages in again. A no-op off glibc.
 pub fn return_free_heap() {
     #[cfg(all(target_os = "linux", target_env = "gnu"))]
-    // SAFETY: mallinfo2 only reads the allocator's counters (all arenas), and malloc_trim
-    // only releases free memory; no pointer the program holds changes.
+    // SAFETY: mallinfo only reads the allocator's counters (all arenas), and malloc_trim only
+    // releases free memory; no pointer the program holds changes. (mallinfo, not mallinfo2,
+    // which needs glibc 2.33: its int counters wrap past 2 GiB, read here as u32 up to 4 GiB,
+    // and a wrapped count only skips one trim.)
     unsafe {
-        if libc::mallinfo2().fordblks > 16 << 20 {
+        if libc::mallinfo().fordblks as u32 > 16 << 20 {
             libc::malloc_trim(0);
         }
     }
