@@ -70,12 +70,44 @@ pub struct GpuContext {
 }
 
 fn new_instance() -> wgpu::Instance {
+    static WIDE_VECTORS: std::sync::Once = std::sync::Once::new();
+    WIDE_VECTORS.call_once(prefer_full_width_cpu_vectors);
     let mut desc = wgpu::InstanceDescriptor::new_without_display_handle();
     desc.backends = wgpu::Backends::VULKAN;
     wgpu::Instance::new(desc)
 }
 
-/// Every adapter wgpu can see (name, type, backend), for `--list-adapters` and error messages.
+/// Mesa's llvmpipe (lavapipe, the Vulkan device of GPU-less machines) runs a shader 8 lanes wide
+/// on an AVX-512 CPU unless `LP_NATIVE_VECTOR_WIDTH` says otherwise: Mesa chose 256 bits there
+/// for CPUs that slow their clock on 512-bit instructions. At 512 bits every kernel here ran the
+/// same bytes 1.3-1.4x faster on the development machine's AMD EPYC (BENCHMARKS.md, session 29:
+/// 256^3, the bunny's bake, warm cuts), so solidsynth asks for it on AVX-512 hosts; a value the
+/// user set is kept (256 restores Mesa's choice). Other drivers ignore the variable. Called once,
+/// before the first wgpu instance exists, so no driver thread reads the environment meanwhile.
+fn prefer_full_width_cpu_vectors() {
+    const VARIABLE: &str = "LP_NATIVE_VECTOR_WIDTH";
+    if std::env::var_os(VARIABLE).is_some() || !has_avx512() {
+        return;
+    }
+    tracing::debug!("{VARIABLE}=512 for llvmpipe (AVX-512 host, variable unset)");
+    std::env::set_var(VARIABLE, "512");
+}
+
+/// Whether the CPU has the AVX-512 subsets LLVM uses for 16-lane integer vectors.
+fn has_avx512() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        std::arch::is_x86_feature_detected!("avx512f")
+            && std::arch::is_x86_feature_detected!("avx512bw")
+            && std::arch::is_x86_feature_detected!("avx512dq")
+            && std::arch::is_x86_feature_detected!("avx512vl")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
+}
+
 /// Read-back staging buffers up to this size are kept for the next read; larger reads (whole
 /// volumes) allocate their own, so memory is not held after them.
 const REUSED_READBACK_BYTES: u64 = 16 << 20;
@@ -100,6 +132,7 @@ fn shader_source(name: &'static str) -> Result<std::borrow::Cow<'static, str>> {
     Ok(std::borrow::Cow::Borrowed(super::shaders::source(name)))
 }
 
+/// Every adapter wgpu can see (name, type, backend), for `--list-adapters` and error messages.
 pub fn list_adapters() -> Vec<wgpu::AdapterInfo> {
     let instance = new_instance();
     pollster::block_on(instance.enumerate_adapters(wgpu::Backends::VULKAN))
