@@ -208,6 +208,14 @@ fn synthesis_kernels_bit_exact_on_gpu_and_cpu() {
         s.set_fused_passes(true);
         s.synthesize(b, &|_, _| {}).unwrap()
     });
+    // `correct`'s threads in blocks of 8, 16 and 32 bricks (the adapter picks 8 or 16): list
+    // counts that are not whole blocks leave a last block part empty.
+    for n in [8, 16, 32] {
+        same_on_both(&format!("blocks of {n} bricks"), &a, &params, &gpu, |s| {
+            s.set_block_bricks(n);
+            s.synthesize(b, &|_, _| {}).unwrap()
+        });
+    }
     // A tileable solid (reads wrap around each level's period; periodic jitter and tiling).
     let params = SynthParams {
         seed: 5,

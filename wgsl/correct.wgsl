@@ -31,6 +31,9 @@ override PCA_OUT: u32 = 8u;
 override K2D: u32 = 2u;
 // Whether the projection weights come two 16-bit halves to a word (see `ProjectionWeights`).
 override PACKED_WEIGHTS: bool = false;
+// Listed bricks per block of the k-major thread layout (`class_voxel`): the SIMD width where it
+// is over 8 (lavapipe at 512 bits: 16 lanes, whose neighbour lookups then agree), else 8.
+override BLOCK_BRICKS: u32 = 8u;
 // A whole pass in one dispatch (`fused_pass`): the workgroup's eight bricks in workgroup memory
 // (OWN_WORDS = 8 bricks x 64 voxels x 4 words; one value word per voxel), updated sub-pass by
 // sub-pass, and the results written into the state too, since every read of another brick
@@ -398,7 +401,8 @@ fn correct_voxel(pos: vec3<i32>, r: Around) -> vec3<u32> {
 // (src/gpu/synth.rs, correct_pass); the results equal the per-sub-pass path's (the bricks'
 // sub-passes see only their own voxels' updates).
 fn fused_pass(thread: u32, li: u32) {
-    let voxel = class_voxel(thread);
+    // Eight bricks a workgroup, whatever BLOCK_BRICKS says: they share `own_voxels`.
+    let voxel = class_voxel(thread, 8u);
     let b = voxel.x;
     let k = voxel.y;
     own_base = (li % 8u) * 64u;
@@ -452,7 +456,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation
         fused_pass(gid.x + gid.y * params.grid_stride, li);
         return;
     }
-    let voxel = class_voxel(gid.x + gid.y * params.grid_stride);
+    let voxel = class_voxel(gid.x + gid.y * params.grid_stride, BLOCK_BRICKS);
     let b = voxel.x;
     let k = voxel.y;
     if (b >= params.list_count) {

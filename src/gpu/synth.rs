@@ -83,6 +83,8 @@ pub struct GpuSynth {
     layouts: Vec<LevelPack>,
     /// Per level, the `correct` pipeline's constants ([`GpuSynth::correct_inputs`]).
     correct_constants: Vec<Vec<(&'static str, f64)>>,
+    /// Listed bricks per block of `correct`'s threads ([`block_bricks`]).
+    block_bricks: u32,
     table: wgpu::Buffer,
     /// Dispatches recorded but not yet submitted, with their kernels' names: one submission
     /// per [`GpuSynth::flush`] (the executor flushes once per level, and every read flushes
@@ -206,13 +208,32 @@ fn correct_constants(
     pca_out: u32,
     k2d: u32,
     packed: bool,
+    block_bricks: u32,
 ) -> Vec<(&'static str, f64)> {
     vec![
         ("CHANNELS", channels as f64),
         ("PCA_OUT", pca_out as f64),
         ("K2D", k2d as f64),
         ("PACKED_WEIGHTS", if packed { 1.0 } else { 0.0 }),
+        ("BLOCK_BRICKS", block_bricks as f64),
     ]
+}
+
+/// Listed bricks per block of `correct`'s k-major threads (`class_voxel` in
+/// wgsl/lib/synth_common.wgsl): a CPU device's SIMD width where it is 16 (lavapipe at 512 bits:
+/// the same bytes, `correct` 10% faster at 128^3 than blocks of 8, BENCHMARKS.md session 29),
+/// else 8, the layout measured on the H100 (session 24) and on lavapipe at 256 bits.
+fn block_bricks(info: &wgpu::AdapterInfo) -> u32 {
+    if info.device_type == wgpu::DeviceType::Cpu && info.subgroup_max_size == 16 {
+        16
+    } else {
+        8
+    }
+}
+
+/// Threads of a non-fused `correct` dispatch over `bricks` listed bricks: whole blocks.
+fn correct_threads(bricks: u32, block_bricks: u32) -> u64 {
+    bricks.div_ceil(block_bricks) as u64 * 8 * block_bricks as u64
 }
 
 /// The constants of the FUSED variant of the `correct` pipeline with `constants`.
@@ -328,10 +349,18 @@ impl GpuSynth {
         let layouts = packs.iter().map(LevelPack::clone_layout).collect();
         let table = ctx.storage_buffer("jitter table", bytemuck::cast_slice(table));
         let arena = parameter_arena(&ctx, ARENA_BYTES as u64);
+        let block_bricks = block_bricks(&ctx.info);
+        tracing::debug!(
+            "correct: blocks of {block_bricks} bricks (subgroups of {}-{} lanes)",
+            ctx.info.subgroup_min_size,
+            ctx.info.subgroup_max_size
+        );
         let correct_constants = packs
             .iter()
             .zip(&projections)
-            .map(|(p, (_, packed))| correct_constants(p.channels, p.pca_out, p.k2d, *packed))
+            .map(|(p, (_, packed))| {
+                correct_constants(p.channels, p.pca_out, p.k2d, *packed, block_bricks)
+            })
             .collect();
         Ok(GpuSynth {
             ctx,
@@ -345,7 +374,22 @@ impl GpuSynth {
             pool: None,
             fused_passes: std::env::var("SOLIDSYNTH_FUSED_PASSES").is_ok_and(|v| v == "1"),
             correct_constants,
+            block_bricks,
         })
+    }
+
+    /// Tests: `n` listed bricks per block of `correct`'s k-major threads instead of the
+    /// adapter's choice ([`block_bricks`]; a multiple of 8). The same results either way.
+    pub(crate) fn set_block_bricks(&mut self, n: u32) {
+        assert!(n >= 8 && n % 8 == 0, "blocks of {n} bricks");
+        self.block_bricks = n;
+        for constants in &mut self.correct_constants {
+            for (name, value) in constants.iter_mut() {
+                if *name == "BLOCK_BRICKS" {
+                    *value = n as f64;
+                }
+            }
+        }
     }
 
     /// Whether buffers are kept between requests (a warm session, [`Self::keep_buffers`]).
@@ -742,7 +786,7 @@ impl GpuSynth {
             )));
         }
         let (projection, packed) = &self.projections[level];
-        let constants = correct_constants(p.channels, p.pca_out, p.k2d, *packed);
+        let constants = correct_constants(p.channels, p.pca_out, p.k2d, *packed, self.block_bricks);
         Ok((candidates, projection, constants))
     }
 
@@ -787,7 +831,7 @@ impl GpuSynth {
                 (6, &candidates),
                 (7, start),
             ],
-            groups(p.list_count as u64 * 8),
+            groups(correct_threads(p.list_count, self.block_bricks)),
         )
     }
 

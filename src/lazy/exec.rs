@@ -163,6 +163,13 @@ impl Executor {
         }
     }
 
+    /// See [`GpuSynth::set_block_bricks`] (nothing on the CPU backend).
+    pub fn set_block_bricks(&mut self, n: u32) {
+        if let Executor::Gpu(g) = self {
+            g.set_block_bricks(n);
+        }
+    }
+
     /// Tests: the CPU backend runs every correction pass sub-pass by sub-pass against a copy of
     /// the state as the pass began, never brick by brick in place (the same results; the GPU
     /// is unaffected).

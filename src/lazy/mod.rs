@@ -983,6 +983,14 @@ impl Synthesizer {
         self.exec.set_fused_passes(on);
     }
 
+    /// Tests: `n` listed bricks (a multiple of 8) per block of the GPU `correct` kernel's
+    /// k-major threads instead of the adapter's choice (8, or 16 on lavapipe at 512 bits). The
+    /// same results either way.
+    #[doc(hidden)]
+    pub fn set_block_bricks(&mut self, n: u32) {
+        self.exec.set_block_bricks(n);
+    }
+
     /// Tests: on the CPU backend, every correction pass sub-pass by sub-pass against a copy of
     /// the state as the pass began (the reference of the brick-by-brick passes; same results).
     #[doc(hidden)]
