@@ -98,6 +98,9 @@ if wants synth; then
     # Whole correction passes in one dispatch (off by default; session 25).
     section synth.txt env SOLIDSYNTH_FUSED_PASSES=1 $ss bench synth --sizes $gpu_sizes \
         --backends gpu --runs $runs
+    # `correct`'s k-major blocks of 32 bricks, a warp (8 by default on a GPU; session 29).
+    section synth.txt env SOLIDSYNTH_BLOCK_BRICKS=32 $ss bench synth --sizes $gpu_sizes \
+        --backends gpu --runs $runs
     # What each part of `correct` costs here: timing-only variants (scripts/correct-ablations.sh,
     # made by --prepare), the second of two runs each (the first compiles the variant).
     for v in "" dist/ablations/*; do
@@ -141,6 +144,12 @@ if wants cuts; then
                 --coarse-cache 128 --passes 2,2,2,1 -o "$work/cut-fused.png"
         done
     done
+    # `correct`'s blocks of 8 (the default) and 32 bricks, one after the other (session 29).
+    for bricks in 8 32; do
+        section cuts.txt env SOLIDSYNTH_BLOCK_BRICKS=$bricks $ss cut --backend gpu \
+            --origin 32,32,20 --normal 0,0,1 --size 256 --repeat $repeat \
+            --coarse-cache 128 --passes 2,2,2,1 -o "$work/cut-blocks.png"
+    done
 fi
 if wants surface; then
     for r in $resolutions; do
@@ -154,6 +163,9 @@ if wants surface; then
     section surface.txt env SOLIDSYNTH_FUSED_PASSES=1 $ss surface --backend gpu \
         --mesh dist/bunny.obj --resolution "$fast_resolution" --coarse-cache 128 \
         --max-group 128 --passes 2,2,2,1 --json -o "$work/bunny-fast-fused.glb"
+    section surface.txt env SOLIDSYNTH_BLOCK_BRICKS=32 $ss surface --backend gpu \
+        --mesh dist/bunny.obj --resolution "$fast_resolution" --coarse-cache 128 \
+        --max-group 128 --passes 2,2,2,1 --json -o "$work/bunny-fast-blocks32.glb"
 fi
 
 # Issue 6: tricubic rendering (target 256^3 <= 5 ms) and direct synthesis.

@@ -219,11 +219,22 @@ fn correct_constants(
     ]
 }
 
+/// Environment variable choosing `correct`'s block of bricks ([`block_bricks`]), for timing
+/// layouts on a device without rebuilding (e.g. 32, an NVIDIA warp, not yet measured).
+pub const BLOCK_BRICKS_ENV: &str = "SOLIDSYNTH_BLOCK_BRICKS";
+
 /// Listed bricks per block of `correct`'s k-major threads (`class_voxel` in
-/// wgsl/lib/synth_common.wgsl): a CPU device's SIMD width where it is 16 (lavapipe at 512 bits:
-/// the same bytes, `correct` 10% faster at 128^3 than blocks of 8, BENCHMARKS.md session 29),
-/// else 8, the layout measured on the H100 (session 24) and on lavapipe at 256 bits.
+/// wgsl/lib/synth_common.wgsl): `SOLIDSYNTH_BLOCK_BRICKS` when it names a multiple of 8 up to 64;
+/// else a CPU device's SIMD width where it is 16 (lavapipe at 512 bits: the same bytes, `correct`
+/// 10% faster at 128^3 than blocks of 8, BENCHMARKS.md session 29), else 8, the layout measured on
+/// the H100 (session 24) and on lavapipe at 256 bits.
 fn block_bricks(info: &wgpu::AdapterInfo) -> u32 {
+    if let Ok(v) = std::env::var(BLOCK_BRICKS_ENV) {
+        match v.parse::<u32>() {
+            Ok(n) if (8..=64).contains(&n) && n % 8 == 0 => return n,
+            _ => tracing::warn!("{BLOCK_BRICKS_ENV}={v} ignored: not 8, 16, ... 64"),
+        }
+    }
     if info.device_type == wgpu::DeviceType::Cpu && info.subgroup_max_size == 16 {
         16
     } else {
