@@ -13,6 +13,9 @@ fn main() {
     if std::env::var_os("NODEVICE_SELECT").is_none() {
         std::env::set_var("NODEVICE_SELECT", "1");
     }
+    // llvmpipe's vector width (LP_NATIVE_VECTOR_WIDTH=512 on AVX-512 hosts unless set), here
+    // for the same reason.
+    solidsynth::gpu::context::prepare_driver_environment();
     let args = cli::Cli::parse();
     // Output piped into a reader that quits early (`solidsynth eval ... | head`) ends the
     // process quietly, as for any Unix tool, instead of a panic in `println!` (Rust ignores

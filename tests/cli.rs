@@ -1791,3 +1791,40 @@ fn gradient_vectorize_with_a_mask_separates_regions() {
     assert_eq!(o.status.code(), Some(2));
     assert!(!no.exists());
 }
+
+/// llvmpipe runs 16 lanes wide on an AVX-512 host unless the user chose a width: the process
+/// sets `LP_NATIVE_VECTOR_WIDTH=512` only when it is unset (`adapters` names the width).
+#[test]
+fn lavapipe_runs_at_the_host_vector_width_unless_the_user_chose_one() {
+    let adapters = |width: Option<&str>| {
+        let mut c = bin();
+        c.arg("adapters");
+        match width {
+            Some(w) => c.env("LP_NATIVE_VECTOR_WIDTH", w),
+            None => c.env_remove("LP_NATIVE_VECTOR_WIDTH"),
+        };
+        let o = c.output().unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        String::from_utf8_lossy(&o.stdout).into_owned()
+    };
+    let listed = adapters(None);
+    if !listed.contains("llvmpipe") {
+        assert!(
+            std::env::var_os("CI").is_none(),
+            "no lavapipe adapter under CI: {listed}"
+        );
+        return;
+    }
+    #[cfg(target_arch = "x86_64")]
+    let wide = std::arch::is_x86_feature_detected!("avx512f")
+        && std::arch::is_x86_feature_detected!("avx512bw")
+        && std::arch::is_x86_feature_detected!("avx512dq")
+        && std::arch::is_x86_feature_detected!("avx512vl");
+    #[cfg(not(target_arch = "x86_64"))]
+    let wide = false;
+    if wide {
+        assert!(listed.contains("512 bits"), "{listed}");
+    }
+    let chosen = adapters(Some("256"));
+    assert!(chosen.contains("256 bits"), "{chosen}");
+}

@@ -70,11 +70,18 @@ pub struct GpuContext {
 }
 
 fn new_instance() -> wgpu::Instance {
-    static WIDE_VECTORS: std::sync::Once = std::sync::Once::new();
-    WIDE_VECTORS.call_once(prefer_full_width_cpu_vectors);
+    prepare_driver_environment();
     let mut desc = wgpu::InstanceDescriptor::new_without_display_handle();
     desc.backends = wgpu::Backends::VULKAN;
     wgpu::Instance::new(desc)
+}
+
+/// Set the drivers' environment variables this process relies on ([`prefer_full_width_cpu_vectors`]),
+/// once. Every wgpu instance is made after it; a program should call it before starting threads
+/// that may read the environment from C (the binary does so first thing in `main`).
+pub fn prepare_driver_environment() {
+    static ONCE: std::sync::Once = std::sync::Once::new();
+    ONCE.call_once(prefer_full_width_cpu_vectors);
 }
 
 /// Mesa's llvmpipe (lavapipe, the Vulkan device of GPU-less machines) runs a shader 8 lanes wide
@@ -82,8 +89,8 @@ fn new_instance() -> wgpu::Instance {
 /// for CPUs that slow their clock on 512-bit instructions. At 512 bits every kernel here ran the
 /// same bytes 1.3-1.4x faster on the development machine's AMD EPYC (BENCHMARKS.md, session 29:
 /// 256^3, the bunny's bake, warm cuts), so solidsynth asks for it on AVX-512 hosts; a value the
-/// user set is kept (256 restores Mesa's choice). Other drivers ignore the variable. Called once,
-/// before the first wgpu instance exists, so no driver thread reads the environment meanwhile.
+/// user set is kept (256 restores Mesa's choice). Other drivers ignore the variable. Called once
+/// ([`prepare_driver_environment`]), before the first wgpu instance exists.
 fn prefer_full_width_cpu_vectors() {
     const VARIABLE: &str = "LP_NATIVE_VECTOR_WIDTH";
     if std::env::var_os(VARIABLE).is_some() || !has_avx512() {
