@@ -1793,7 +1793,8 @@ fn gradient_vectorize_with_a_mask_separates_regions() {
 }
 
 /// llvmpipe runs 16 lanes wide on an AVX-512 host unless the user chose a width: the process
-/// sets `LP_NATIVE_VECTOR_WIDTH=512` only when it is unset (`adapters` names the width).
+/// sets `LP_NATIVE_VECTOR_WIDTH=512` only when it is unset (`adapters` names the width). Under
+/// `CI` lavapipe is the project's Vulkan device (.ci/run installs it), so its absence fails.
 #[test]
 fn lavapipe_runs_at_the_host_vector_width_unless_the_user_chose_one() {
     let adapters = |width: Option<&str>| {

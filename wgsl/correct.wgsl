@@ -31,8 +31,9 @@ override PCA_OUT: u32 = 8u;
 override K2D: u32 = 2u;
 // Whether the projection weights come two 16-bit halves to a word (see `ProjectionWeights`).
 override PACKED_WEIGHTS: bool = false;
-// Listed bricks per block of the k-major thread layout (`class_voxel`): the SIMD width where it
-// is over 8 (lavapipe at 512 bits: 16 lanes, whose neighbour lookups then agree), else 8.
+// Listed bricks per block of the k-major thread layout (`class_voxel`): 16 on a CPU device with
+// 16-lane subgroups (lavapipe at 512 bits, whose lanes' neighbour lookups then agree), else 8
+// (`block_bricks` in src/gpu/synth.rs; `SOLIDSYNTH_BLOCK_BRICKS` overrides it).
 override BLOCK_BRICKS: u32 = 8u;
 // A whole pass in one dispatch (`fused_pass`): the workgroup's eight bricks in workgroup memory
 // (OWN_WORDS = 8 bricks x 64 voxels x 4 words; one value word per voxel), updated sub-pass by
@@ -127,7 +128,7 @@ fn plane_neighbour(r: Around, a: u32, du: i32, dv: i32) -> u32 {
 }
 
 // Whether the voxel at (du, dv) in plane a of the voxel `r` surrounds lies in its brick. Only
-// positions decide it, so the lanes of a SIMD group (one class voxel k of eight bricks) agree,
+// positions decide it, so the lanes of a SIMD group (one class voxel k of BLOCK_BRICKS bricks) agree,
 // and the branch in `neighbour_word` reads one buffer.
 fn in_own_brick(r: Around, a: u32, du: i32, dv: i32) -> bool {
     let nu = r.local[(a + 1u) % 3u] + du;

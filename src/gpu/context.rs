@@ -78,7 +78,8 @@ fn new_instance() -> wgpu::Instance {
 
 /// Set the drivers' environment variables this process relies on ([`prefer_full_width_cpu_vectors`]),
 /// once. Every wgpu instance is made after it; a program should call it before starting threads
-/// that may read the environment from C (the binary does so first thing in `main`).
+/// that may read the environment from C (the binary does so first thing in `main`; otherwise the
+/// first GPU context calls it, while other threads may be running).
 pub fn prepare_driver_environment() {
     static ONCE: std::sync::Once = std::sync::Once::new();
     ONCE.call_once(prefer_full_width_cpu_vectors);
@@ -96,7 +97,6 @@ fn prefer_full_width_cpu_vectors() {
     if std::env::var_os(VARIABLE).is_some() || !has_avx512() {
         return;
     }
-    tracing::debug!("{VARIABLE}=512 for llvmpipe (AVX-512 host, variable unset)");
     std::env::set_var(VARIABLE, "512");
 }
 

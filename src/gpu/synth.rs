@@ -242,9 +242,13 @@ fn block_bricks(info: &wgpu::AdapterInfo) -> u32 {
     }
 }
 
-/// Threads of a non-fused `correct` dispatch over `bricks` listed bricks: whole blocks.
-fn correct_threads(bricks: u32, block_bricks: u32) -> u64 {
-    bricks.div_ceil(block_bricks) as u64 * 8 * block_bricks as u64
+/// The grid of a non-fused `correct` dispatch over `bricks` listed bricks, in whole blocks of
+/// `block_bricks`, and its rows' stride in threads (`CorrectParams::grid_stride`): both from the
+/// one thread count, so that thread index gid.x + gid.y * stride is unique.
+fn correct_dispatch(bricks: u32, block_bricks: u32) -> ((u32, u32, u32), u32) {
+    let threads = bricks.div_ceil(block_bricks) as u64 * 8 * block_bricks as u64;
+    let (x, y, stride) = super::context::dispatch_grid(threads as u32);
+    ((x, y, 1), stride)
 }
 
 /// The constants of the FUSED variant of the `correct` pipeline with `constants`.
@@ -830,10 +834,15 @@ impl GpuSynth {
             .pass_start
             .as_ref()
             .expect("a correction runs inside a pass (begin_pass)");
+        let (grid, stride) = correct_dispatch(p.list_count, self.block_bricks);
+        let p = CorrectParams {
+            grid_stride: stride,
+            ..*p
+        };
         self.run(
             "correct",
             &constants,
-            p,
+            &p,
             &[
                 (1, &self.levels[level]),
                 (3, &s.current),
@@ -842,7 +851,7 @@ impl GpuSynth {
                 (6, &candidates),
                 (7, start),
             ],
-            groups(correct_threads(p.list_count, self.block_bricks)),
+            grid,
         )
     }
 
@@ -895,6 +904,44 @@ impl GpuSynth {
 
 #[cfg(test)]
 mod tests {
+    /// Every (listed brick, class voxel) of a non-fused `correct` dispatch is one thread's,
+    /// and no thread's twice, for blocks of 8 to 64 bricks and list counts around the grid's
+    /// second row (65535 workgroups of 64 threads), where a stride from another thread count
+    /// gave two threads the same voxel. Mirrors `class_voxel` (wgsl/lib/synth_common.wgsl).
+    #[test]
+    fn correct_threads_cover_each_class_voxel_once() {
+        let row_bricks = 65535 * 64 / 8;
+        for block in [8u32, 16, 32, 64] {
+            for bricks in [
+                1,
+                7,
+                17,
+                1000,
+                row_bricks - 40,
+                row_bricks - 3,
+                row_bricks + 5,
+            ] {
+                let ((x, y, _), stride) = super::correct_dispatch(bricks, block);
+                assert_eq!(stride, x * 64);
+                let mut seen = vec![0u8; bricks as usize * 8];
+                for gy in 0..y {
+                    for gx in 0..x * 64 {
+                        let t = gx + gy * stride;
+                        let b = (t / (8 * block)) * block + t % block;
+                        let k = (t / block) % 8;
+                        if b < bricks {
+                            seen[(b * 8 + k) as usize] += 1;
+                        }
+                    }
+                }
+                assert!(
+                    seen.iter().all(|&n| n == 1),
+                    "blocks of {block}, {bricks} bricks"
+                );
+            }
+        }
+    }
+
     use super::*;
     use crate::lazy::pack::LevelOffsets;
 
