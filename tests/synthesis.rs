@@ -770,6 +770,20 @@ fn coarse_cache_solids_are_spatially_deterministic() {
             }
         }
     }
+    // In groups of 8^3 whose plans are made several at a time (`plan_ahead`, one per thread
+    // of a 3-thread pool): the same voxels.
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(3)
+        .build()
+        .unwrap();
+    let (grouped, groups) = pool.install(|| {
+        let mut g = Synthesizer::new(&a, params.clone(), &Compute::Cpu).unwrap();
+        g.set_max_chunk_side(8);
+        let out = g.synthesize(big, &|_, _| {}).unwrap();
+        (out, g.last_stats().unwrap().groups)
+    });
+    assert!(groups > 3, "{groups} groups");
+    assert!(grouped == v, "the cached box in groups differs");
     // Only the finest level is synthesized per request.
     let stats = fresh.last_stats().unwrap();
     assert_eq!(stats.voxels_per_level[0], 0);

@@ -153,7 +153,7 @@ pub fn run(args: SurfaceArgs, quiet: bool) -> anyhow::Result<()> {
     let mut placed = vec![0u64; texels.div_ceil(64)];
     let uncovered_voxel = atlas.uncovered_texel_voxel(&mesh, &place);
     let mut uncovered_color = None;
-    synth.synthesize_bricks_by_group(&wanted, &report, |group| {
+    let mut bake_group = |group: solidsynth::lazy::BrickColors| {
         use rayon::prelude::*;
         let (lo, hi) = solidsynth::lazy::bricks::bounds(&group.bricks).expect("a group has bricks");
         let (lo, hi) = (lo.map(|v| v * 4), hi.map(|v| v * 4 + 3));
@@ -187,7 +187,23 @@ pub fn run(args: SurfaceArgs, quiet: bool) -> anyhow::Result<()> {
         if uncovered_color.is_none() {
             uncovered_color = group.color(uncovered_voxel);
         }
-        Ok(())
+    };
+    // Groups are baked on a thread of their own while the next ones are synthesized: on a
+    // GPU the bake of the bunny's groups took as long as planning and running them (session
+    // 30). One group waits at most, so about three are held at once.
+    std::thread::scope(|scope| -> anyhow::Result<()> {
+        let (finished, to_bake) = std::sync::mpsc::sync_channel(1);
+        let baker = scope.spawn(move || to_bake.into_iter().for_each(&mut bake_group));
+        let synthesized = synth.synthesize_bricks_by_group(&wanted, &report, |group| {
+            finished
+                .send(group)
+                .map_err(|_| solidsynth::Error::Internal("the atlas bake stopped".into()))
+        });
+        drop(finished);
+        if let Err(panic) = baker.join() {
+            std::panic::resume_unwind(panic);
+        }
+        Ok(synthesized?)
     })?;
     drop(wanted);
     let uncovered_color = uncovered_color.expect("the uncovered texels' voxel is requested");

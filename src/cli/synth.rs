@@ -460,6 +460,10 @@ fn run_box(args: &SolidArgs, region: Box3, tileable: bool, quiet: bool) -> anyho
     };
     let synth_start = Instant::now();
     let mut synth = args.solid.volume_synthesizer(&analysis, &compute)?;
+    tracing::debug!(
+        "synthesizer built in {:.1} ms",
+        synth_start.elapsed().as_secs_f64() * 1e3
+    );
     if args.profile {
         synth.enable_profiling();
     }
@@ -496,7 +500,13 @@ fn run_box(args: &SolidArgs, region: Box3, tileable: bool, quiet: bool) -> anyho
         || args.slices.is_some();
     let mut kept = keep_volume.then(|| Volume::new(dims[0], dims[1], 0, channels));
     let mut take = |slab: &Volume, triples: &[u32]| -> solidsynth::Result<()> {
+        let timer = Instant::now();
         nrrd_out.write_slab(slab)?;
+        tracing::debug!(
+            "slab of {} z slices written in {:.1} ms",
+            slab.nz,
+            timer.elapsed().as_secs_f64() * 1e3
+        );
         if let Some(t) = &mut triples_out {
             t.write(triples)?;
         }

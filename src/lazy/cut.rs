@@ -89,17 +89,23 @@ impl CutSpec {
         let mut out = vec![[0i32; 3]; side * side];
         // Rows in parallel (each pixel's point is computed on its own: the same at any thread
         // count); a warm session's cut is otherwise bound by this loop on a fast GPU.
-        let inside = out.par_chunks_mut(side).enumerate().all(|(j, row)| {
-            for (i, voxel) in row.iter_mut().enumerate() {
-                let p = o + (i as f64 + 0.5 - n / 2.0) * s * u + (j as f64 + 0.5 - n / 2.0) * s * v;
-                let f = p.floor();
-                if f.abs().max_element() > (1 << 28) as f64 {
-                    return false;
+        let rows_per_piece = (super::PARALLEL_PIECE / side).max(1);
+        let inside = out
+            .par_chunks_mut(side)
+            .with_min_len(rows_per_piece)
+            .enumerate()
+            .all(|(j, row)| {
+                for (i, voxel) in row.iter_mut().enumerate() {
+                    let p =
+                        o + (i as f64 + 0.5 - n / 2.0) * s * u + (j as f64 + 0.5 - n / 2.0) * s * v;
+                    let f = p.floor();
+                    if f.abs().max_element() > (1 << 28) as f64 {
+                        return false;
+                    }
+                    *voxel = [f.x as i32, f.y as i32, f.z as i32];
                 }
-                *voxel = [f.x as i32, f.y as i32, f.z as i32];
-            }
-            true
-        });
+                true
+            });
         if !inside {
             return Err(Error::invalid(
                 "--origin/--spacing",
@@ -124,14 +130,28 @@ impl CutSession {
 
     /// The cut image (colour channels of the solid).
     pub fn cut(&mut self, spec: &CutSpec) -> Result<Image> {
+        let timer = std::time::Instant::now();
         let voxels = spec.voxels()?;
+        tracing::debug!(
+            "cut: points in {:.1} ms",
+            timer.elapsed().as_secs_f64() * 1e3
+        );
         let samples = self.synth.sample(&voxels, &|_, _| {})?;
+        let timer = std::time::Instant::now();
         let channels = self.synth.color_channels() as usize;
         let mut img = Image::new(spec.size, spec.size, channels as u32);
-        for (k, word) in samples.iter().enumerate() {
-            img.pixels[k * channels..(k + 1) * channels]
-                .copy_from_slice(&word.to_le_bytes()[..channels]);
-        }
+        img.pixels
+            .par_chunks_mut(channels * super::PARALLEL_PIECE)
+            .zip(samples.par_chunks(super::PARALLEL_PIECE))
+            .for_each(|(pixels, words)| {
+                for (pixel, word) in pixels.chunks_exact_mut(channels).zip(words) {
+                    pixel.copy_from_slice(&word.to_le_bytes()[..channels]);
+                }
+            });
+        tracing::debug!(
+            "cut: image in {:.1} ms",
+            timer.elapsed().as_secs_f64() * 1e3
+        );
         Ok(img)
     }
 

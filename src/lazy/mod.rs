@@ -387,12 +387,21 @@ pub struct Synthesizer {
     /// When counting: per pack (coarsest first), per exemplar, how many stored voxels held each
     /// exemplar pixel after the level's correction (see [`Self::count_usage`]).
     usage: Option<Vec<[Vec<u64>; 3]>>,
-    /// A request's plan made while deciding it is one group ([`Self::planned_one_group`]),
-    /// with the group it is for: its synthesis takes it instead of planning again.
-    one_group_plan: Option<(Vec<Brick>, Option<Box3>, Vec<SparseLevel>)>,
+    /// A plan made ahead (while deciding a request is one group, [`Self::planned_one_group`],
+    /// or with the next groups' in parallel, [`Self::plan_ahead`]), with the group and exact
+    /// part it is for: the group's synthesis takes it instead of planning again.
+    next_plan: Option<(Vec<Brick>, Option<Box3>, Vec<SparseLevel>)>,
     /// A lower bound than the backend's on one level's state ([`Self::set_state_limit`]).
     state_limit: Option<u64>,
 }
+
+/// The smallest piece of per-voxel host work (a cut's lookups, points) handed to one thread.
+pub const PARALLEL_PIECE: usize = 1 << 13;
+
+/// At most this many requested bricks (4^3 voxels each) are planned ahead together
+/// ([`Synthesizer::plan_ahead`]): a plan holds its levels' brick lists and tables, tens of bytes
+/// per brick, so a window of large groups would hold a lot.
+const PLAN_AHEAD_BRICKS: usize = 1 << 17;
 
 /// How a planned synthesis treats positions beyond a tileable solid's period.
 #[derive(Clone, Copy)]
@@ -461,7 +470,7 @@ impl Synthesizer {
             exec,
             max_chunk_side: None,
             shared_coarse: None,
-            one_group_plan: None,
+            next_plan: None,
             state_limit: None,
             times: None,
             last_stats: None,
@@ -745,12 +754,12 @@ impl Synthesizer {
         mut sink: impl FnMut(&[Brick], &[u32], &[u32]) -> Result<()>,
     ) -> Result<()> {
         let mut groups = self.groups(all, 0);
-        self.one_group_plan = None;
+        self.next_plan = None;
         if groups.len() > 1 && matches!(periodic, Periodic::No) {
             let exact = group_part(exact, all);
             if let Some(levels) = self.planned_one_group(all, exact) {
                 groups = vec![all.to_vec()];
-                self.one_group_plan = Some((all.to_vec(), exact, levels));
+                self.next_plan = Some((all.to_vec(), exact, levels));
             }
         }
         let mut stats = SynthStats {
@@ -758,6 +767,7 @@ impl Synthesizer {
             peak_state_bytes: 0,
             groups: groups.len(),
         };
+        let exact_of_all = exact;
         // The cache replaces the infinite solid's coarse levels already.
         let cached = self.params.coarse_cache.is_some() && matches!(periodic, Periodic::No);
         let shared = self.shared_coarse.unwrap_or(true);
@@ -775,10 +785,21 @@ impl Synthesizer {
             self.last_stats = Some(stats);
             return Ok(());
         }
+        // The plans of the next few groups, made together (see `plan_ahead`).
+        let mut ahead = std::collections::VecDeque::new();
         for (g, group) in groups.iter().enumerate() {
             let base = g as f32 / groups.len() as f32;
             let scale = 1.0 / groups.len() as f32;
             let exact = group_part(exact, group);
+            if groups.len() > 1 {
+                if ahead.is_empty() {
+                    let first = if cached { ANALYSED_LEVELS - 1 } else { 0 };
+                    ahead = self.plan_ahead(&groups[g..], exact_of_all, first);
+                }
+                let levels = ahead.pop_front().expect("planned ahead");
+                self.next_plan = Some((group.clone(), exact, levels));
+            }
+            let timer = std::time::Instant::now();
             let (c, t) = self.synthesize_group_of(
                 group,
                 exact,
@@ -787,7 +808,14 @@ impl Synthesizer {
                 want_triples,
                 &mut stats,
             )?;
+            let synthesized = ms(timer);
+            let timer = std::time::Instant::now();
             sink(group, &c, &t)?;
+            tracing::debug!(
+                "group of {} bricks: synthesized in {synthesized:.1} ms, taken by the caller in {:.1} ms",
+                group.len(),
+                ms(timer)
+            );
             self.return_free_heap();
         }
         progress("done", 1.0);
@@ -831,10 +859,17 @@ impl Synthesizer {
         if !self.exec.keeps_buffers() {
             self.exec.release_coarse_pipelines(finest);
         }
+        let mut ahead = std::collections::VecDeque::new();
         for (g, group) in groups.iter().enumerate() {
             let base = coarse_share + (1.0 - coarse_share) * g as f32 / groups.len() as f32;
             let scale = (1.0 - coarse_share) / groups.len() as f32;
-            let level = plan_finest(group);
+            if ahead.is_empty() {
+                ahead = self.plan_ahead(&groups[g..], exact, finest);
+            }
+            let level = ahead
+                .pop_front()
+                .and_then(|mut levels| levels.pop())
+                .expect("planned ahead");
             let parent = parent_level(&level);
             let start = self
                 .exec
@@ -944,15 +979,27 @@ impl Synthesizer {
     /// The packed colours of arbitrary voxels (any order, repeats allowed): only the bricks
     /// holding them are synthesized.
     pub fn sample(&mut self, voxels: &[[i32; 3]], progress: Progress) -> Result<Vec<u32>> {
-        let wanted = bricks::bricks_of_voxels(voxels);
+        let timer = std::time::Instant::now();
         // An axis-aligned cut at unit spacing asks for a box of voxels (one voxel thick):
-        // planned voxel-exactly, its dependency padding surrounds one layer, not four.
+        // planned voxel-exactly, its dependency padding surrounds one layer, not four. Its
+        // bricks are the box's (sorted as they come), not found voxel by voxel and sorted.
         let exact = voxel_box(voxels);
+        let wanted = match exact {
+            Some(b) => bricks::bricks_of_box(b),
+            None => bricks::bricks_of_voxels(voxels),
+        };
+        tracing::debug!("sample: bricks of the voxels in {:.1} ms", ms(timer));
         let result = self.synthesize_bricks_of(&wanted, exact, progress, false)?;
-        Ok(voxels
+        let timer = std::time::Instant::now();
+        // (Pieces of thousands of lookups: a warm cut's 65536 would otherwise be split into
+        // as many tasks as the pool likes, whose wake-ups cost more than the lookups.)
+        let colors = voxels
             .par_iter()
+            .with_min_len(PARALLEL_PIECE)
             .map(|p| result.color(*p).expect("requested voxel"))
-            .collect())
+            .collect();
+        tracing::debug!("sample: voxels' colours gathered in {:.1} ms", ms(timer));
+        Ok(colors)
     }
 
     /// Voxels synthesized per level and peak state memory of the last synthesis.
@@ -1110,10 +1157,42 @@ impl Synthesizer {
         (largest <= self.state_limit()).then_some(levels)
     }
 
+    /// The plans of the first of `groups` (parts of the request whose exact box is `exact`)
+    /// and of as many following ones as there are threads, within [`PLAN_AHEAD_BRICKS`]
+    /// requested bricks, made in parallel: each group's plan is mostly serial work (its
+    /// dilation and presence tables), and a surface's hundreds of small groups spent half
+    /// their time planning one after the other on an H100 (BENCHMARKS.md, session 30).
+    /// The plans are of the levels from `first` (the finest only where a group reads the
+    /// coarse cache or shared coarse levels).
+    fn plan_ahead(
+        &self,
+        groups: &[Vec<Brick>],
+        exact: Option<Box3>,
+        first: usize,
+    ) -> std::collections::VecDeque<Vec<SparseLevel>> {
+        let passes = &self.params.passes.levels()[first..];
+        let mut bricks = 0;
+        let window = groups
+            .iter()
+            .take(rayon::current_num_threads().max(1))
+            .take_while(|g| {
+                bricks += g.len();
+                bricks == g.len() || bricks <= PLAN_AHEAD_BRICKS
+            })
+            .count();
+        let timer = std::time::Instant::now();
+        let plans = groups[..window]
+            .par_iter()
+            .map(|g| plan_group(g, group_part(exact, g), passes))
+            .collect();
+        tracing::debug!("planned {window} groups ahead in {:.1} ms", ms(timer));
+        plans
+    }
+
     /// The plan of `group` through the levels from `first`: the one made by
     /// [`Self::planned_one_group`] when it is for this group, else a new one.
     fn plan_of(&mut self, group: &[Brick], exact: Option<Box3>, first: usize) -> Vec<SparseLevel> {
-        if let Some((planned, planned_exact, levels)) = self.one_group_plan.take() {
+        if let Some((planned, planned_exact, levels)) = self.next_plan.take() {
             if planned == group && planned_exact == exact {
                 return levels;
             }
@@ -1349,6 +1428,7 @@ impl Synthesizer {
         want_triples: bool,
         stats: &mut SynthStats,
     ) -> Result<GroupResult> {
+        let recording = std::time::Instant::now();
         // Each level's brick index is built when the level starts and dropped after it (with
         // the level's sub-pass plans): a large box's indices are several bytes per voxel.
         let mut levels = levels;
@@ -1563,6 +1643,7 @@ impl Synthesizer {
             pixels2: pack.offsets.pixels[2],
             _pad: 0,
         };
+        tracing::debug!("group's kernels recorded in {:.1} ms", ms(recording));
         let colors = exec::timed(&mut self.exec, &mut self.times, "colorize", |e| {
             e.colorize(first_pack + last, &c, &state, &index)
         })?;
@@ -1881,12 +1962,21 @@ fn voxel_box(voxels: &[[i32; 3]]) -> Option<Box3> {
     if b.voxels() != voxels.len() as u64 {
         return None;
     }
-    let mut seen = vec![false; voxels.len()];
+    // (Outside only at the edge of i32, where the box saturated.)
+    if !voxels.iter().all(|p| b.contains(*p)) {
+        return None;
+    }
+    // A z cut lists its box in storage order: no voxel can repeat then.
+    if voxels.iter().enumerate().all(|(i, p)| b.index(*p) == i) {
+        return Some(b);
+    }
+    let mut seen = vec![0u64; voxels.len().div_ceil(64)];
     for p in voxels {
-        // (Outside only at the edge of i32, where the box saturated.)
-        if !b.contains(*p) || std::mem::replace(&mut seen[b.index(*p)], true) {
+        let i = b.index(*p);
+        if seen[i / 64] & (1 << (i % 64)) != 0 {
             return None;
         }
+        seen[i / 64] |= 1 << (i % 64);
     }
     Some(b)
 }
@@ -1907,6 +1997,12 @@ mod voxel_box_tests {
         repeated[3] = repeated[4];
         assert_eq!(voxel_box(&repeated), None);
         assert_eq!(voxel_box(&slice[1..]), None);
+        // In storage order (x fastest), as a z cut lists them, and with a repeat there.
+        let mut ordered = slice.clone();
+        ordered.reverse();
+        assert_eq!(voxel_box(&ordered), Some(Box3::new([-2, 0, 7], [3, 6, 8])));
+        ordered[3] = ordered[4];
+        assert_eq!(voxel_box(&ordered), None);
         assert_eq!(voxel_box(&[]), None);
         assert_eq!(voxel_box(&[[i32::MAX, 0, 0]]), None);
     }
