@@ -282,6 +282,49 @@ impl GpuContext {
         self.pipeline_with(name, &[])
     }
 
+    /// Build the pipelines of `kernels` (name, constants) that are not built yet, each on a
+    /// thread of its own (up to the machine's cores at once): a shader compile is single-threaded
+    /// work of the driver (lavapipe's LLVM: ~0.2 s for `correct`), which a synthesis otherwise
+    /// waits for one variant after the other at its first dispatch of each level. (Error scopes
+    /// are per thread in wgpu, so each build checks its own.)
+    pub fn prebuild_pipelines(
+        &self,
+        kernels: &[(&'static str, Vec<(&'static str, f64)>)],
+    ) -> Result<()> {
+        let mut wanted: Vec<&(&'static str, Vec<(&'static str, f64)>)> = Vec::new();
+        {
+            let built = self.pipelines.lock().unwrap();
+            for k in kernels {
+                if !built.contains_key(&format!("{}{:?}", k.0, k.1)) && !wanted.contains(&k) {
+                    wanted.push(k);
+                }
+            }
+        }
+        // Workers take the next unbuilt kernel until none is left.
+        let next = std::sync::atomic::AtomicUsize::new(0);
+        let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+        std::thread::scope(|scope| {
+            let workers: Vec<_> = (0..threads.min(wanted.len()))
+                .map(|_| {
+                    scope.spawn(|| loop {
+                        let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                        let Some((name, constants)) = wanted.get(i) else {
+                            return Ok(());
+                        };
+                        self.pipeline_with(name, constants)?;
+                    })
+                })
+                .collect();
+            workers
+                .into_iter()
+                .try_for_each(|worker| match worker.join() {
+                    Ok(built) => built,
+                    Err(panic) => std::panic::resume_unwind(panic),
+                })
+        })?;
+        Ok(())
+    }
+
     /// The pipeline of kernel `name` with its WGSL `override` constants set, built once per set
     /// of values and cached (constant loop bounds let the driver unroll the kernel's loops).
     pub fn pipeline_with(
@@ -293,6 +336,7 @@ impl GpuContext {
         if let Some(p) = self.pipelines.lock().unwrap().get(&key) {
             return Ok(p.clone());
         }
+        let timer = std::time::Instant::now();
         let source = shader_source(name)?;
         let scope = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
         let module = self
@@ -322,6 +366,10 @@ impl GpuContext {
         // finishes, which glibc would otherwise keep for the rest of the run.
         drop(module);
         crate::util::memory::return_free_heap();
+        tracing::debug!(
+            "kernel {name}: pipeline built in {:.1} ms",
+            timer.elapsed().as_secs_f64() * 1e3
+        );
         self.pipelines.lock().unwrap().insert(key, pipeline.clone());
         Ok(pipeline)
     }

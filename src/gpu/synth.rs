@@ -349,9 +349,6 @@ impl GpuSynth {
                 });
             projections.push((buffer, layout.packed));
         }
-        for k in ["init", "upsample", "colorize"] {
-            ctx.pipeline(k)?;
-        }
         let levels = packs
             .iter()
             .map(|p| ctx.storage_buffer_in_pieces("level data", bytemuck::cast_slice(&p.words)))
@@ -370,13 +367,32 @@ impl GpuSynth {
             ctx.info.subgroup_min_size,
             ctx.info.subgroup_max_size
         );
-        let correct_constants = packs
+        let correct_constants: Vec<_> = packs
             .iter()
             .zip(&projections)
             .map(|(p, (_, packed))| {
                 correct_constants(p.channels, p.pca_out, p.k2d, *packed, block_bricks)
             })
             .collect();
+        let fused_passes = std::env::var("SOLIDSYNTH_FUSED_PASSES").is_ok_and(|v| v == "1");
+        // The kernels built before the synthesis starts, together. On a hardware GPU every
+        // kernel a synthesis runs, `correct`'s variants (the long compiles) first. On a CPU
+        // device `correct` is built at its first dispatch of each level, as the previous
+        // levels run: its compiler shares the cores with them, and building the variants
+        // together held 18 MB more at once for no measurable gain (lavapipe, session 30).
+        let mut kernels = Vec::new();
+        if ctx.info.device_type != wgpu::DeviceType::Cpu {
+            kernels.extend(correct_constants.iter().map(|c| ("correct", c.clone())));
+            if fused_passes {
+                kernels.extend(
+                    correct_constants
+                        .iter()
+                        .map(|c| ("correct", fused(c.clone()))),
+                );
+            }
+        }
+        kernels.extend(["init", "upsample", "colorize"].map(|k| (k, Vec::new())));
+        ctx.prebuild_pipelines(&kernels)?;
         Ok(GpuSynth {
             ctx,
             levels,
@@ -387,7 +403,7 @@ impl GpuSynth {
             pending: std::sync::Mutex::new(None),
             arena,
             pool: None,
-            fused_passes: std::env::var("SOLIDSYNTH_FUSED_PASSES").is_ok_and(|v| v == "1"),
+            fused_passes,
             correct_constants,
             block_bricks,
         })
