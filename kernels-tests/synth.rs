@@ -374,6 +374,49 @@ fn gpu_boxes_are_windows_of_larger_gpu_boxes() {
         &bytes_to_words(&shared.data),
     )
     .unwrap();
+    // The same requests reading each group's colours back while the next group runs (the
+    // default on a GPU of its own memory only, forced here): with their own and with shared
+    // coarse levels.
+    for shared_levels in [false, true] {
+        let mut s = Synthesizer::new(&a, params.clone(), &gpu).unwrap();
+        s.set_max_chunk_side(12);
+        s.set_shared_coarse_levels(shared_levels);
+        s.set_overlapped_reads(true);
+        let overlapped = s.synthesize(big, &|_, _| {}).unwrap();
+        assert!(s.last_stats().unwrap().groups > 1);
+        words_equal(
+            &format!("grouped, reads overlapped, coarse levels shared: {shared_levels}"),
+            &bytes_to_words(&whole.data),
+            &bytes_to_words(&overlapped.data),
+        )
+        .unwrap();
+    }
+    // With the coarse cache, handed over group by group (a surface's path), against the CPU
+    // backend's groups.
+    let cached = SynthParams {
+        coarse_cache: Some(64),
+        ..params.clone()
+    };
+    let by_group = |compute: &Compute| {
+        let mut s = Synthesizer::new(&a, cached.clone(), compute).unwrap();
+        s.set_max_chunk_side(12);
+        s.set_overlapped_reads(true);
+        let mut bricks = Vec::new();
+        let mut colors = Vec::new();
+        let requested = solidsynth::lazy::bricks::bricks_of_box(big);
+        s.synthesize_bricks_by_group(&requested, &|_, _| {}, |group| {
+            bricks.extend(group.bricks);
+            colors.extend(group.colors);
+            Ok(())
+        })
+        .unwrap();
+        assert!(s.last_stats().unwrap().groups > 1);
+        (bricks, colors)
+    };
+    let (cpu_bricks, cpu_colors) = by_group(&Compute::Cpu);
+    let (gpu_bricks, gpu_colors) = by_group(&gpu);
+    assert_eq!(cpu_bricks, gpu_bricks, "groups' bricks");
+    words_equal("cached groups, reads overlapped", &cpu_colors, &gpu_colors).unwrap();
 }
 
 /// The GPU backend for a synthesizer; None (the test is skipped) where there is no adapter,

@@ -563,6 +563,15 @@ impl GpuContext {
 
     /// Copy the first `words` u32 of `buffer` back to the host (bounded wait).
     pub fn read_words(&self, buffer: &wgpu::Buffer, words: usize) -> Result<Vec<u32>> {
+        let pending = self.start_read(buffer, words);
+        self.finish_read(pending)
+    }
+
+    /// Begin copying the first `words` u32 of `buffer` back to the host: the copy is submitted
+    /// after the work submitted before (none of it waited for), and the staging buffer's
+    /// mapping requested. [`Self::finish_read`] waits for it, so a caller can record and submit
+    /// more work in between (the next group of a request, while this one's colours come back).
+    pub fn start_read(&self, buffer: &wgpu::Buffer, words: usize) -> PendingRead {
         let size = (words * 4) as u64;
         let timer = std::time::Instant::now();
         let kept = self.readback.lock().unwrap().take();
@@ -585,14 +594,37 @@ impl GpuContext {
                 label: Some("readback"),
             });
         encoder.copy_buffer_to_buffer(buffer, 0, &staging, 0, Some(size.max(4)));
-        self.submit_and_wait(encoder)?;
-        let copied = timer.elapsed();
-        let (tx, rx) = std::sync::mpsc::channel();
+        let submission = self.queue.submit(Some(encoder.finish()));
+        let (tx, mapped) = std::sync::mpsc::channel();
         staging.map_async(wgpu::MapMode::Read, .., move |r| {
             let _ = tx.send(r);
         });
+        PendingRead {
+            staging,
+            words,
+            submission,
+            mapped,
+            started: timer,
+        }
+    }
+
+    /// Wait (bounded) for a read begun by [`Self::start_read`] and copy its words out.
+    pub fn finish_read(&self, read: PendingRead) -> Result<Vec<u32>> {
+        let PendingRead {
+            staging,
+            words,
+            submission,
+            mapped,
+            started,
+        } = read;
+        let size = (words * 4) as u64;
+        let timer = std::time::Instant::now();
+        self.wait(Some(submission))?;
+        let copied = timer.elapsed();
+        // (The copy is done; the mapping's callback runs at this poll at the latest.)
         self.wait(None)?;
-        rx.recv_timeout(self.timeout)
+        mapped
+            .recv_timeout(self.timeout)
             .map_err(|_| Error::Gpu("buffer mapping never completed".into()))?
             .map_err(|e| Error::Gpu(format!("buffer mapping failed: {e}")))?;
         let view = staging
@@ -616,11 +648,13 @@ impl GpuContext {
             *self.readback.lock().unwrap() = Some(staging);
         }
         tracing::debug!(
-            "read back {:.1} MiB: queued work and copy {:.1} ms, map {:.1} ms, to host {:.1} ms",
+            "read back {:.1} MiB: queued work and copy {:.1} ms, map {:.1} ms, to host {:.1} ms \
+             (queued {:.1} ms before)",
             size as f64 / (1 << 20) as f64,
             copied.as_secs_f64() * 1e3,
             (mapped - copied).as_secs_f64() * 1e3,
-            (timer.elapsed() - mapped).as_secs_f64() * 1e3
+            (timer.elapsed() - mapped).as_secs_f64() * 1e3,
+            (timer - started).as_secs_f64() * 1e3
         );
         Ok(out)
     }
@@ -637,6 +671,16 @@ impl GpuContext {
         }
         result
     }
+}
+
+/// A read-back under way ([`GpuContext::start_read`]): its staging buffer, the copy's
+/// submission and the mapping's outcome to come.
+pub struct PendingRead {
+    staging: wgpu::Buffer,
+    words: usize,
+    submission: wgpu::SubmissionIndex,
+    mapped: std::sync::mpsc::Receiver<std::result::Result<(), wgpu::BufferAsyncError>>,
+    started: std::time::Instant,
 }
 
 /// The piece size of [`GpuContext::storage_buffer_in_pieces`].

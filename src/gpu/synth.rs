@@ -8,7 +8,7 @@
 //! read) without waiting; the only wait is the bounded read-back of the colours.
 
 use super::candidate_tables::candidate_tables;
-use super::context::GpuContext;
+use super::context::{GpuContext, PendingRead};
 use crate::error::{Error, Result};
 use crate::kernel_types::{ColorizeParams, CorrectParams, InitParams, UpsampleParams};
 use crate::lazy::pack::LevelPack;
@@ -97,8 +97,8 @@ pub struct GpuSynth {
     pool: Option<BufferPool>,
     /// Whether [`GpuSynth::correct_pass`] runs a pass of whole bricks in one dispatch. Off by
     /// default (`SOLIDSYNTH_FUSED_PASSES=1` turns it on): on lavapipe it was slower (session 25:
-    /// warm 256^2 cut 184 -> 198 ms, 128^3 4.25 -> 5.14 s); it is meant for a GPU's
-    /// dispatch-bound requests (8 dispatches a pass become one) and awaits a lent one.
+    /// warm 256^2 cut 184 -> 198 ms, 128^3 4.25 -> 5.14 s), and on an H100 too (session 30:
+    /// 512^3 3.38 against 2.69 s, the warm fast cut the same 5.2 ms).
     pub(crate) fused_passes: bool,
 }
 
@@ -220,7 +220,7 @@ fn correct_constants(
 }
 
 /// Environment variable choosing `correct`'s block of bricks ([`block_bricks`]), for timing
-/// layouts on a device without rebuilding (e.g. 32, an NVIDIA warp, not yet measured).
+/// layouts on a device without rebuilding (32, an NVIDIA warp, timed the same as 8 on an H100).
 pub const BLOCK_BRICKS_ENV: &str = "SOLIDSYNTH_BLOCK_BRICKS";
 
 /// Listed bricks per block of `correct`'s k-major threads (`class_voxel` in
@@ -871,13 +871,15 @@ impl GpuSynth {
         )
     }
 
+    /// Record and submit `colorize` and begin reading its colours back; they come with
+    /// [`Self::finish_read`].
     pub fn colorize(
         &mut self,
         level: usize,
         p: &ColorizeParams,
         s: &GpuState,
         index: &wgpu::Buffer,
-    ) -> Result<Vec<u32>> {
+    ) -> Result<PendingRead> {
         let n = p.list_count as usize * 64;
         // (`colorize` writes a colour per listed voxel.)
         let out = self.scratch_buffer("colours", n as u64);
@@ -894,11 +896,17 @@ impl GpuSynth {
             groups(n as u64),
         )?;
         self.flush()?;
-        let colours = self.ctx.read_words(&out, n);
+        let colours = self.ctx.start_read(&out, n);
+        // (Reusable at once: whatever writes it next is queued after this copy.)
         if let Some(pool) = &self.pool {
             pool.give(out);
         }
-        colours
+        Ok(colours)
+    }
+
+    /// The words of a read begun here (a group's colours).
+    pub fn finish_read(&self, read: PendingRead) -> Result<Vec<u32>> {
+        self.ctx.finish_read(read)
     }
 }
 

@@ -324,24 +324,40 @@ impl Executor {
         }
     }
 
+    /// The colours of the voxels `p` lists: on the GPU still coming back (the kernel and the
+    /// copy submitted), to be taken with [`Self::finish_colors`].
     pub fn colorize(
         &mut self,
         level: usize,
         p: &ColorizeParams,
         state: &State,
         index: &IndexBuf,
-    ) -> Result<Vec<u32>> {
+    ) -> Result<Colors> {
         match (self, state) {
-            (Executor::Cpu { levels, .. }, State::Cpu(v, _)) => Ok(crate::cpu::colorize::colorize(
-                p,
-                &levels[level],
-                v,
-                index.cpu(),
+            (Executor::Cpu { levels, .. }, State::Cpu(v, _)) => Ok(Colors::Ready(
+                crate::cpu::colorize::colorize(p, &levels[level], v, index.cpu()),
             )),
-            (Executor::Gpu(g), State::Gpu(s)) => g.colorize(level, p, s, index.gpu()),
+            (Executor::Gpu(g), State::Gpu(s)) => {
+                g.colorize(level, p, s, index.gpu()).map(Colors::Coming)
+            }
             _ => unreachable!("state from another backend"),
         }
     }
+
+    /// The colours of [`Self::colorize`], waiting for them if they are still coming.
+    pub fn finish_colors(&self, colors: Colors) -> Result<Vec<u32>> {
+        match (self, colors) {
+            (_, Colors::Ready(v)) => Ok(v),
+            (Executor::Gpu(g), Colors::Coming(read)) => g.finish_read(read),
+            (Executor::Cpu { .. }, Colors::Coming(_)) => unreachable!("a read of another backend"),
+        }
+    }
+}
+
+/// A group's colours (64 per brick), ready or still being read back from the GPU.
+pub enum Colors {
+    Ready(Vec<u32>),
+    Coming(crate::gpu::context::PendingRead),
 }
 
 /// Wall time and calls per kernel, when profiling.

@@ -393,6 +393,11 @@ pub struct Synthesizer {
     next_plan: Option<(Vec<Brick>, Option<Box3>, Vec<SparseLevel>)>,
     /// A lower bound than the backend's on one level's state ([`Self::set_state_limit`]).
     state_limit: Option<u64>,
+    /// Whether a request of several groups reads each group's colours back while the next
+    /// group runs ([`Self::set_overlapped_reads`]): on a GPU whose memory is its own.
+    overlap_reads: bool,
+    /// Set while such a request runs: `synthesize_group` leaves its colours coming.
+    deferring: bool,
 }
 
 /// The smallest piece of per-voxel host work (a cut's lookups, points) handed to one thread.
@@ -464,6 +469,8 @@ impl Synthesizer {
         let table = jitter::table();
         let exec = exec::Executor::new(compute, &mut packs, &table)?;
         Ok(Synthesizer {
+            overlap_reads: matches!(compute, Compute::Gpu(_)) && !compute.memory_is_hosts(),
+            deferring: false,
             params,
             packs,
             border: analysis.border.code(),
@@ -787,6 +794,8 @@ impl Synthesizer {
         }
         // The plans of the next few groups, made together (see `plan_ahead`).
         let mut ahead = std::collections::VecDeque::new();
+        self.deferring = self.overlaps_reads(groups.len());
+        let mut behind = None;
         for (g, group) in groups.iter().enumerate() {
             let base = g as f32 / groups.len() as f32;
             let scale = 1.0 / groups.len() as f32;
@@ -808,16 +817,18 @@ impl Synthesizer {
                 want_triples,
                 &mut stats,
             )?;
-            let synthesized = ms(timer);
-            let timer = std::time::Instant::now();
-            sink(group, &c, &t)?;
-            tracing::debug!(
-                "group of {} bricks: synthesized in {synthesized:.1} ms, taken by the caller in {:.1} ms",
-                group.len(),
-                ms(timer)
-            );
-            self.return_free_heap();
+            let done = GroupDone {
+                group,
+                colors: c,
+                triples: t,
+                synthesized_ms: ms(timer),
+            };
+            self.hand_over(done, &mut behind, &mut sink)?;
         }
+        if let Some(last) = behind.take() {
+            self.hand_over_now(last, &mut sink)?;
+        }
+        self.deferring = false;
         progress("done", 1.0);
         self.last_stats = Some(stats);
         Ok(())
@@ -860,6 +871,8 @@ impl Synthesizer {
             self.exec.release_coarse_pipelines(finest);
         }
         let mut ahead = std::collections::VecDeque::new();
+        self.deferring = self.overlaps_reads(groups.len());
+        let mut behind = None;
         for (g, group) in groups.iter().enumerate() {
             let base = coarse_share + (1.0 - coarse_share) * g as f32 / groups.len() as f32;
             let scale = (1.0 - coarse_share) / groups.len() as f32;
@@ -874,6 +887,7 @@ impl Synthesizer {
             let start = self
                 .exec
                 .upload_state(parents.state_words(&parent, self.packs[finest - 1].pixel_words))?;
+            let timer = std::time::Instant::now();
             let r = self.synthesize_group(
                 vec![parent, level],
                 finest - 1,
@@ -884,9 +898,67 @@ impl Synthesizer {
                 want_triples,
                 stats,
             )?;
-            sink(group, &r.colors, &r.triples)?;
-            self.return_free_heap();
+            let done = GroupDone {
+                group,
+                colors: r.colors,
+                triples: r.triples,
+                synthesized_ms: ms(timer),
+            };
+            self.hand_over(done, &mut behind, &mut sink)?;
         }
+        if let Some(last) = behind.take() {
+            self.hand_over_now(last, &mut sink)?;
+        }
+        self.deferring = false;
+        Ok(())
+    }
+
+    /// Whether a request of `groups` groups reads each group's colours back while the next one
+    /// runs: on a GPU of its own memory (not when profiling, whose kernels each wait). Its
+    /// host work (planning, brick indices, the caller's use of the colours) then overlaps the
+    /// GPU's work instead of alternating with it; a group's colours and states are held a
+    /// group longer, which a GPU sharing the host's memory (lavapipe: the bunny's 200 MB
+    /// target) is better without.
+    fn overlaps_reads(&self, groups: usize) -> bool {
+        self.overlap_reads && groups > 1 && self.times.is_none()
+    }
+
+    /// A group is synthesized: hand it to `sink` now, or, while reads overlap, hand over the
+    /// group before it (whose colours have come back as this one ran) and keep it `behind`.
+    fn hand_over<'g>(
+        &mut self,
+        done: GroupDone<'g>,
+        behind: &mut Option<GroupDone<'g>>,
+        sink: &mut impl FnMut(&[Brick], &[u32], &[u32]) -> Result<()>,
+    ) -> Result<()> {
+        if !self.deferring {
+            return self.hand_over_now(done, sink);
+        }
+        match behind.replace(done) {
+            Some(previous) => self.hand_over_now(previous, sink),
+            None => Ok(()),
+        }
+    }
+
+    /// Wait for a group's colours if they are still coming and hand them to `sink`.
+    fn hand_over_now(
+        &mut self,
+        done: GroupDone,
+        sink: &mut impl FnMut(&[Brick], &[u32], &[u32]) -> Result<()>,
+    ) -> Result<()> {
+        let timer = std::time::Instant::now();
+        let colors = self.exec.finish_colors(done.colors)?;
+        let waited = ms(timer);
+        let timer = std::time::Instant::now();
+        sink(done.group, &colors, &done.triples)?;
+        tracing::debug!(
+            "group of {} bricks: synthesized in {:.1} ms, its colours waited for {waited:.1} ms, \
+             taken by the caller in {:.1} ms",
+            done.group.len(),
+            done.synthesized_ms,
+            ms(timer)
+        );
+        self.return_free_heap();
         Ok(())
     }
 
@@ -1023,7 +1095,7 @@ impl Synthesizer {
     }
 
     /// Run each correction pass of whole bricks in one GPU dispatch (`GpuSynth::correct_pass`;
-    /// off unless `SOLIDSYNTH_FUSED_PASSES=1`: slower on lavapipe, not yet measured on a GPU).
+    /// off unless `SOLIDSYNTH_FUSED_PASSES=1`: slower on lavapipe and on an H100).
     /// The same results either way.
     #[doc(hidden)]
     pub fn set_fused_passes(&mut self, on: bool) {
@@ -1043,6 +1115,14 @@ impl Synthesizer {
     #[doc(hidden)]
     pub fn set_sub_pass_reference(&mut self, on: bool) {
         self.exec.set_sub_pass_reference(on);
+    }
+
+    /// Tests: whether a request of several groups reads each group's colours back while the
+    /// next one runs (on by default on a GPU whose memory is its own only). The same results
+    /// either way.
+    #[doc(hidden)]
+    pub fn set_overlapped_reads(&mut self, on: bool) {
+        self.overlap_reads = on && matches!(self.exec, exec::Executor::Gpu(_));
     }
 
     /// Tests: a GPU parameter arena of `bytes`, so that batches fill up (see
@@ -1257,6 +1337,7 @@ impl Synthesizer {
             peak_state_bytes: 0,
             groups: 1,
         };
+        self.deferring = false;
         let GroupResult {
             colors, triples, ..
         } = self.synthesize_group(
@@ -1269,6 +1350,7 @@ impl Synthesizer {
             want_triples,
             &mut stats,
         )?;
+        let colors = self.exec.finish_colors(colors)?;
         self.last_stats = Some(stats);
         let grid = BrickGrid::new(&output);
         let channels = self.color_channels() as usize;
@@ -1309,7 +1391,7 @@ impl Synthesizer {
         progress: Progress,
         want_triples: bool,
         stats: &mut SynthStats,
-    ) -> Result<(Vec<u32>, Vec<u32>)> {
+    ) -> Result<(exec::Colors, Vec<u32>)> {
         // The cache builds the infinite solid's levels; a tileable solid has its own.
         if self.params.coarse_cache.is_some() && matches!(periodic, Periodic::No) {
             return self.synthesize_group_cached(group, exact, progress, want_triples, stats);
@@ -1389,7 +1471,7 @@ impl Synthesizer {
         progress: Progress,
         want_triples: bool,
         stats: &mut SynthStats,
-    ) -> Result<(Vec<u32>, Vec<u32>)> {
+    ) -> Result<(exec::Colors, Vec<u32>)> {
         let finest = self
             .plan_of(group, exact, ANALYSED_LEVELS - 1)
             .pop()
@@ -1613,7 +1695,7 @@ impl Synthesizer {
         }
         if group.is_empty() {
             return Ok(GroupResult {
-                colors: Vec::new(),
+                colors: exec::Colors::Ready(Vec::new()),
                 triples: Vec::new(),
                 state: self.exec.read_state(&state)?,
             });
@@ -1644,8 +1726,15 @@ impl Synthesizer {
             _pad: 0,
         };
         tracing::debug!("group's kernels recorded in {:.1} ms", ms(recording));
+        // In a request of several groups the colours may come back while the next group runs
+        // (see `for_each_group`); with triples they are needed now.
+        let defer = self.deferring && !want_triples;
         let colors = exec::timed(&mut self.exec, &mut self.times, "colorize", |e| {
-            e.colorize(first_pack + last, &c, &state, &index)
+            let colors = e.colorize(first_pack + last, &c, &state, &index)?;
+            match defer {
+                true => Ok(colors),
+                false => e.finish_colors(colors).map(exec::Colors::Ready),
+            }
         })?;
         let mut triples = Vec::new();
         if want_triples {
@@ -1671,9 +1760,17 @@ impl Synthesizer {
     }
 }
 
+/// A synthesized group of a request on its way to the caller ([`Synthesizer::hand_over`]).
+struct GroupDone<'g> {
+    group: &'g [Brick],
+    colors: exec::Colors,
+    triples: Vec<u32>,
+    synthesized_ms: f64,
+}
+
 /// What [`Synthesizer::synthesize_group`] returns.
 struct GroupResult {
-    colors: Vec<u32>,
+    colors: exec::Colors,
     triples: Vec<u32>,
     /// The final state's words, when no colours were asked for.
     state: Vec<u32>,
