@@ -383,7 +383,13 @@ fn gpu_boxes_are_windows_of_larger_gpu_boxes() {
         s.set_shared_coarse_levels(shared_levels);
         s.set_overlapped_reads(true);
         let overlapped = s.synthesize(big, &|_, _| {}).unwrap();
-        assert!(s.last_stats().unwrap().groups > 1);
+        let groups = s.last_stats().unwrap().groups;
+        assert!(groups > 1);
+        assert_eq!(
+            s.overlapped_hand_overs(),
+            groups - 1,
+            "groups handed over late"
+        );
         words_equal(
             &format!("grouped, reads overlapped, coarse levels shared: {shared_levels}"),
             &bytes_to_words(&whole.data),
@@ -410,7 +416,19 @@ fn gpu_boxes_are_windows_of_larger_gpu_boxes() {
             Ok(())
         })
         .unwrap();
-        assert!(s.last_stats().unwrap().groups > 1);
+        let groups = s.last_stats().unwrap().groups;
+        assert!(groups > 1);
+        // (The CPU backend never overlaps its reads.)
+        let overlapped = if matches!(compute, Compute::Cpu) {
+            0
+        } else {
+            groups - 1
+        };
+        assert_eq!(
+            s.overlapped_hand_overs(),
+            overlapped,
+            "groups handed over late"
+        );
         (bricks, colors)
     };
     let (cpu_bricks, cpu_colors) = by_group(&Compute::Cpu);

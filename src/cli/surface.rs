@@ -190,7 +190,9 @@ pub fn run(args: SurfaceArgs, quiet: bool) -> anyhow::Result<()> {
     };
     // Groups are baked on a thread of their own while the next ones are synthesized: on a
     // GPU the bake of the bunny's groups took as long as planning and running them (session
-    // 30). One group waits at most, so about three are held at once.
+    // 30). One group waits in the channel, so with the one being baked, the one the
+    // synthesizer hands over and (on a GPU) the one whose colours are still coming back, about
+    // four groups' colours are held at once.
     std::thread::scope(|scope| -> anyhow::Result<()> {
         let (finished, to_bake) = std::sync::mpsc::sync_channel(1);
         let baker = scope.spawn(move || to_bake.into_iter().for_each(&mut bake_group));

@@ -621,12 +621,20 @@ impl GpuContext {
         let timer = std::time::Instant::now();
         self.wait(Some(submission))?;
         let copied = timer.elapsed();
-        // (The copy is done; the mapping's callback runs at this poll at the latest.)
-        self.wait(None)?;
-        mapped
-            .recv_timeout(self.timeout)
-            .map_err(|_| Error::Gpu("buffer mapping never completed".into()))?
-            .map_err(|e| Error::Gpu(format!("buffer mapping failed: {e}")))?;
+        // The poll that saw the copy done maps the buffer and runs its callback. Only if it has
+        // not (yet) does this wait for all submitted work: work submitted after the copy (the
+        // next group of a request) must not be waited for, or the caller's use of these
+        // colours could not overlap it.
+        let outcome = match mapped.try_recv() {
+            Ok(outcome) => outcome,
+            Err(_) => {
+                self.wait(None)?;
+                mapped
+                    .recv_timeout(self.timeout)
+                    .map_err(|_| Error::Gpu("buffer mapping never completed".into()))?
+            }
+        };
+        outcome.map_err(|e| Error::Gpu(format!("buffer mapping failed: {e}")))?;
         let view = staging
             .get_mapped_range(..)
             .map_err(|e| Error::Gpu(format!("buffer mapping failed: {e}")))?;

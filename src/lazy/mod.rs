@@ -396,12 +396,19 @@ pub struct Synthesizer {
     /// Whether a request of several groups reads each group's colours back while the next
     /// group runs ([`Self::set_overlapped_reads`]): on a GPU whose memory is its own.
     overlap_reads: bool,
-    /// Set while such a request runs: `synthesize_group` leaves its colours coming.
+    /// Set while such a request runs: `synthesize_group` leaves its colours coming. (Each
+    /// request of groups sets it before its first group; the other syntheses are of one group.)
     deferring: bool,
+    /// Groups of the last request handed over while a later group ran (tests).
+    overlapped_hand_overs: usize,
 }
 
 /// The smallest piece of per-voxel host work (a cut's lookups, points) handed to one thread.
 pub const PARALLEL_PIECE: usize = 1 << 13;
+
+/// At most this many plans of groups' every level are held at once ([`parents_of_groups`],
+/// [`Synthesizer::plan_ahead`]).
+const PLANS_AT_ONCE: usize = 4;
 
 /// At most this many requested bricks (4^3 voxels each) are planned ahead together
 /// ([`Synthesizer::plan_ahead`]): a plan holds its levels' brick lists and tables, tens of bytes
@@ -471,6 +478,7 @@ impl Synthesizer {
         Ok(Synthesizer {
             overlap_reads: matches!(compute, Compute::Gpu(_)) && !compute.memory_is_hosts(),
             deferring: false,
+            overlapped_hand_overs: 0,
             params,
             packs,
             border: analysis.border.code(),
@@ -762,6 +770,8 @@ impl Synthesizer {
     ) -> Result<()> {
         let mut groups = self.groups(all, 0);
         self.next_plan = None;
+        self.deferring = false;
+        self.overlapped_hand_overs = 0;
         if groups.len() > 1 && matches!(periodic, Periodic::No) {
             let exact = group_part(exact, all);
             if let Some(levels) = self.planned_one_group(all, exact) {
@@ -794,7 +804,7 @@ impl Synthesizer {
         }
         // The plans of the next few groups, made together (see `plan_ahead`).
         let mut ahead = std::collections::VecDeque::new();
-        self.deferring = self.overlaps_reads(groups.len());
+        self.deferring = self.overlaps_reads(groups.len(), want_triples);
         let mut behind = None;
         for (g, group) in groups.iter().enumerate() {
             let base = g as f32 / groups.len() as f32;
@@ -871,7 +881,7 @@ impl Synthesizer {
             self.exec.release_coarse_pipelines(finest);
         }
         let mut ahead = std::collections::VecDeque::new();
-        self.deferring = self.overlaps_reads(groups.len());
+        self.deferring = self.overlaps_reads(groups.len(), want_triples);
         let mut behind = None;
         for (g, group) in groups.iter().enumerate() {
             let base = coarse_share + (1.0 - coarse_share) * g as f32 / groups.len() as f32;
@@ -915,12 +925,13 @@ impl Synthesizer {
 
     /// Whether a request of `groups` groups reads each group's colours back while the next one
     /// runs: on a GPU of its own memory (not when profiling, whose kernels each wait). Its
-    /// host work (planning, brick indices, the caller's use of the colours) then overlaps the
-    /// GPU's work instead of alternating with it; a group's colours and states are held a
+    /// host work (the next group's plan, brick indices and recording, then the caller's use of
+    /// the colours) then overlaps the GPU's work instead of alternating with it; a group's colours and states are held a
     /// group longer, which a GPU sharing the host's memory (lavapipe: the bunny's 200 MB
     /// target) is better without.
-    fn overlaps_reads(&self, groups: usize) -> bool {
-        self.overlap_reads && groups > 1 && self.times.is_none()
+    fn overlaps_reads(&self, groups: usize, want_triples: bool) -> bool {
+        // (With triples, a group's colours are read at once: holding it back gains nothing.)
+        self.overlap_reads && groups > 1 && self.times.is_none() && !want_triples
     }
 
     /// A group is synthesized: hand it to `sink` now, or, while reads overlap, hand over the
@@ -935,7 +946,10 @@ impl Synthesizer {
             return self.hand_over_now(done, sink);
         }
         match behind.replace(done) {
-            Some(previous) => self.hand_over_now(previous, sink),
+            Some(previous) => {
+                self.overlapped_hand_overs += 1;
+                self.hand_over_now(previous, sink)
+            }
             None => Ok(()),
         }
     }
@@ -1125,6 +1139,13 @@ impl Synthesizer {
         self.overlap_reads = on && matches!(self.exec, exec::Executor::Gpu(_));
     }
 
+    /// Tests: how many groups of the last request were handed over while a later group ran
+    /// ([`Self::set_overlapped_reads`]).
+    #[doc(hidden)]
+    pub fn overlapped_hand_overs(&self) -> usize {
+        self.overlapped_hand_overs
+    }
+
     /// Tests: a GPU parameter arena of `bytes`, so that batches fill up (see
     /// `GpuSynth::set_parameter_arena_bytes`).
     #[doc(hidden)]
@@ -1251,10 +1272,16 @@ impl Synthesizer {
         first: usize,
     ) -> std::collections::VecDeque<Vec<SparseLevel>> {
         let passes = &self.params.passes.levels()[first..];
+        // Plans of every level are several times larger (the 2048 bunny's shared-level plans
+        // held 0.65 GB more at 16 at once, `parents_of_groups`): at most 4 of those.
+        let most = match first {
+            0 => PLANS_AT_ONCE,
+            _ => rayon::current_num_threads().max(1),
+        };
         let mut bricks = 0;
         let window = groups
             .iter()
-            .take(rayon::current_num_threads().max(1))
+            .take(most)
             .take_while(|g| {
                 bricks += g.len();
                 bricks == g.len() || bricks <= PLAN_AHEAD_BRICKS
@@ -1909,7 +1936,6 @@ fn parents_of_groups(
     // A few groups planned at a time, in parallel (a plan is a pure function of its group; the
     // union is normalized, so the order they finish in does not matter). Not all at once: a
     // plan can take tens of MB, and the bunny at 2048 on 16 cores held 0.65 GB more so.
-    const PLANS_AT_ONCE: usize = 4;
     let mut all: Vec<Brick> = Vec::new();
     for some in groups.chunks(PLANS_AT_ONCE) {
         let parents: Vec<Vec<Brick>> = some
