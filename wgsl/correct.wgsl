@@ -183,12 +183,25 @@ struct Projected {
     squares: u32,
 }
 
+// Output bytes 4g..4g+3 of a projection, those past PCA_OUT zeroed, packed into a word (x), and
+// the sum of their squares (y).
+fn pack_bytes(bytes: vec4<u32>, g: u32) -> vec2<u32> {
+    let first = 4u * g;
+    let kept = vec4<u32>(select(0u, 1u, first < PCA_OUT), select(0u, 1u, first + 1u < PCA_OUT),
+        select(0u, 1u, first + 2u < PCA_OUT), select(0u, 1u, first + 3u < PCA_OUT));
+    let v = bytes * kept;
+    return vec2<u32>(v.x | (v.y << 8u) | (v.z << 16u) | (v.w << 24u), dot(v, v));
+}
+
 fn project_plane(r: Around, a: u32) -> Projected {
     let groups = (PCA_OUT + 3u) / 4u;
-    var acc: array<vec4<i32>, 4>;
-    for (var g = 0u; g < 4u; g++) {
-        acc[g] = -projection.v[a * 4u + g];
-    }
+    // Four accumulators by name (outputs 4g..4g+3 in acc_g), not an array: with an array indexed
+    // by a loop counter, lavapipe kept the sums in memory (8% of the kernel at 128^3, BENCHMARKS.md
+    // session 31). Every condition on `groups` is a constant.
+    var acc0 = -projection.v[a * 4u];
+    var acc1 = -projection.v[a * 4u + 1u];
+    var acc2 = -projection.v[a * 4u + 2u];
+    var acc3 = -projection.v[a * 4u + 3u];
     let per_input = select(groups, (groups + 1u) / 2u, PACKED_WEIGHTS);
     var row = PROJECTION_BASE + a * params.pca_in * per_input;
     for (var dv = -2; dv <= 2; dv++) {
@@ -211,16 +224,28 @@ fn project_plane(r: Around, a: u32) -> Projected {
                 }
                 let x = i32(byte);
                 if (PACKED_WEIGHTS) {
-                    for (var h = 0u; h < per_input; h++) {
-                        let pair = projection.v[row + h];
-                        acc[2u * h] += x * ((pair << vec4<u32>(16u)) >> vec4<u32>(16u));
-                        if (2u * h + 1u < groups) {
-                            acc[2u * h + 1u] += x * (pair >> vec4<u32>(16u));
+                    let low = projection.v[row];
+                    acc0 += x * ((low << vec4<u32>(16u)) >> vec4<u32>(16u));
+                    if (groups > 1u) {
+                        acc1 += x * (low >> vec4<u32>(16u));
+                    }
+                    if (groups > 2u) {
+                        let high = projection.v[row + 1u];
+                        acc2 += x * ((high << vec4<u32>(16u)) >> vec4<u32>(16u));
+                        if (groups > 3u) {
+                            acc3 += x * (high >> vec4<u32>(16u));
                         }
                     }
                 } else {
-                    for (var g = 0u; g < groups; g++) {
-                        acc[g] += x * projection.v[row + g];
+                    acc0 += x * projection.v[row];
+                    if (groups > 1u) {
+                        acc1 += x * projection.v[row + 1u];
+                    }
+                    if (groups > 2u) {
+                        acc2 += x * projection.v[row + 2u];
+                    }
+                    if (groups > 3u) {
+                        acc3 += x * projection.v[row + 3u];
                     }
                 }
                 row += per_input;
@@ -228,51 +253,113 @@ fn project_plane(r: Around, a: u32) -> Projected {
         }
     }
     let round = 1 << (params.shift - 1u);
-    var q = Projected(vec4<u32>(0u), 0u);
-    for (var j = 0u; j < PCA_OUT; j++) {
-        let v = u32(clamp(((acc[j / 4u][j % 4u] + round) >> params.shift) + 128, 0, 255));
-        q.words[j / 4u] |= v << ((j % 4u) * 8u);
-        q.squares += v * v;
-    }
+    let shift = vec4<u32>(params.shift);
+    let g0 = pack_bytes(vec4<u32>(clamp(((acc0 + round) >> shift) + 128, vec4<i32>(0), vec4<i32>(255))), 0u);
+    let g1 = pack_bytes(vec4<u32>(clamp(((acc1 + round) >> shift) + 128, vec4<i32>(0), vec4<i32>(255))), 1u);
+    let g2 = pack_bytes(vec4<u32>(clamp(((acc2 + round) >> shift) + 128, vec4<i32>(0), vec4<i32>(255))), 2u);
+    let g3 = pack_bytes(vec4<u32>(clamp(((acc3 + round) >> shift) + 128, vec4<i32>(0), vec4<i32>(255))), 3u);
+    let q = Projected(vec4<u32>(g0.x, g1.x, g2.x, g3.x), g0.y + g1.y + g2.y + g3.y);
     return q;
 }
 
-// sum_j (q_j - p_j)^2 over the PCA_OUT bytes of q and of the projection words p, as
-// q.q + p.p - 2 q.p with packed byte dot products: exact (each sum is below 16 x 255^2, and the
-// total, a sum of squares, is not negative), and on an H100 it halved the kernel's time against
-// a loop over the bytes of an array of PCA_OUT i32 (BENCHMARKS.md, session 24), whose registers
-// the three planes' arrays held for the whole search. Bytes of p past PCA_OUT (none at the
-// analysis' 8 or 12 dimensions) are masked off: the CPU reference ignores them.
-fn words_distance(q: Projected, p: vec4<u32>) -> u32 {
-    var d = q.squares;
-    for (var w = 0u; w < (PCA_OUT + 3u) / 4u; w++) {
-        var word = p[w];
-        if ((w + 1u) * 4u > PCA_OUT) {
-            word &= (1u << ((PCA_OUT % 4u) * 8u)) - 1u;
-        }
-        d += dot4U8Packed(word, word) - 2u * dot4U8Packed(q.words[w], word);
+// The first (PCA_OUT + 3) / 4 words of a projection at word `at` of the level data or of the
+// candidate tables, zero past them. Written out by word count, not as a loop over a vector's
+// components, which lavapipe addressed at run time.
+fn level_words(at: u32) -> vec4<u32> {
+    let words = (PCA_OUT + 3u) / 4u;
+    var p = vec4<u32>(level[at], 0u, 0u, 0u);
+    if (words > 1u) {
+        p.y = level[at + 1u];
     }
-    return d;
+    if (words > 2u) {
+        p.z = level[at + 2u];
+    }
+    if (words > 3u) {
+        p.w = level[at + 3u];
+    }
+    return p;
 }
 
+fn table_words(at: u32) -> vec4<u32> {
+    let words = (PCA_OUT + 3u) / 4u;
+    var p = vec4<u32>(tables[at], 0u, 0u, 0u);
+    if (words > 1u) {
+        p.y = tables[at + 1u];
+    }
+    if (words > 2u) {
+        p.z = tables[at + 2u];
+    }
+    if (words > 3u) {
+        p.w = tables[at + 3u];
+    }
+    return p;
+}
+
+// sum_j q_j p_j over the bytes of q and of the projection words p, with packed byte dot
+// products (on an H100 they halved the kernel's time against a loop over the bytes of an array
+// of PCA_OUT i32, BENCHMARKS.md session 24). q's bytes past PCA_OUT are zero, so p's need no mask.
+fn cross(q: Projected, p: vec4<u32>) -> u32 {
+    let words = (PCA_OUT + 3u) / 4u;
+    var s = dot4U8Packed(q.words.x, p.x);
+    if (words > 1u) {
+        s += dot4U8Packed(q.words.y, p.y);
+    }
+    if (words > 2u) {
+        s += dot4U8Packed(q.words.z, p.z);
+    }
+    if (words > 3u) {
+        s += dot4U8Packed(q.words.w, p.w);
+    }
+    return s;
+}
+
+// sum_j p_j^2 over the first PCA_OUT bytes of p (the bytes past them, none at the analysis' 8 or
+// 12 dimensions, masked off: the CPU reference ignores them).
+fn squares(p: vec4<u32>) -> u32 {
+    let words = (PCA_OUT + 3u) / 4u;
+    let tail = PCA_OUT % 4u;
+    let last = select((1u << (tail * 8u)) - 1u, 0xFFFFFFFFu, tail == 0u);
+    var m = p;
+    if (words == 1u) {
+        m.x &= last;
+    }
+    if (words == 2u) {
+        m.y &= last;
+    }
+    if (words == 3u) {
+        m.z &= last;
+    }
+    if (words == 4u) {
+        m.w &= last;
+    }
+    var s = dot4U8Packed(m.x, m.x);
+    if (words > 1u) {
+        s += dot4U8Packed(m.y, m.y);
+    }
+    if (words > 2u) {
+        s += dot4U8Packed(m.z, m.z);
+    }
+    if (words > 3u) {
+        s += dot4U8Packed(m.w, m.w);
+    }
+    return s;
+}
+
+// sum_j (q_j - p_j)^2 over the PCA_OUT bytes of q and of the projection of pixel c of E_a, as
+// q.q + p.p - 2 q.p: exact (each sum is below 16 x 255^2, and the total, a sum of squares, is
+// not negative).
 fn distance(q: Projected, a: u32, c: u32) -> u32 {
     let proj = select(select(params.proj2, params.proj1, a == 1u), params.proj0, a == 0u);
-    let base = proj + (u32(coord_y(c)) * params.ex_width + u32(coord_x(c))) * params.proj_words;
-    var p = vec4<u32>(0u);
-    for (var w = 0u; w < (PCA_OUT + 3u) / 4u; w++) {
-        p[w] = level[base + w];
-    }
-    return words_distance(q, p);
+    let p = level_words(proj + (u32(coord_y(c)) * params.ex_width + u32(coord_x(c))) * params.proj_words);
+    return q.squares + squares(p) - 2u * cross(q, p);
 }
 
-// `distance` to the projection stored at word `at` of the candidate tables.
-fn table_distance(q: Projected, at: u32) -> u32 {
-    var p = vec4<u32>(0u);
-    for (var w = 0u; w < (PCA_OUT + 3u) / 4u; w++) {
-        p[w] = tables[at + w];
-    }
-    return words_distance(q, p);
-}
+// A candidate's scale word in the tables (src/gpu/candidate_tables.rs): its distance's scale
+// (16 + usage penalties, below 2^SCALE_BITS) in the low bits, and above them the sum of squares
+// of its stored projections, p.p of `distance`, computed once when the tables are built rather
+// than per candidate and voxel (10% of the kernel on lavapipe, BENCHMARKS.md session 31).
+const SCALE_BITS: u32 = 10u;
+const SCALE_MASK: u32 = (1u << SCALE_BITS) - 1u;
 
 // Usage penalty of pixel c of E_a in sixteenths (analysis::balance): one word per pixel right
 // after E_a's pixels in the level data (lazy::pack).
@@ -292,7 +379,8 @@ fn factor(t: vec3<u32>) -> u32 {
 fn best_2d(r: Around, a: u32, q: Projected) -> vec2<u32> {
     let table = tables[a];
     let entry = (2u + params.proj_words + 3u) & ~3u;
-    var best = 0u;
+    // The best candidate's entry (its coordinate read once, after the search) and distances.
+    var best_entry = ABSENT;
     var best_raw = 0u;
     var best_d = 0xFFFFFFFFu;
     for (var dv = -1; dv <= 1; dv++) {
@@ -313,15 +401,20 @@ fn best_2d(r: Around, a: u32, q: Projected) -> vec2<u32> {
             let list = table + (u32(coord_y(src)) * params.ex_width + u32(coord_x(src))) * K2D * entry;
             for (var j = 0u; j < K2D; j++) {
                 let e = list + j * entry;
-                let raw = table_distance(q, e + 2u);
-                let d = raw * tables[e + 1u];
+                let scale = tables[e + 1u];
+                let raw = q.squares + (scale >> SCALE_BITS) - 2u * cross(q, table_words(e + 2u));
+                let d = raw * (scale & SCALE_MASK);
                 if (d < best_d) {
                     best_d = d;
-                    best = tables[e];
+                    best_entry = e;
                     best_raw = raw;
                 }
             }
         }
+    }
+    var best = 0u;
+    if (best_entry != ABSENT) {
+        best = tables[best_entry];
     }
     return vec2<u32>(best, best_raw);
 }
@@ -337,6 +430,44 @@ fn rotate(t: vec3<u32>, a: u32) -> vec3<u32> {
     return t;
 }
 
+// The 3D candidates of pixel `pixel2d` of E_a (plane a's best 2D candidate, at distance `own_d`
+// on that plane) scored against the voxel's projections q_next on plane (a + 1) % 3 and q_last
+// on (a + 2) % 3: one closer than *best_d becomes the best (its entry and plane; the caller reads
+// its triple once, after every search, rather than each candidate's as it is scored). Called
+// with a constant `a`, not in a loop over the planes, whose counter lavapipe kept for run-time
+// indexing.
+fn search_3d(a: u32, pixel2d: u32, own_d: u32, q_next: Projected, q_last: Projected,
+        best_entry: ptr<function, u32>, best_plane: ptr<function, u32>, best_d: ptr<function, u32>) {
+    let entry = (4u + 2u * params.proj_words + 3u) & ~3u;
+    let slots = tables[6];
+    var owner = a;
+    if (params.shared_sets != 0u) {
+        owner = 0u;
+    }
+    // Every 3D candidate of pixel2d has it as its a coordinate (the .ssa reader checks it): its
+    // distance on plane a is best_2d's.
+    let pixel = u32(coord_y(pixel2d)) * params.ex_width + u32(coord_x(pixel2d));
+    let counts = select(select(params.counts2, params.counts1, owner == 1u), params.counts0, owner == 0u);
+    let count = min(level[counts + pixel], params.k3d_used);
+    let list = tables[3u + owner] + pixel * slots * entry;
+    // Plane a's distance and both planes' q.q, the same for every candidate.
+    let fixed = own_d + q_next.squares + q_last.squares;
+    for (var j = 0u; j < count; j++) {
+        let e = list + j * entry;
+        // The stored projections: on plane (a + 1) % 3, then (a + 2) % 3; the scale word holds
+        // the sum of both's p.p.
+        let next = e + 4u;
+        let scale = tables[e + 3u];
+        let crossed = cross(q_next, table_words(next)) + cross(q_last, table_words(next + params.proj_words));
+        let d = (fixed + (scale >> SCALE_BITS) - 2u * crossed) * (scale & SCALE_MASK);
+        if (d < *best_d) {
+            *best_d = d;
+            *best_entry = e;
+            *best_plane = a;
+        }
+    }
+}
+
 // The voxel at `pos` (which `r` surrounds) corrected: its new triple.
 fn correct_voxel(pos: vec3<i32>, r: Around) -> vec3<u32> {
     let q0 = project_plane(r, 0u);
@@ -345,51 +476,24 @@ fn correct_voxel(pos: vec3<i32>, r: Around) -> vec3<u32> {
     let found0 = best_2d(r, 0u, q0);
     let found1 = best_2d(r, 1u, q1);
     let found2 = best_2d(r, 2u, q2);
-    let best2d = vec3<u32>(found0.x, found1.x, found2.x);
-    // Their distances on their own planes.
-    let own_d = vec3<u32>(found0.y, found1.y, found2.y);
-    var best = best2d;
+    // Found: the best 2D candidate (x) and its distance on its own plane (y).
+    var best = vec3<u32>(found0.x, found1.x, found2.x);
     if (params.mode == 0u) {
         // The voxel's current triple (active bricks are stored).
         let o = r.own + u32(r.local.z * 16 + r.local.y * 4 + r.local.x);
         best = vec3<u32>(neighbour_word(o, 0u, true, true), neighbour_word(o, 1u, true, true),
             neighbour_word(o, 2u, true, true));
         var best_d = (distance(q0, 0u, best.x) + distance(q1, 1u, best.y) + distance(q2, 2u, best.z)) * factor(best);
-        let entry = (4u + 2u * params.proj_words + 3u) & ~3u;
-        let slots = tables[6];
-        for (var a = 0u; a < 3u; a++) {
-            var owner = a;
+        // The best 3D candidate's entry and plane; its triple is read once, after the search.
+        var best_entry = ABSENT;
+        var best_plane = 0u;
+        search_3d(0u, found0.x, found0.y, q1, q2, &best_entry, &best_plane, &best_d);
+        search_3d(1u, found1.x, found1.y, q2, q0, &best_entry, &best_plane, &best_d);
+        search_3d(2u, found2.x, found2.y, q0, q1, &best_entry, &best_plane, &best_d);
+        if (best_entry != ABSENT) {
+            best = vec3<u32>(tables[best_entry], tables[best_entry + 1u], tables[best_entry + 2u]);
             if (params.shared_sets != 0u) {
-                owner = 0u;
-            }
-            // Every 3D candidate of pixel best2d[a] has it as its a coordinate (the .ssa reader
-            // checks it): its distance on plane a is best_2d's.
-            let pixel = u32(coord_y(best2d[a])) * params.ex_width + u32(coord_x(best2d[a]));
-            let counts = select(select(params.counts2, params.counts1, owner == 1u), params.counts0, owner == 0u);
-            let count = min(level[counts + pixel], params.k3d_used);
-            let list = tables[3u + owner] + pixel * slots * entry;
-            for (var j = 0u; j < count; j++) {
-                let e = list + j * entry;
-                var t = vec3<u32>(tables[e], tables[e + 1u], tables[e + 2u]);
-                if (params.shared_sets != 0u) {
-                    t = rotate(t, a);
-                }
-                // The stored projections: on plane (a + 1) % 3, then (a + 2) % 3.
-                let next = e + 4u;
-                let last = next + params.proj_words;
-                var d = own_d[a];
-                if (a == 0u) {
-                    d += table_distance(q1, next) + table_distance(q2, last);
-                } else if (a == 1u) {
-                    d += table_distance(q2, next) + table_distance(q0, last);
-                } else {
-                    d += table_distance(q0, next) + table_distance(q1, last);
-                }
-                d *= tables[e + 3u];
-                if (d < best_d) {
-                    best_d = d;
-                    best = t;
-                }
+                best = rotate(best, best_plane);
             }
         }
     }

@@ -15,10 +15,12 @@
 //!   (words 3..6; one set when the analysis is shared, its offset repeated), then the 3D slots per
 //!   pixel (word 6).
 //! - 2D table of plane a: per exemplar pixel, its `k2d` candidates, each [`entry_2d`] words: the
-//!   candidate's coordinate, 16 + its usage penalty (the distance's scale), its projection.
+//!   candidate's coordinate, its scale word, its projection. The scale word ([`scale_word`])
+//!   holds 16 + its usage penalty (the distance's scale) and its projection's sum of squares.
 //! - 3D table of set s: per exemplar pixel, `slots` candidates (unused ones zero), each
-//!   [`entry_3d`] words: the triple, 16 + the usage penalties of its three pixels, the
-//!   projection of its coordinate on plane (s + 1) % 3, then on plane (s + 2) % 3. For a shared
+//!   [`entry_3d`] words: the triple, its scale word (16 + the usage penalties of its three
+//!   pixels, and the sum of squares of both projections that follow), the projection of its
+//!   coordinate on plane (s + 1) % 3, then on plane (s + 2) % 3. For a shared
 //!   analysis (set 0, rotated per plane by the kernel) those are the projections of the triple's
 //!   y and z coordinates, which the rotation for plane a puts on planes (a + 1) % 3 and
 //!   (a + 2) % 3: the same order.
@@ -38,6 +40,31 @@ pub fn entry_2d(proj_words: u32) -> u32 {
 /// Words per 3D candidate: 4 + 2 proj_words, padded likewise (8 at 8 PCA dimensions, 12 at 12).
 pub fn entry_3d(proj_words: u32) -> u32 {
     (4 + 2 * proj_words).next_multiple_of(4)
+}
+
+/// Bits of a scale word that hold the distance's scale: 16 + at most three usage penalties of
+/// at most 255 (u8 in the .ssa) is at most 781.
+pub const SCALE_BITS: u32 = 10;
+
+/// A candidate's scale word: `scale` (below 2^SCALE_BITS) in the low bits and `squares`, the sum
+/// of squares of its stored projections' bytes, above them. The kernel's distance is
+/// q.q + p.p - 2 q.p; p.p is the candidate's alone, so it is summed here once instead of by
+/// every voxel that scores the candidate. At most 16 PCA dimensions (GpuSynth refuses more
+/// before it builds tables) and two projections: below 2 x 16 x 255^2 < 2^21, so the word fits.
+fn scale_word(scale: u32, squares: u32) -> u32 {
+    debug_assert!(scale < 1 << SCALE_BITS && squares < 1 << (32 - SCALE_BITS));
+    scale | squares << SCALE_BITS
+}
+
+/// Sum of squares of the first `dims` bytes of projection words `p` (the kernel's p.p; the
+/// bytes past `dims` are not part of the projection).
+fn squares(p: &[u32], dims: u32) -> u32 {
+    (0..dims as usize)
+        .map(|j| {
+            let byte = (p[j / 4] >> (8 * (j % 4))) & 0xFF;
+            byte * byte
+        })
+        .sum()
 }
 
 /// Plane a's (or set a's) word offsets of level data in `p`.
@@ -76,6 +103,10 @@ impl Planes {
 /// The tables of level `p` with `slots` 3D candidates per pixel (at least the `k3d_used` of any
 /// correction of this level; see [`LevelPack::k3d_used`]).
 pub fn candidate_tables(p: &LevelPack, slots: u32) -> Vec<u32> {
+    assert!(
+        p.pca_out <= 16,
+        "the GPU correction takes at most 16 PCA dimensions (GpuSynth::new checks it)"
+    );
     let planes = &Planes::of(p);
     let pixels = (p.width * p.height) as usize;
     let pw = p.proj_words as usize;
@@ -104,9 +135,10 @@ pub fn candidate_tables(p: &LevelPack, slots: u32) -> Vec<u32> {
             .par_chunks_mut(entry)
             .zip(&p.words[list..list + n])
             .for_each(|(e, &c)| {
+                let projection = planes.projection(p, a, c);
                 e[0] = c;
-                e[1] = planes.factor(p, a, c);
-                e[2..2 + pw].copy_from_slice(planes.projection(p, a, c));
+                e[1] = scale_word(planes.factor(p, a, c), squares(projection, p.pca_out));
+                e[2..2 + pw].copy_from_slice(projection);
             });
         words[a] = at;
         built.push((key, at));
@@ -132,9 +164,15 @@ pub fn candidate_tables(p: &LevelPack, slots: u32) -> Vec<u32> {
                     let t = [p.words[at], p.words[at + 1], p.words[at + 2]];
                     e[..3].copy_from_slice(&t);
                     // Shared: one penalty table for the three (the sum is rotation-free).
-                    e[3] = (0..3).map(|b| planes.factor(p, b, t[b]) - 16).sum::<u32>() + 16;
-                    e[4..4 + pw].copy_from_slice(planes.projection(p, next, t[next]));
-                    e[4 + pw..4 + 2 * pw].copy_from_slice(planes.projection(p, last, t[last]));
+                    let scale = (0..3).map(|b| planes.factor(p, b, t[b]) - 16).sum::<u32>() + 16;
+                    let (on_next, on_last) = (
+                        planes.projection(p, next, t[next]),
+                        planes.projection(p, last, t[last]),
+                    );
+                    let both = squares(on_next, p.pca_out) + squares(on_last, p.pca_out);
+                    e[3] = scale_word(scale, both);
+                    e[4..4 + pw].copy_from_slice(on_next);
+                    e[4 + pw..4 + 2 * pw].copy_from_slice(on_last);
                 }
             });
         for t in if p.shared { 0..3 } else { s..s + 1 } {
