@@ -202,12 +202,6 @@ fn synthesis_kernels_bit_exact_on_gpu_and_cpu() {
         s.set_parameter_arena_bytes(1024).unwrap();
         s.synthesize(b, &|_, _| {}).unwrap()
     });
-    // Whole passes in one dispatch (`SOLIDSYNTH_FUSED_PASSES`), on a box and on the periodic
-    // solid.
-    same_on_both("fused passes", &a, &params, &gpu, |s| {
-        s.set_fused_passes(true);
-        s.synthesize(b, &|_, _| {}).unwrap()
-    });
     // `correct`'s threads in blocks of 8, 16 and 32 bricks (the adapter picks 8 or 16): list
     // counts that are not whole blocks leave a last block part empty.
     for n in [8, 16, 32] {
@@ -222,10 +216,6 @@ fn synthesis_kernels_bit_exact_on_gpu_and_cpu() {
         ..Default::default()
     };
     same_on_both("tileable", &a, &params, &gpu, |s| {
-        s.synthesize_tileable(32, &|_, _| {}, false).unwrap().0
-    });
-    same_on_both("tileable, fused passes", &a, &params, &gpu, |s| {
-        s.set_fused_passes(true);
         s.synthesize_tileable(32, &|_, _| {}, false).unwrap().0
     });
     // The same tileable solid in groups of 16^3 (boxes of the periodic solid with their

@@ -95,9 +95,6 @@ if wants synth; then
     # One pass at the finest level (README: --passes), the faster schedule.
     section synth.txt $ss bench synth --sizes $both_sizes,$gpu_sizes --backends gpu --runs $runs \
         --passes 2,2,2,1
-    # Whole correction passes in one dispatch (off by default; session 25).
-    section synth.txt env SOLIDSYNTH_FUSED_PASSES=1 $ss bench synth --sizes $gpu_sizes \
-        --backends gpu --runs $runs
     # `correct`'s k-major blocks of 32 bricks, a warp (8 by default on a GPU; session 29).
     section synth.txt env SOLIDSYNTH_BLOCK_BRICKS=32 $ss bench synth --sizes $gpu_sizes \
         --backends gpu --runs $runs
@@ -135,15 +132,6 @@ if wants cuts; then
         --passes 2,2,2,1 -o "$work/cut-debug.png"
     section cuts.txt $ss cut --backend gpu --origin 32,32,20 --normal 0,0,1 --size 256 \
         --repeat $repeat --coarse-cache 128 --passes 2,2,2,1 --profile -o "$work/cut-profile.png"
-    # Whole correction passes in one dispatch (off by default; session 25): the fast cut and
-    # an oblique one, default and fused, one after the other.
-    for fused in 0 1; do
-        for normal in 0,0,1 0.3,0.5,0.8; do
-            section cuts.txt env SOLIDSYNTH_FUSED_PASSES=$fused $ss cut --backend gpu \
-                --origin 32,32,20 --normal $normal --size 256 --repeat $repeat \
-                --coarse-cache 128 --passes 2,2,2,1 -o "$work/cut-fused.png"
-        done
-    done
     # `correct`'s blocks of 8 (the default) and 32 bricks, one after the other (session 29).
     for bricks in 8 32; do
         section cuts.txt env SOLIDSYNTH_BLOCK_BRICKS=$bricks $ss cut --backend gpu \
@@ -160,9 +148,6 @@ if wants surface; then
     section surface.txt $ss surface --backend gpu --mesh dist/bunny.obj \
         --resolution "$fast_resolution" --coarse-cache 128 --max-group 128 --passes 2,2,2,1 \
         --json -o "$work/bunny-fast.glb"
-    section surface.txt env SOLIDSYNTH_FUSED_PASSES=1 $ss surface --backend gpu \
-        --mesh dist/bunny.obj --resolution "$fast_resolution" --coarse-cache 128 \
-        --max-group 128 --passes 2,2,2,1 --json -o "$work/bunny-fast-fused.glb"
     section surface.txt env SOLIDSYNTH_BLOCK_BRICKS=32 $ss surface --backend gpu \
         --mesh dist/bunny.obj --resolution "$fast_resolution" --coarse-cache 128 \
         --max-group 128 --passes 2,2,2,1 --json -o "$work/bunny-fast-blocks32.glb"

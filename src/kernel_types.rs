@@ -121,9 +121,8 @@ gpu_struct! {
         mask_offset: u32,
         /// Tileable solids: the level's period in voxels (0: not periodic); reads wrap.
         period: u32,
-        /// A whole pass in one dispatch (the kernel's FUSED constant): its sub-passes' classes,
-        /// 3 bits each in order, and their count. Unused otherwise.
-        fused_classes: u32, fused_count: u32,
+        /// Padding to a whole 16 bytes, as every uniform struct here.
+        _r0: u32, _r1: u32,
     }
 }
 

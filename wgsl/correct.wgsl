@@ -20,7 +20,8 @@ struct CorrectParams {
     cand2d0: u32, cand2d1: u32, cand2d2: u32,
     cand3d0: u32, cand3d1: u32, cand3d2: u32,
     counts0: u32, counts1: u32, counts2: u32,
-    grid_stride: u32, mask_offset: u32, period: u32, fused_classes: u32, fused_count: u32,
+    grid_stride: u32, mask_offset: u32, period: u32,
+    _r0: u32, _r1: u32,
 }
 
 // Pipeline-overridable copies of params.channels, params.pca_out and params.k2d (the host sets
@@ -35,15 +36,6 @@ override PACKED_WEIGHTS: bool = false;
 // 16-lane subgroups (lavapipe at 512 bits, whose lanes' neighbour lookups then agree), else 8
 // (`block_bricks` in src/gpu/synth.rs; `SOLIDSYNTH_BLOCK_BRICKS` overrides it).
 override BLOCK_BRICKS: u32 = 8u;
-// A whole pass in one dispatch (`fused_pass`): the workgroup's eight bricks in workgroup memory
-// (OWN_WORDS = 8 bricks x 64 voxels x 4 words; one value word per voxel), updated sub-pass by
-// sub-pass, and the results written into the state too, since every read of another brick
-// goes to the pass-start copy.
-override FUSED: bool = false;
-override OWN_WORDS: u32 = 4u;
-var<workgroup> own_voxels: array<u32, OWN_WORDS>;
-// The thread's brick in `own_voxels` (its first voxel), when FUSED.
-var<private> own_base: u32;
 
 @group(0) @binding(0) var<uniform> params: CorrectParams;
 // (binding 1: level data, declared by the prelude)
@@ -147,9 +139,6 @@ fn in_own_brick(r: Around, a: u32, du: i32, dv: i32) -> bool {
 // two, the same time on lavapipe).
 fn neighbour_word(s: u32, w: u32, own: bool, same_class: bool) -> u32 {
     if (own) {
-        if (FUSED) {
-            return own_voxels[(own_base + (s & 63u)) * 4u + w];
-        }
         if (!same_class) {
             return state[s * stride() + w];
         }
@@ -500,67 +489,8 @@ fn correct_voxel(pos: vec3<i32>, r: Around) -> vec3<u32> {
     return best;
 }
 
-// A whole correction pass (FUSED): thread (b, k) of the k-major layout (`class_voxel`) corrects
-// class voxel k of listed brick b in each sub-pass, in the order of params.fused_classes. The
-// host uses it when every sub-pass lists the same whole bricks and a voxel is 4 words
-// (src/gpu/synth.rs, correct_pass); the results equal the per-sub-pass path's (the bricks'
-// sub-passes see only their own voxels' updates).
-fn fused_pass(thread: u32, li: u32) {
-    // Eight bricks a workgroup, whatever BLOCK_BRICKS says: they share `own_voxels`.
-    let voxel = class_voxel(thread, 8u);
-    let b = voxel.x;
-    let k = voxel.y;
-    own_base = (li % 8u) * 64u;
-    var valid = b < params.list_count && CHANNELS == params.channels && PCA_OUT == params.pca_out
-        && K2D == params.k2d && params.pixel_words == 1u;
-    if (valid) {
-        valid = ((bricks[params.mask_offset + b / 4u] >> ((b % 4u) * 8u + k)) & 1u) != 0u;
-    }
-    var brick = vec3<i32>(0);
-    var base = 0u;
-    if (valid) {
-        brick = brick_at(params.list_offset, b);
-        base = state_index(brick * 4);
-        // The brick's voxels as the pass begins, eight per thread.
-        for (var j = 0u; j < 8u; j++) {
-            let l = k * 8u + j;
-            for (var w = 0u; w < 4u; w++) {
-                own_voxels[(own_base + l) * 4u + w] = pass_start[(base + l) * 4u + w];
-            }
-        }
-    }
-    workgroupBarrier();
-    let pixels = vec3<u32>(params.pixels0, params.pixels1, params.pixels2);
-    for (var s = 0u; s < params.fused_count; s++) {
-        let c = (params.fused_classes >> (3u * s)) & 7u;
-        let local = vec3<u32>(c & 1u, (c >> 1u) & 1u, c >> 2u)
-            + 2u * vec3<u32>(k & 1u, (k >> 1u) & 1u, k >> 2u);
-        var t = vec3<u32>(0u);
-        if (valid) {
-            let pos = brick * 4 + vec3<i32>(local);
-            t = correct_voxel(pos, around(pos));
-        }
-        // Every read of this sub-pass is done before its results land.
-        workgroupBarrier();
-        if (valid) {
-            let l = local.z * 16u + local.y * 4u + local.x;
-            let value = value_word(t, 0u, pixels, params.ex_width, 1u, params.channels);
-            let record = vec4<u32>(t, value);
-            for (var w = 0u; w < 4u; w++) {
-                own_voxels[(own_base + l) * 4u + w] = record[w];
-                state[(base + l) * 4u + w] = record[w];
-            }
-        }
-        workgroupBarrier();
-    }
-}
-
 @compute @workgroup_size(64)
-fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation_index) li: u32) {
-    if (FUSED) {
-        fused_pass(gid.x + gid.y * params.grid_stride, li);
-        return;
-    }
+fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let voxel = class_voxel(gid.x + gid.y * params.grid_stride, BLOCK_BRICKS);
     let b = voxel.x;
     let k = voxel.y;

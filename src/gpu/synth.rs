@@ -95,11 +95,6 @@ pub struct GpuSynth {
     arena: wgpu::Buffer,
     /// Kept buffers, in a warm session ([`GpuSynth::keep_buffers`]).
     pool: Option<BufferPool>,
-    /// Whether [`GpuSynth::correct_pass`] runs a pass of whole bricks in one dispatch. Off by
-    /// default (`SOLIDSYNTH_FUSED_PASSES=1` turns it on): on lavapipe it was slower (session 25:
-    /// warm 256^2 cut 184 -> 198 ms, 128^3 4.25 -> 5.14 s), and on an H100 too (session 30:
-    /// 512^3 3.38 against 2.69 s, the warm fast cut the same 5.2 ms).
-    pub(crate) fused_passes: bool,
 }
 
 /// Dispatches recorded and not yet submitted, with their kernels' names and parameters.
@@ -242,19 +237,13 @@ fn block_bricks(info: &wgpu::AdapterInfo) -> u32 {
     }
 }
 
-/// The grid of a non-fused `correct` dispatch over `bricks` listed bricks, in whole blocks of
+/// The grid of a `correct` dispatch over `bricks` listed bricks, in whole blocks of
 /// `block_bricks`, and its rows' stride in threads (`CorrectParams::grid_stride`): both from the
 /// one thread count, so that thread index gid.x + gid.y * stride is unique.
 fn correct_dispatch(bricks: u32, block_bricks: u32) -> ((u32, u32, u32), u32) {
     let threads = bricks.div_ceil(block_bricks) as u64 * 8 * block_bricks as u64;
     let (x, y, stride) = super::context::dispatch_grid(threads as u32);
     ((x, y, 1), stride)
-}
-
-/// The constants of the FUSED variant of the `correct` pipeline with `constants`.
-fn fused(mut constants: Vec<(&'static str, f64)>) -> Vec<(&'static str, f64)> {
-    constants.extend([("FUSED", 1.0), ("OWN_WORDS", (8 * 64 * 4) as f64)]);
-    constants
 }
 
 fn entries<'a>(buffers: &[(u32, &'a wgpu::Buffer)]) -> Vec<wgpu::BindGroupEntry<'a>> {
@@ -374,7 +363,6 @@ impl GpuSynth {
                 correct_constants(p.channels, p.pca_out, p.k2d, *packed, block_bricks)
             })
             .collect();
-        let fused_passes = std::env::var("SOLIDSYNTH_FUSED_PASSES").is_ok_and(|v| v == "1");
         // The kernels built before the synthesis starts, together. On a hardware GPU every
         // kernel a synthesis runs, `correct`'s variants (the long compiles) first. On a CPU
         // device `correct` is built at its first dispatch of each level, as the previous
@@ -383,13 +371,6 @@ impl GpuSynth {
         let mut kernels = Vec::new();
         if ctx.info.device_type != wgpu::DeviceType::Cpu {
             kernels.extend(correct_constants.iter().map(|c| ("correct", c.clone())));
-            if fused_passes {
-                kernels.extend(
-                    correct_constants
-                        .iter()
-                        .map(|c| ("correct", fused(c.clone()))),
-                );
-            }
         }
         kernels.extend(["init", "upsample", "colorize"].map(|k| (k, Vec::new())));
         ctx.prebuild_pipelines(&kernels)?;
@@ -403,7 +384,6 @@ impl GpuSynth {
             pending: std::sync::Mutex::new(None),
             arena,
             pool: None,
-            fused_passes,
             correct_constants,
             block_bricks,
         })
@@ -438,7 +418,6 @@ impl GpuSynth {
             let repeated = self.correct_constants[..i].contains(c);
             if !later.contains(c) && !repeated {
                 self.ctx.release_pipeline("correct", c);
-                self.ctx.release_pipeline("correct", &fused(c.clone()));
             }
         }
     }
@@ -744,15 +723,12 @@ impl GpuSynth {
         )
     }
 
-    /// One correction pass: the sub-passes `ps` in order, after a copy of the state as the pass
-    /// begins (`begin_pass`). When every sub-pass lists the same whole bricks (`whole_bricks`)
-    /// and a voxel is 4 words, one dispatch runs them all (`correct` with FUSED: the bricks in
-    /// workgroup memory); else a `correct` per sub-pass.
+    /// One correction pass: the sub-passes `ps` in order, a `correct` each, after a copy of the
+    /// state as the pass begins (`begin_pass`).
     pub fn correct_pass(
         &mut self,
         level: usize,
         ps: &[CorrectParams],
-        whole_bricks: bool,
         s: &mut GpuState,
         index: &wgpu::Buffer,
     ) -> Result<()> {
@@ -768,37 +744,10 @@ impl GpuSynth {
             )));
         }
         self.begin_pass(s)?;
-        let p0 = &ps[0];
-        if !(self.fused_passes && whole_bricks && p0.pixel_words == 1 && ps.len() <= 8) {
-            for p in ps {
-                self.correct(level, p, s, index)?;
-            }
-            return Ok(());
+        for p in ps {
+            self.correct(level, p, s, index)?;
         }
-        let mut p = *p0;
-        p.fused_classes = ps
-            .iter()
-            .enumerate()
-            .map(|(i, q)| (q.class_x | q.class_y << 1 | q.class_z << 2) << (3 * i))
-            .sum();
-        p.fused_count = ps.len() as u32;
-        let (candidates, projection, constants) = self.correct_inputs(level, &p)?;
-        let constants = fused(constants);
-        let start = s.pass_start.as_ref().expect("begin_pass made it");
-        self.run(
-            "correct",
-            &constants,
-            &p,
-            &[
-                (1, &self.levels[level]),
-                (3, &s.current),
-                (4, index),
-                (5, projection),
-                (6, &candidates),
-                (7, start),
-            ],
-            groups(p.list_count as u64 * 8),
-        )
+        Ok(())
     }
 
     /// What every `correct` dispatch of `level` binds besides the states (its candidate tables
@@ -928,7 +877,7 @@ impl GpuSynth {
 
 #[cfg(test)]
 mod tests {
-    /// Every (listed brick, class voxel) of a non-fused `correct` dispatch is one thread's,
+    /// Every (listed brick, class voxel) of a `correct` dispatch is one thread's,
     /// and no thread's twice, for blocks of 8 to 64 bricks and list counts around the grid's
     /// second row (65535 workgroups of 64 threads), where a stride from another thread count
     /// gave two threads the same voxel. Mirrors `class_voxel` (wgsl/lib/synth_common.wgsl).

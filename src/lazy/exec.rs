@@ -155,14 +155,6 @@ impl Executor {
         }
     }
 
-    /// See [`GpuSynth::correct_pass`] (the CPU backend runs every pass of whole bricks brick by
-    /// brick).
-    pub fn set_fused_passes(&mut self, on: bool) {
-        if let Executor::Gpu(g) = self {
-            g.fused_passes = on;
-        }
-    }
-
     /// See [`GpuSynth::set_block_bricks`] (nothing on the CPU backend).
     pub fn set_block_bricks(&mut self, n: u32) {
         if let Executor::Gpu(g) = self {
@@ -276,13 +268,10 @@ impl Executor {
     /// One correction pass: the sub-passes `ps` in order. Each reads a neighbour in its own
     /// brick as the earlier sub-passes left it and one in another brick as it was when the pass
     /// began (brick-local sub-passes, `plan`).
-    /// `whole_bricks`: whether every sub-pass lists the same bricks, each whole (the GPU then
-    /// runs the pass in one dispatch; the CPU checks its index itself).
     pub fn correct_pass(
         &mut self,
         level: usize,
         ps: &[CorrectParams],
-        whole_bricks: bool,
         state: &mut State,
         index: &IndexBuf,
     ) -> Result<()> {
@@ -317,9 +306,7 @@ impl Executor {
                 );
                 Ok(())
             }
-            (Executor::Gpu(g), State::Gpu(s)) => {
-                g.correct_pass(level, ps, whole_bricks, s, index.gpu())
-            }
+            (Executor::Gpu(g), State::Gpu(s)) => g.correct_pass(level, ps, s, index.gpu()),
             _ => unreachable!("state from another backend"),
         }
     }

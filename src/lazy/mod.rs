@@ -1108,14 +1108,6 @@ impl Synthesizer {
         self.exec.keep_buffers();
     }
 
-    /// Run each correction pass of whole bricks in one GPU dispatch (`GpuSynth::correct_pass`;
-    /// off unless `SOLIDSYNTH_FUSED_PASSES=1`: slower on lavapipe and on an H100).
-    /// The same results either way.
-    #[doc(hidden)]
-    pub fn set_fused_passes(&mut self, on: bool) {
-        self.exec.set_fused_passes(on);
-    }
-
     /// Tests: `n` listed bricks (a multiple of 8) per block of the GPU `correct` kernel's
     /// k-major threads instead of the adapter's choice (8, or 16 on lavapipe at 512 bits). The
     /// same results either way.
@@ -1699,10 +1691,8 @@ impl Synthesizer {
                 }
                 if (s + 1) % SUBPASS_ORDER.len() == 0 || s + 1 == lv.subpasses.len() {
                     if !pass.is_empty() {
-                        let first = s + 1 - (s % SUBPASS_ORDER.len() + 1);
-                        let whole = whole_brick_pass(&lv.subpasses[first..=s]);
                         exec::timed(&mut self.exec, &mut self.times, "correct", |e| {
-                            e.correct_pass(pack_index, &pass, whole, &mut state, &index)
+                            e.correct_pass(pack_index, &pass, &mut state, &index)
                         })?;
                     }
                     pass.clear();
@@ -2372,26 +2362,9 @@ pub fn correct_params(
         // The caller points this at the list's voxel masks.
         mask_offset: 0,
         period: 0,
-        fused_classes: 0,
-        fused_count: 0,
+        _r0: 0,
+        _r1: 0,
     }
-}
-
-/// Whether the sub-passes of one pass all compute the same bricks, each whole: every class once,
-/// the same list, every mask empty or full (the planner's passes; `Executor::correct_pass`).
-fn whole_brick_pass(subpasses: &[bricks::SubpassPlan]) -> bool {
-    let Some(first) = subpasses.first() else {
-        return false;
-    };
-    let mut classes = 0u32;
-    subpasses.iter().for_each(|sp| classes |= 1 << sp.class);
-    classes.count_ones() as usize == subpasses.len()
-        && subpasses.iter().all(|sp| {
-            sp.over_storage == first.over_storage
-                && sp.bricks == first.bricks
-                && sp.masks == first.masks
-                && sp.masks.iter().all(|&m| m == 0 || m == 0xFF)
-        })
 }
 
 /// Padding per side assumed when sizing chunks (the plan's exact padding is at most this).
