@@ -182,73 +182,99 @@ fn pack_bytes(bytes: vec4<u32>, g: u32) -> vec2<u32> {
     return vec2<u32>(v.x | (v.y << 8u) | (v.z << 16u) | (v.w << 24u), dot(v, v));
 }
 
+// The projection's partial sums: outputs 4g..4g+3 in s_g. Four vectors by name, not an array:
+// lavapipe kept an array indexed by a loop counter in memory (8% of the kernel at 128^3,
+// BENCHMARKS.md session 31).
+struct Sums {
+    s0: vec4<i32>,
+    s1: vec4<i32>,
+    s2: vec4<i32>,
+    s3: vec4<i32>,
+}
+
+// Input byte x times its weights (from vector `row` of the projection uniform) added to the sums.
+fn add_input(sums: ptr<function, Sums>, x: i32, row: u32) {
+    let groups = (PCA_OUT + 3u) / 4u;
+    if (PACKED_WEIGHTS) {
+        let low = projection.v[row];
+        (*sums).s0 += x * ((low << vec4<u32>(16u)) >> vec4<u32>(16u));
+        if (groups > 1u) {
+            (*sums).s1 += x * (low >> vec4<u32>(16u));
+        }
+        if (groups > 2u) {
+            let high = projection.v[row + 1u];
+            (*sums).s2 += x * ((high << vec4<u32>(16u)) >> vec4<u32>(16u));
+            if (groups > 3u) {
+                (*sums).s3 += x * (high >> vec4<u32>(16u));
+            }
+        }
+    } else {
+        (*sums).s0 += x * projection.v[row];
+        if (groups > 1u) {
+            (*sums).s1 += x * projection.v[row + 1u];
+        }
+        if (groups > 2u) {
+            (*sums).s2 += x * projection.v[row + 2u];
+        }
+        if (groups > 3u) {
+            (*sums).s3 += x * projection.v[row + 3u];
+        }
+    }
+}
+
+// The voxel at (du, dv) in plane a of the voxel `r` surrounds, its channels added to the sums
+// (weights from vector `row`, per_input vectors per channel). Absent voxels read as zero. The
+// channels are written out rather than looped over: in a loop lavapipe blended every partial sum
+// with the loop's lane mask after each multiply-add (14% of the kernel at 128^3, session 31).
+fn add_neighbour(sums: ptr<function, Sums>, r: Around, a: u32, du: i32, dv: i32, row: u32, per_input: u32) {
+    let s = plane_neighbour(r, a, du, dv);
+    let own = in_own_brick(r, a, du, dv);
+    let same_class = ((du | dv) & 1) == 0;
+    var word = 0u;
+    if (s != ABSENT) {
+        word = neighbour_word(s, 3u, own, same_class);
+    }
+    add_input(sums, i32(word & 0xFFu), row);
+    if (CHANNELS > 1u) {
+        add_input(sums, i32((word >> 8u) & 0xFFu), row + per_input);
+    }
+    if (CHANNELS > 2u) {
+        add_input(sums, i32((word >> 16u) & 0xFFu), row + 2u * per_input);
+    }
+    if (CHANNELS > 3u) {
+        add_input(sums, i32(word >> 24u), row + 3u * per_input);
+    }
+    for (var ch = 4u; ch < CHANNELS; ch++) {
+        var byte = 0u;
+        if (s != ABSENT) {
+            byte = (neighbour_word(s, 3u + ch / 4u, own, same_class) >> ((ch % 4u) * 8u)) & 0xFFu;
+        }
+        add_input(sums, i32(byte), row + ch * per_input);
+    }
+}
+
 fn project_plane(r: Around, a: u32) -> Projected {
     let groups = (PCA_OUT + 3u) / 4u;
-    // Four accumulators by name (outputs 4g..4g+3 in acc_g), not an array: with an array indexed
-    // by a loop counter, lavapipe kept the sums in memory (8% of the kernel at 128^3, BENCHMARKS.md
-    // session 31). Every condition on `groups` is a constant.
-    var acc0 = -projection.v[a * 4u];
-    var acc1 = -projection.v[a * 4u + 1u];
-    var acc2 = -projection.v[a * 4u + 2u];
-    var acc3 = -projection.v[a * 4u + 3u];
+    // Each output's sum starts at minus its bias.
+    var sums = Sums(-projection.v[a * 4u], -projection.v[a * 4u + 1u], -projection.v[a * 4u + 2u],
+        -projection.v[a * 4u + 3u]);
     let per_input = select(groups, (groups + 1u) / 2u, PACKED_WEIGHTS);
+    let per_neighbour = CHANNELS * per_input;
     var row = PROJECTION_BASE + a * params.pca_in * per_input;
     for (var dv = -2; dv <= 2; dv++) {
         for (var du = -2; du <= 2; du++) {
-            // Absent voxels read as zero.
-            let s = plane_neighbour(r, a, du, dv);
-            let own = in_own_brick(r, a, du, dv);
-            let same_class = ((du | dv) & 1) == 0;
-            // The neighbour's first value word, read once for its (up to 4) channels.
-            var word = 0u;
-            if (s != ABSENT) {
-                word = neighbour_word(s, 3u, own, same_class);
-            }
-            for (var ch = 0u; ch < CHANNELS; ch++) {
-                var byte = 0u;
-                if (ch >= 4u && s != ABSENT) {
-                    byte = (neighbour_word(s, 3u + ch / 4u, own, same_class) >> ((ch % 4u) * 8u)) & 0xFFu;
-                } else if (ch < 4u) {
-                    byte = (word >> (ch * 8u)) & 0xFFu;
-                }
-                let x = i32(byte);
-                if (PACKED_WEIGHTS) {
-                    let low = projection.v[row];
-                    acc0 += x * ((low << vec4<u32>(16u)) >> vec4<u32>(16u));
-                    if (groups > 1u) {
-                        acc1 += x * (low >> vec4<u32>(16u));
-                    }
-                    if (groups > 2u) {
-                        let high = projection.v[row + 1u];
-                        acc2 += x * ((high << vec4<u32>(16u)) >> vec4<u32>(16u));
-                        if (groups > 3u) {
-                            acc3 += x * (high >> vec4<u32>(16u));
-                        }
-                    }
-                } else {
-                    acc0 += x * projection.v[row];
-                    if (groups > 1u) {
-                        acc1 += x * projection.v[row + 1u];
-                    }
-                    if (groups > 2u) {
-                        acc2 += x * projection.v[row + 2u];
-                    }
-                    if (groups > 3u) {
-                        acc3 += x * projection.v[row + 3u];
-                    }
-                }
-                row += per_input;
-            }
+            add_neighbour(&sums, r, a, du, dv, row, per_input);
+            row += per_neighbour;
         }
     }
+    // Rounded, shifted and offset to a byte, as the CPU reference's quantization.
     let round = 1 << (params.shift - 1u);
     let shift = vec4<u32>(params.shift);
-    let g0 = pack_bytes(vec4<u32>(clamp(((acc0 + round) >> shift) + 128, vec4<i32>(0), vec4<i32>(255))), 0u);
-    let g1 = pack_bytes(vec4<u32>(clamp(((acc1 + round) >> shift) + 128, vec4<i32>(0), vec4<i32>(255))), 1u);
-    let g2 = pack_bytes(vec4<u32>(clamp(((acc2 + round) >> shift) + 128, vec4<i32>(0), vec4<i32>(255))), 2u);
-    let g3 = pack_bytes(vec4<u32>(clamp(((acc3 + round) >> shift) + 128, vec4<i32>(0), vec4<i32>(255))), 3u);
-    let q = Projected(vec4<u32>(g0.x, g1.x, g2.x, g3.x), g0.y + g1.y + g2.y + g3.y);
-    return q;
+    let g0 = pack_bytes(vec4<u32>(clamp(((sums.s0 + round) >> shift) + 128, vec4<i32>(0), vec4<i32>(255))), 0u);
+    let g1 = pack_bytes(vec4<u32>(clamp(((sums.s1 + round) >> shift) + 128, vec4<i32>(0), vec4<i32>(255))), 1u);
+    let g2 = pack_bytes(vec4<u32>(clamp(((sums.s2 + round) >> shift) + 128, vec4<i32>(0), vec4<i32>(255))), 2u);
+    let g3 = pack_bytes(vec4<u32>(clamp(((sums.s3 + round) >> shift) + 128, vec4<i32>(0), vec4<i32>(255))), 3u);
+    return Projected(vec4<u32>(g0.x, g1.x, g2.x, g3.x), g0.y + g1.y + g2.y + g3.y);
 }
 
 // The first (PCA_OUT + 3) / 4 words of a projection at word `at` of the level data or of the
@@ -365,13 +391,28 @@ fn factor(t: vec3<u32>) -> u32 {
 }
 
 // The best 2D candidate of plane a (x) and its unscaled distance (y).
+// The best 2D candidate so far: its entry in the tables, its distance and its scaled distance.
+struct Best2d {
+    entry: u32,
+    raw: u32,
+    d: u32,
+}
+
+// The 2D candidate at entry e of the tables scored against q: kept if closer than the best.
+fn score_2d(best: ptr<function, Best2d>, q: Projected, e: u32) {
+    let scale = tables[e + 1u];
+    let raw = q.squares + (scale >> SCALE_BITS) - 2u * cross(q, table_words(e + 2u));
+    let d = raw * (scale & SCALE_MASK);
+    if (d < (*best).d) {
+        *best = Best2d(e, raw, d);
+    }
+}
+
 fn best_2d(r: Around, a: u32, q: Projected) -> vec2<u32> {
     let table = tables[a];
     let entry = (2u + params.proj_words + 3u) & ~3u;
     // The best candidate's entry (its coordinate read once, after the search) and distances.
-    var best_entry = ABSENT;
-    var best_raw = 0u;
-    var best_d = 0xFFFFFFFFu;
+    var best = Best2d(ABSENT, 0u, 0xFFFFFFFFu);
     for (var dv = -1; dv <= 1; dv++) {
         for (var du = -1; du <= 1; du++) {
             // Coordinate a of the neighbour's triple (0 when its brick is not stored: only
@@ -388,24 +429,27 @@ fn best_2d(r: Around, a: u32, q: Projected) -> vec2<u32> {
             }
             let src = pack_coord(resolve_near(sx, params.ex_width, params.border), resolve_near(sy, params.ex_height, params.border));
             let list = table + (u32(coord_y(src)) * params.ex_width + u32(coord_x(src))) * K2D * entry;
-            for (var j = 0u; j < K2D; j++) {
-                let e = list + j * entry;
-                let scale = tables[e + 1u];
-                let raw = q.squares + (scale >> SCALE_BITS) - 2u * cross(q, table_words(e + 2u));
-                let d = raw * (scale & SCALE_MASK);
-                if (d < best_d) {
-                    best_d = d;
-                    best_entry = e;
-                    best_raw = raw;
-                }
+            // The list's candidates in order, written out up to four.
+            score_2d(&best, q, list);
+            if (K2D > 1u) {
+                score_2d(&best, q, list + entry);
+            }
+            if (K2D > 2u) {
+                score_2d(&best, q, list + 2u * entry);
+            }
+            if (K2D > 3u) {
+                score_2d(&best, q, list + 3u * entry);
+            }
+            for (var j = 4u; j < K2D; j++) {
+                score_2d(&best, q, list + j * entry);
             }
         }
     }
-    var best = 0u;
-    if (best_entry != ABSENT) {
-        best = tables[best_entry];
+    var coordinate = 0u;
+    if (best.entry != ABSENT) {
+        coordinate = tables[best.entry];
     }
-    return vec2<u32>(best, best_raw);
+    return vec2<u32>(coordinate, best.raw);
 }
 
 // rotate_from_shared of src/analysis/frame.rs.
