@@ -27,8 +27,8 @@ variant() {
 }
 
 variant proj1 \
-    $'    for (var dv = -2; dv <= 2; dv++) {\n        for (var du = -2; du <= 2; du++) {\n            // Absent voxels read as zero.' \
-    $'    for (var dv = 0; dv <= 0; dv++) {\n        for (var du = 0; du <= 0; du++) {\n            // Absent voxels read as zero.'
+    $'    for (var dv = -2; dv <= 2; dv++) {\n        for (var du = -2; du <= 2; du++) {\n            add_neighbour(' \
+    $'    for (var dv = 0; dv <= 0; dv++) {\n        for (var du = 0; du <= 0; du++) {\n            add_neighbour('
 variant no2d \
     $'    for (var dv = -1; dv <= 1; dv++) {\n        for (var du = -1; du <= 1; du++) {\n            // Coordinate a' \
     $'    for (var dv = 0; dv <= 0; dv++) {\n        for (var du = 0; du <= 0; du++) {\n            // Coordinate a'
