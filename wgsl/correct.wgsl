@@ -196,16 +196,17 @@ struct Sums {
 fn add_input(sums: ptr<function, Sums>, x: i32, row: u32) {
     let groups = (PCA_OUT + 3u) / 4u;
     if (PACKED_WEIGHTS) {
-        let low = projection.v[row];
-        (*sums).s0 += x * ((low << vec4<u32>(16u)) >> vec4<u32>(16u));
+        // Outputs 0..7 in the first vector's halves, 8..15 in the second's.
+        let first = projection.v[row];
+        (*sums).s0 += x * ((first << vec4<u32>(16u)) >> vec4<u32>(16u));
         if (groups > 1u) {
-            (*sums).s1 += x * (low >> vec4<u32>(16u));
+            (*sums).s1 += x * (first >> vec4<u32>(16u));
         }
         if (groups > 2u) {
-            let high = projection.v[row + 1u];
-            (*sums).s2 += x * ((high << vec4<u32>(16u)) >> vec4<u32>(16u));
+            let second = projection.v[row + 1u];
+            (*sums).s2 += x * ((second << vec4<u32>(16u)) >> vec4<u32>(16u));
             if (groups > 3u) {
-                (*sums).s3 += x * (high >> vec4<u32>(16u));
+                (*sums).s3 += x * (second >> vec4<u32>(16u));
             }
         }
     } else {
@@ -279,7 +280,8 @@ fn project_plane(r: Around, a: u32) -> Projected {
 
 // The first (PCA_OUT + 3) / 4 words of a projection at word `at` of the level data or of the
 // candidate tables, zero past them. Written out by word count, not as a loop over a vector's
-// components, which lavapipe addressed at run time.
+// components, which lavapipe addressed at run time. (Two functions for the two buffers: a WGSL
+// function cannot take a storage buffer as a parameter.)
 fn level_words(at: u32) -> vec4<u32> {
     let words = (PCA_OUT + 3u) / 4u;
     var p = vec4<u32>(level[at], 0u, 0u, 0u);
@@ -385,12 +387,11 @@ fn penalty(a: u32, c: u32) -> u32 {
 }
 
 // The scale of a triple's distance: 16 + the penalties of its three pixels (the scaled
-// distance stays below 2^32: at most 3 x 12 x 255^2 x (16 + 3 x 255)).
+// distance stays below 2^32: at most 3 x 16 x 255^2 x (16 + 3 x 255)).
 fn factor(t: vec3<u32>) -> u32 {
     return 16u + penalty(0u, t.x) + penalty(1u, t.y) + penalty(2u, t.z);
 }
 
-// The best 2D candidate of plane a (x) and its unscaled distance (y).
 // The best 2D candidate so far: its entry in the tables, its distance and its scaled distance.
 struct Best2d {
     entry: u32,
@@ -408,6 +409,7 @@ fn score_2d(best: ptr<function, Best2d>, q: Projected, e: u32) {
     }
 }
 
+// The best 2D candidate of plane a (x) and its unscaled distance (y).
 fn best_2d(r: Around, a: u32, q: Projected) -> vec2<u32> {
     let table = tables[a];
     let entry = (2u + params.proj_words + 3u) & ~3u;
@@ -501,8 +503,8 @@ fn search_3d(a: u32, pixel2d: u32, own_d: u32, q_next: Projected, q_last: Projec
     }
 }
 
-// The voxel at `pos` (which `r` surrounds) corrected: its new triple.
-fn correct_voxel(pos: vec3<i32>, r: Around) -> vec3<u32> {
+// The voxel `r` surrounds corrected: its new triple.
+fn correct_voxel(r: Around) -> vec3<u32> {
     let q0 = project_plane(r, 0u);
     let q1 = project_plane(r, 1u);
     let q2 = project_plane(r, 2u);
@@ -554,7 +556,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (r.own == ABSENT) {
         return; // never expected: the voxels the plan needs are stored
     }
-    let best = correct_voxel(pos, r);
+    let best = correct_voxel(r);
     let i = (r.own + u32(r.local.z * 16 + r.local.y * 4 + r.local.x)) * stride();
     state[i] = best.x;
     state[i + 1u] = best.y;

@@ -8,7 +8,8 @@
 //! for the L1 cache; the CPU backend had already gathered each candidate's data into one record
 //! (`Prepared` in src/cpu/correct/prepared.rs). These tables do the same for the GPU: every value is the
 //! one the kernel read before (the CPU reference still reads the level data, so the
-//! kernels-tests compare the two paths), only its place changes.
+//! kernels-tests compare the two paths), only its place changes; the one derived value is each
+//! candidate's p.p, summed into its scale word ([`scale_word`]).
 //!
 //! Layout (u32 words): a header of [`HEADER_WORDS`], then the tables.
 //! - header: the word offsets of plane a's 2D table (words 0..3) and of 3D candidate set s's table
@@ -180,4 +181,31 @@ pub fn candidate_tables(p: &LevelPack, slots: u32) -> Vec<u32> {
         }
     }
     words
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The kernel splits the scale word where the tables put the split.
+    #[test]
+    fn the_kernel_splits_the_scale_word_here() {
+        let source = crate::gpu::shaders::source("correct");
+        assert!(source.contains(&format!("const SCALE_BITS: u32 = {SCALE_BITS}u;")));
+    }
+
+    /// p.p counts a projection's first `dims` bytes only, and the word keeps the largest scale
+    /// and the largest p.p of two 16-dimensional projections apart.
+    #[test]
+    fn scale_words_hold_the_scale_and_the_squares() {
+        // Bytes 0xFF, 2, 3, 4, 5, 6, 0xFF, 0xFF (little-endian words).
+        let p = [0x0403_02FF_u32, 0xFFFF_0605];
+        let first6 = 255 * 255 + 4 + 9 + 16 + 25 + 36;
+        assert_eq!(squares(&p, 6), first6);
+        assert_eq!(squares(&p, 8), first6 + 2 * 255 * 255);
+        let (scale, pp) = (16 + 3 * 255, 2 * 16 * 255 * 255);
+        let word = scale_word(scale, pp);
+        assert_eq!(word & ((1 << SCALE_BITS) - 1), scale);
+        assert_eq!(word >> SCALE_BITS, pp);
+    }
 }

@@ -877,6 +877,21 @@ impl GpuSynth {
 
 #[cfg(test)]
 mod tests {
+    /// The kernel reads the projection uniform with the layout's constants.
+    #[test]
+    fn the_kernel_reads_the_projection_uniform_as_laid_out() {
+        let source = crate::gpu::shaders::source("correct");
+        for constant in [
+            format!("const PROJECTION_BASE: u32 = {}u;", super::PROJECTION_BASE),
+            format!(
+                "const PROJECTION_VECTORS: u32 = {}u;",
+                super::PROJECTION_VECTORS
+            ),
+        ] {
+            assert!(source.contains(&constant), "{constant}");
+        }
+    }
+
     /// Every (listed brick, class voxel) of a `correct` dispatch is one thread's,
     /// and no thread's twice, for blocks of 8 to 64 bricks and list counts around the grid's
     /// second row (65535 workgroups of 64 threads), where a stride from another thread count
