@@ -13,10 +13,15 @@ fn main() {
     if std::env::var_os("NODEVICE_SELECT").is_none() {
         std::env::set_var("NODEVICE_SELECT", "1");
     }
-    // llvmpipe's vector width (LP_NATIVE_VECTOR_WIDTH=512 on AVX-512 hosts unless set), here
-    // for the same reason.
-    solidsynth::gpu::context::prepare_driver_environment();
     let args = cli::Cli::parse();
+    // llvmpipe's vector width (LP_NATIVE_VECTOR_WIDTH=512 on AVX-512 hosts unless set, except
+    // for the render, which crashes llvmpipe at 512), here for the same reason (parsing starts
+    // no thread).
+    use solidsynth::gpu::context::{prepare_driver_environment_for, DriverUse};
+    prepare_driver_environment_for(match &args.command {
+        cli::Command::Lapped(cli::lapped::LappedCommand::Render(_)) => DriverUse::Rendering,
+        _ => DriverUse::Compute,
+    });
     // Output piped into a reader that quits early (`solidsynth eval ... | head`) ends the
     // process quietly, as for any Unix tool, instead of a panic in `println!` (Rust ignores
     // SIGPIPE by default). Files are unaffected: they are written to temporaries and renamed

@@ -81,8 +81,43 @@ fn new_instance() -> wgpu::Instance {
 /// that may read the environment from C (the binary does so first thing in `main`; otherwise the
 /// first GPU context calls it, while other threads may be running).
 pub fn prepare_driver_environment() {
+    prepare_driver_environment_for(DriverUse::Compute);
+}
+
+/// What a process asks of its GPU: compute kernels only, or also render pipelines (`lapped
+/// render`), which llvmpipe cannot compile at 512-bit vectors ([`RENDER_CRASHING_WIDTH`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum DriverUse {
+    Compute,
+    Rendering,
+}
+
+/// [`prepare_driver_environment`] for a process that renders too: llvmpipe keeps its own width
+/// (256 bits on AVX-512 hosts) unless the user chose one. The first call in a process decides.
+pub fn prepare_driver_environment_for(work: DriverUse) {
     static ONCE: std::sync::Once = std::sync::Once::new();
-    ONCE.call_once(prefer_full_width_cpu_vectors);
+    ONCE.call_once(|| {
+        if work == DriverUse::Compute {
+            prefer_full_width_cpu_vectors();
+        }
+    });
+}
+
+/// llvmpipe's adapter name at the vector width whose render pipelines crash it: Mesa 22.3.6
+/// (LLVM 15) and 26.2.6 (LLVM 22) both segfault in LLVM compiling `lapped_render`'s pipeline
+/// at 512 bits on the development machine's AMD EPYC (session 32), while every compute kernel
+/// here compiles and runs there. Found only then: until Mesa's shader cache was empty, the
+/// render's pipeline had been compiled at 256 bits before session 29 and read from the cache.
+pub const RENDER_CRASHING_WIDTH: &str = "512 bits";
+
+impl GpuContext {
+    /// Whether this device is llvmpipe at [`RENDER_CRASHING_WIDTH`] (render pipelines refuse
+    /// to run there rather than crash the process).
+    pub fn render_pipelines_crash(&self) -> bool {
+        self.info.device_type == wgpu::DeviceType::Cpu
+            && self.info.name.contains("llvmpipe")
+            && self.info.name.contains(RENDER_CRASHING_WIDTH)
+    }
 }
 
 /// Mesa's llvmpipe (lavapipe, the Vulkan device of GPU-less machines) runs a shader 8 lanes wide

@@ -67,6 +67,14 @@ pub fn render(
             format!("must be 16..={MAX_RENDER_SIZE}"),
         ));
     }
+    if gpu.render_pipelines_crash() {
+        return Err(Error::Gpu(format!(
+            "{} crashes compiling render pipelines at 512-bit vectors; run this process with \
+             LP_NATIVE_VECTOR_WIDTH=256 (the `solidsynth lapped render` command does so unless \
+             the variable is set)",
+            gpu.info.name
+        )));
+    }
     gpu.checked("lapped render", || render_inner(gpu, model, camera, size))
 }
 

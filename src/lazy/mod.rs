@@ -376,8 +376,11 @@ pub struct Synthesizer {
     /// Upper bound on chunk edges (None: as large as the backend allows).
     max_chunk_side: Option<u32>,
     /// Whether several groups share their coarse levels (see
-    /// [`Self::set_shared_coarse_levels`]); None: shared.
+    /// [`Self::set_shared_coarse_levels`]); None: `shared_coarse_default`.
     shared_coarse: Option<bool>,
+    /// Shared on the CPU backend and on GPUs that share the host's memory, not on GPUs with
+    /// their own memory.
+    shared_coarse_default: bool,
     /// Per-kernel times when profiling (each kernel then waits for the device).
     times: Option<exec::KernelTimes>,
     last_stats: Option<SynthStats>,
@@ -475,8 +478,10 @@ impl Synthesizer {
         }
         let table = jitter::table();
         let exec = exec::Executor::new(compute, &mut packs, &table)?;
+        let gpu_of_its_own = matches!(compute, Compute::Gpu(_)) && !compute.memory_is_hosts();
         Ok(Synthesizer {
-            overlap_reads: matches!(compute, Compute::Gpu(_)) && !compute.memory_is_hosts(),
+            overlap_reads: gpu_of_its_own,
+            shared_coarse_default: !gpu_of_its_own,
             deferring: false,
             overlapped_hand_overs: 0,
             params,
@@ -787,7 +792,7 @@ impl Synthesizer {
         let exact_of_all = exact;
         // The cache replaces the infinite solid's coarse levels already.
         let cached = self.params.coarse_cache.is_some() && matches!(periodic, Periodic::No);
-        let shared = self.shared_coarse.unwrap_or(true);
+        let shared = self.shared_coarse.unwrap_or(self.shared_coarse_default);
         if groups.len() > 1 && shared && !cached {
             self.for_each_group_shared(
                 &groups,
@@ -1184,9 +1189,14 @@ impl Synthesizer {
     /// over 512 pixels), and each group's
     /// parent state built on the host. A shared level is itself split into groups of the
     /// finest groups' extent, so [`Self::set_max_chunk_side`] bounds its working memory too.
-    /// Default: shared (since session 26 also when the groups are capped: a 256^3 box in
-    /// 64-voxel groups on the CPU backend took 20.7 s with each group's own coarse levels,
-    /// 15.3 s shared, for 6 MiB more). The result is the same either way.
+    /// Default: shared on the CPU backend and on GPUs that share the host's memory (since
+    /// session 26 also when the groups are capped: a 256^3 box in 64-voxel groups on the CPU
+    /// backend took 20.7 s with each group's own coarse levels, 15.3 s shared, for 6 MiB
+    /// more); not shared on a GPU with its own memory, where reading the shared levels back
+    /// and building each group's parents on the host cost more than the GPU's recomputed
+    /// padding (session 32 on an H200: 512^3 in eight groups 1.71-1.74 s shared, 1.13-1.22 s
+    /// not, 750 against 597 MiB; the bunny at 1024 in 16 groups 2.0 against 1.04-1.11 s).
+    /// The result is the same either way.
     pub fn set_shared_coarse_levels(&mut self, shared: bool) {
         self.shared_coarse = Some(shared);
     }
