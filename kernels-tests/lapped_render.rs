@@ -113,6 +113,12 @@ fn lapped_render_matches_the_ray_cast() {
         let camera = Camera::orbit(&model, "30,20").unwrap();
         let refused = render(gpu, &model, &camera, 96).unwrap_err().to_string();
         assert!(refused.contains("LP_NATIVE_VECTOR_WIDTH=256"), "{refused}");
+        // (The child must not refuse and spawn again.)
+        assert!(
+            std::env::var("LP_NATIVE_VECTOR_WIDTH").as_deref() != Ok("256"),
+            "llvmpipe still runs 512 bits wide at LP_NATIVE_VECTOR_WIDTH=256: {}",
+            gpu.describe()
+        );
         let out = std::process::Command::new(std::env::current_exe().unwrap())
             .args([
                 "lapped_render::lapped_render_matches_the_ray_cast",

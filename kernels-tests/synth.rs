@@ -281,6 +281,8 @@ fn synthesis_kernels_bit_exact_on_gpu_and_cpu() {
         ..Default::default()
     };
     same_on_both("shared coarse levels, twice", &a, &params, &gpu, |s| {
+        // (Not shared by default on a GPU with its own memory.)
+        s.set_shared_coarse_levels(true);
         s.set_max_chunk_side(16);
         let mut v = s
             .synthesize(Box3::new([-9, -3, 0], [20, 12, 24]), &|_, _| {})

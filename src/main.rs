@@ -14,7 +14,7 @@ fn main() {
         std::env::set_var("NODEVICE_SELECT", "1");
     }
     let args = cli::Cli::parse();
-    // llvmpipe's vector width (LP_NATIVE_VECTOR_WIDTH=512 on AVX-512 hosts unless set, except
+    // llvmpipe's vector width (LP_NATIVE_VECTOR_WIDTH=512 on AVX-512 hosts unless set; 256
     // for the render, which crashes llvmpipe at 512), here for the same reason (parsing starts
     // no thread).
     use solidsynth::gpu::context::{prepare_driver_environment_for, DriverUse};

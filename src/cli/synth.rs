@@ -285,7 +285,9 @@ pub fn check_memory(what: &str, b: Box3, args: &SolidArgs) -> solidsynth::Result
 /// Bytes of the shared coarse levels (see `Synthesizer::set_shared_coarse_levels`) of a
 /// request of `finest_voxels` finest-level voxels (padding included) whose groups' working sets
 /// are `group_working` bytes: held only when the request takes several groups, counted
-/// whenever it may (without the coarse cache). The parent level's triples (6
+/// whenever it may (without the coarse cache), so also for a GPU with its own memory, which
+/// does not share them (the estimate runs before the device is opened: an over-estimate
+/// there of about 2 bytes per voxel). The parent level's triples (6
 /// or, for exemplars over 512 pixels, 12 bytes per voxel, an eighth of the finest voxels, and
 /// the level below it while it is built: at most 1.7 bytes per finest voxel, 2 with the
 /// padding) and one group's parent state built on the host (an

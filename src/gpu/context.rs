@@ -92,15 +92,25 @@ pub enum DriverUse {
     Rendering,
 }
 
-/// [`prepare_driver_environment`] for a process that renders too: llvmpipe keeps its own width
-/// (256 bits on AVX-512 hosts) unless the user chose one. The first call in a process decides.
+/// [`prepare_driver_environment`] for a process that renders too: llvmpipe runs 256 bits wide
+/// (Mesa's own choice on AVX-512 hosts, set explicitly there) unless the user chose a width.
+/// The first call in a process decides (later ones, and the first GPU context's implicit
+/// `Compute` call, change nothing): call it before any GPU context exists.
 pub fn prepare_driver_environment_for(work: DriverUse) {
     static ONCE: std::sync::Once = std::sync::Once::new();
-    ONCE.call_once(|| {
-        if work == DriverUse::Compute {
-            prefer_full_width_cpu_vectors();
-        }
+    ONCE.call_once(|| match work {
+        DriverUse::Compute => prefer_full_width_cpu_vectors(),
+        DriverUse::Rendering => render_safe_cpu_vectors(),
     });
+}
+
+/// llvmpipe at 256 bits on an AVX-512 host, unless the user set a width: not relying on Mesa's
+/// default staying there ([`RENDER_CRASHING_WIDTH`]).
+fn render_safe_cpu_vectors() {
+    const VARIABLE: &str = "LP_NATIVE_VECTOR_WIDTH";
+    if std::env::var_os(VARIABLE).is_none() && has_avx512() {
+        std::env::set_var(VARIABLE, "256");
+    }
 }
 
 /// llvmpipe's adapter name at the vector width whose render pipelines crash it: Mesa 22.3.6

@@ -70,8 +70,9 @@ pub fn render(
     if gpu.render_pipelines_crash() {
         return Err(Error::Gpu(format!(
             "{} crashes compiling render pipelines at 512-bit vectors; run this process with \
-             LP_NATIVE_VECTOR_WIDTH=256 (the `solidsynth lapped render` command does so unless \
-             the variable is set)",
+             LP_NATIVE_VECTOR_WIDTH=256 (the `solidsynth lapped render` command sets it unless \
+             the variable is set; a program calls \
+             `prepare_driver_environment_for(DriverUse::Rendering)` before its first GPU context)",
             gpu.info.name
         )));
     }

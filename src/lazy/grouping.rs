@@ -36,88 +36,98 @@ pub fn planned_state_bytes(extent: [u64; 3], passes: &[usize], stride_bytes: &[u
         .unwrap_or(0)
 }
 
-/// The side (voxels) of the cubes to split `all` into: `cap`, unless some cube's state
-/// (`state_bytes` of its brick-aligned extent) would exceed `limit` bytes; then the largest side
-/// that a dense cube's state fits (at least 8), evened out over the request ([`even_side`]).
-/// Sides between the two are tried by halving `cap`: a thin request (a cut, a flat box) fills
-/// little of a cube, and each group's bounding box is what must fit. Fewer groups recompute
-/// less padding and make fewer round trips (a 256^2 cut on lavapipe's 128 MiB buffers: one
-/// group instead of four).
-pub fn cube_side(
+/// The sides (voxels, per axis) of the boxes to split `all` into: cubes of `cap`, unless some
+/// cube's state (`state_bytes` of its brick-aligned extent) would exceed `limit` bytes; then
+/// cubes of the largest side that a dense cube's state fits (at least 8). Sides between the two
+/// are tried by halving `cap`: a thin request (a cut, a flat box) fills little of a cube, and
+/// each group's bounding box is what must fit. Fewer groups recompute less padding and make
+/// fewer round trips (a 256^2 cut on lavapipe's 128 MiB buffers: one group instead of four).
+/// Where the cap does not fit, the cubes are then evened out over the request ([`even_sides`]);
+/// a sparse request's only where the even boxes still fit and are no more groups.
+pub fn group_sides(
     all: &[Brick],
     cap: u32,
     limit: u64,
     state_bytes: impl Fn([u64; 3]) -> u64,
-) -> u32 {
+) -> [u32; 3] {
     let mut dense = cap;
     while dense > 8 && state_bytes([dense as u64; 3]) > limit {
         dense -= 8;
     }
-    let fits = |side: u32| {
-        cube_bounds(all, side).values().all(|(lo, hi)| {
+    let fits = |bounds: &HashMap<[i32; 3], (Brick, Brick)>| {
+        bounds.values().all(|(lo, hi)| {
             let extent = [0, 1, 2].map(|i| ((hi[i] - lo[i] + 1) * BRICK) as u64);
             state_bytes(extent) <= limit
         })
     };
     let mut side = cap;
     while side > dense {
-        if fits(side) {
-            // A sparse request's cubes fit by their contents: equal smaller ones need not.
-            let even = even_side(all, side);
-            return if even < side && fits(even) {
+        let cubes = cube_bounds(all, [side; 3]);
+        if fits(&cubes) {
+            // A sparse request's cubes fit by their contents: smaller boxes need not, and
+            // on a surface they may be more groups (each non-empty where a cube's corner was).
+            let even = even_sides(all, side);
+            let boxes = cube_bounds(all, even);
+            return if fits(&boxes) && boxes.len() <= cubes.len() {
                 even
             } else {
-                side
+                [side; 3]
             };
         }
         side /= 2;
     }
-    // Any cube up to a dense one fits.
-    even_side(all, dense)
-}
-
-/// The side, at most `largest`, that splits the request's bounding box into as few cubes per
-/// axis as `largest` does, but of equal size: 512^3 in cubes of at most 488 voxels becomes
-/// eight cubes of 256, not one of 488 and seven slivers of 24 that each recompute a full
-/// padding. Equal groups also let a GPU synthesize one while the host takes the previous one's
-/// colours (the NRRD's slabs, a surface's atlas): on an H200, 512^3 took 1.4-1.5 s in groups of
-/// 256 against 2.0 s in the uneven ones (session 32).
-fn even_side(all: &[Brick], largest: u32) -> u32 {
-    let Some((lo, hi)) = bricks::bounds(all) else {
-        return largest;
-    };
-    let most = cube_bricks(largest) as u32;
-    let extents = (0..3).map(|i| (hi[i] - lo[i] + 1) as u32);
-    if extents.clone().all(|e| e <= most) {
-        return largest;
+    if dense == cap {
+        // The cap fits: cubes of it, as asked (`--max-group`).
+        return [cap; 3];
     }
-    // Each axis in as few cubes as `largest` allows; an axis in one cube keeps its extent.
-    let side = extents
-        .map(|e| e.div_ceil(e.div_ceil(most)))
-        .max()
-        .unwrap_or(most);
-    side * BRICK as u32
+    // Any box within a dense cube fits.
+    even_sides(all, dense)
 }
 
-/// `all` (sorted) split into cubes of `side` voxels (rounded down to whole bricks, at least
-/// one), cube keys in (z, y, x) order, each cube's bricks in `all`'s order.
-pub fn cubes(all: &[Brick], side: u32) -> Vec<Vec<Brick>> {
-    let cube = cube_bricks(side);
+/// Sides, each at most `largest` (in whole bricks), that split the request's bounding box into
+/// as few boxes per axis as cubes of `largest` do, but of equal size: 512^3 in cubes of at most
+/// 488 voxels becomes eight cubes of 256, not one of 488 and seven slivers of 24 that each
+/// recompute a full padding, and 600 x 400 x 400 two boxes of 300 x 400 x 400. Equal groups
+/// also let a GPU synthesize one while the host takes the previous one's colours (the NRRD's
+/// slabs, a surface's atlas): on an H200, 512^3 took 1.71-1.74 s in groups of 256 against
+/// 2.0 s in the uneven ones, with shared coarse levels (session 32).
+fn even_sides(all: &[Brick], largest: u32) -> [u32; 3] {
+    let most = cube_bricks(largest);
+    let Some((lo, hi)) = bricks::bounds(all) else {
+        return [largest; 3];
+    };
+    [0, 1, 2].map(|i| {
+        let extent = (hi[i] - lo[i] + 1) as u32;
+        let boxes = extent.div_ceil(most as u32);
+        // (An axis in one box keeps the whole side: any side past its extent is the same.)
+        let bricks = if boxes == 1 {
+            most as u32
+        } else {
+            extent.div_ceil(boxes)
+        };
+        bricks * BRICK as u32
+    })
+}
+
+/// `all` (sorted) split into boxes of `sides` voxels (each rounded down to whole bricks, at
+/// least one), box keys in (z, y, x) order, each box's bricks in `all`'s order.
+pub fn cubes(all: &[Brick], sides: [u32; 3]) -> Vec<Vec<Brick>> {
+    let size = sides.map(cube_bricks);
     let origin = origin(all);
     let mut map: BTreeMap<[i32; 3], Vec<Brick>> = Default::default();
     for b in all {
-        map.entry(cube_key(*b, origin, cube)).or_default().push(*b);
+        map.entry(cube_key(*b, origin, size)).or_default().push(*b);
     }
     map.into_values().collect()
 }
 
-/// Each cube's bounding box of bricks (inclusive), as [`cubes`] would split `all`.
-fn cube_bounds(all: &[Brick], side: u32) -> HashMap<[i32; 3], (Brick, Brick)> {
-    let cube = cube_bricks(side);
+/// Each box's bounding box of bricks (inclusive), as [`cubes`] would split `all`.
+fn cube_bounds(all: &[Brick], sides: [u32; 3]) -> HashMap<[i32; 3], (Brick, Brick)> {
+    let size = sides.map(cube_bricks);
     let origin = origin(all);
     let mut map: HashMap<[i32; 3], (Brick, Brick)> = Default::default();
     for b in all {
-        map.entry(cube_key(*b, origin, cube))
+        map.entry(cube_key(*b, origin, size))
             .and_modify(|(lo, hi)| {
                 *lo = [0, 1, 2].map(|i| lo[i].min(b[i]));
                 *hi = [0, 1, 2].map(|i| hi[i].max(b[i]));
@@ -131,14 +141,14 @@ fn cube_bricks(side: u32) -> i32 {
     (side as i32 / BRICK).max(1)
 }
 
-/// Cubes start at the request's low corner, so a request that fits in one cube is one group
+/// Boxes start at the request's low corner, so a request that fits in one box is one group
 /// wherever it lies.
 fn origin(all: &[Brick]) -> Brick {
     bricks::bounds(all).map_or([0; 3], |(lo, _)| lo)
 }
 
-fn cube_key(b: Brick, origin: Brick, cube: i32) -> [i32; 3] {
-    let key = [0, 1, 2].map(|i| (b[i] - origin[i]).div_euclid(cube));
+fn cube_key(b: Brick, origin: Brick, size: [i32; 3]) -> [i32; 3] {
+    let key = [0, 1, 2].map(|i| (b[i] - origin[i]).div_euclid(size[i]));
     [key[2], key[1], key[0]]
 }
 
@@ -169,16 +179,19 @@ mod tests {
         // A dense 184^3 cube with its padding is the largest that fits 128 MiB; 512 voxels
         // take three of those a side, evened out to 172.
         assert!(two_passes([184; 3]) <= limit && two_passes([192; 3]) > limit);
-        assert_eq!(cube_side(&slab(128, 128, 128), 512, limit, two_passes), 172);
+        assert_eq!(
+            group_sides(&slab(128, 128, 128), 512, limit, two_passes),
+            [172; 3]
+        );
         // A 256^2 cut one brick thick: its padded box fits.
         let cut = slab(64, 64, 1);
-        assert_eq!(cube_side(&cut, 512, limit, two_passes), 512);
-        assert_eq!(cubes(&cut, 512).len(), 1);
+        assert_eq!(group_sides(&cut, 512, limit, two_passes), [512; 3]);
+        assert_eq!(cubes(&cut, [512; 3]).len(), 1);
         // 512 wide and 16 thick does not fit whole; its 256 x 256 quarters do.
         let wide = slab(128, 128, 4);
         assert!(two_passes([512, 512, 16]) > limit);
-        assert_eq!(cube_side(&wide, 512, limit, two_passes), 256);
-        assert_eq!(cubes(&wide, 256).len(), 4);
+        assert_eq!(group_sides(&wide, 512, limit, two_passes), [256; 3]);
+        assert_eq!(cubes(&wide, [256; 3]).len(), 4);
     }
 
     #[test]
@@ -192,7 +205,7 @@ mod tests {
         let four = |e: [u64; 3]| planned_state_bytes(e, &[2, 2, 2, 4], &[16; 4]);
         assert!(four([64; 3]) > b);
         let limit = 128 << 20;
-        assert!(cube_side(&slab(128, 128, 128), 512, limit, four) < 184);
+        assert!(group_sides(&slab(128, 128, 128), 512, limit, four)[0] < 172);
         // No passes: the storage is the box itself (plus the brick rounding).
         let none = planned_state_bytes([64; 3], &[0; 4], &[16; 4]);
         assert_eq!(none, 17u64.pow(3) * 64 * 16);
@@ -204,38 +217,52 @@ mod tests {
         let fits_488 = |e: [u64; 3]| e.iter().product::<u64>();
         let limit = 488u64.pow(3);
         let all = slab(128, 128, 128);
-        assert_eq!(cube_side(&all, 512, limit, fits_488), 256);
-        let groups = cubes(&all, 256);
+        assert_eq!(group_sides(&all, 512, limit, fits_488), [256; 3]);
+        let groups = cubes(&all, [256; 3]);
         assert_eq!(groups.len(), 8);
         assert!(groups.iter().all(|g| g.len() == 64 * 64 * 64));
-        // Uneven extents: each axis split as few times as the largest side allows, an axis in
-        // one cube keeps its extent.
+        // Uneven extents (whose cubes of 512 fit: 512 x 400 x 400 and a slab): each axis split
+        // as few times as the cubes split it, into equal parts.
         let long = slab(150, 100, 100);
-        let side = cube_side(&long, 512, limit, fits_488);
-        assert_eq!(side, 400, "600 voxels in two cubes of 300, 400 in one");
-        assert_eq!(cubes(&long, side).len(), 2);
+        let sides = group_sides(&long, 512, limit, fits_488);
+        assert_eq!(sides, [300, 512, 512], "600 in two of 300, 400 in one");
+        let groups = cubes(&long, sides);
+        assert_eq!(groups.len(), 2);
+        assert!(groups.iter().all(|g| g.len() == 75 * 100 * 100));
         // A thin request whose cubes fit by their contents (a dense cube of 128 at most): its
         // 512-voxel cubes evened out too.
         let thin = slab(150, 150, 2);
         let limit = 512 * 512 * 8 + 1;
         assert!(fits_488([136; 3]) > limit);
-        assert_eq!(cube_side(&thin, 512, limit, fits_488), 300);
-        assert_eq!(cubes(&thin, 300).len(), 4);
+        assert_eq!(group_sides(&thin, 512, limit, fits_488), [300, 300, 512]);
+        assert_eq!(cubes(&thin, [300, 300, 512]).len(), 4);
+        // Not where the even boxes would be more groups: an L of bricks in a 600^2 square is
+        // three cubes of 512 (the far corner's is empty) but four boxes of 300.
+        let mut corner: Vec<Brick> = slab(150, 150, 1)
+            .into_iter()
+            .filter(|b| b[0] < 128 || b[1] < 128)
+            .collect();
+        corner.sort_by_key(|b| (b[2], b[1], b[0]));
+        let sides = group_sides(&corner, 512, limit, fits_488);
+        assert_eq!(cubes(&corner, sides).len(), 3, "{sides:?}");
     }
 
     #[test]
     fn the_cap_and_the_smallest_side_hold() {
         // A user's cap is never exceeded, even when a larger cube would fit.
-        assert_eq!(cube_side(&slab(8, 8, 1), 64, 128 << 20, two_passes), 64);
+        assert_eq!(
+            group_sides(&slab(8, 8, 1), 64, 128 << 20, two_passes),
+            [64; 3]
+        );
         // A limit too small for anything still gives whole bricks.
-        assert_eq!(cube_side(&slab(8, 8, 8), 512, 1, two_passes), 8);
-        assert_eq!(cubes(&slab(8, 8, 8), 8).len(), 8 * 8 * 8 / 8);
+        assert_eq!(group_sides(&slab(8, 8, 8), 512, 1, two_passes), [8; 3]);
+        assert_eq!(cubes(&slab(8, 8, 8), [8; 3]).len(), 8 * 8 * 8 / 8);
     }
 
     #[test]
     fn cubes_keep_every_brick_once_in_z_y_x_order() {
         let all = slab(10, 6, 3);
-        let groups = cubes(&all, 16);
+        let groups = cubes(&all, [16; 3]);
         let mut seen: Vec<Brick> = groups.concat();
         assert_eq!(seen.len(), all.len());
         seen.sort_by_key(|b| (b[2], b[1], b[0]));

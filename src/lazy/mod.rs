@@ -478,10 +478,10 @@ impl Synthesizer {
         }
         let table = jitter::table();
         let exec = exec::Executor::new(compute, &mut packs, &table)?;
-        let gpu_of_its_own = matches!(compute, Compute::Gpu(_)) && !compute.memory_is_hosts();
+        let own_memory_gpu = matches!(compute, Compute::Gpu(_)) && !compute.memory_is_hosts();
         Ok(Synthesizer {
-            overlap_reads: gpu_of_its_own,
-            shared_coarse_default: !gpu_of_its_own,
+            overlap_reads: own_memory_gpu,
+            shared_coarse_default: !own_memory_gpu,
             deferring: false,
             overlapped_hand_overs: 0,
             params,
@@ -1206,11 +1206,12 @@ impl Synthesizer {
         (n as u64).pow(3) * (3 + self.packs[pack].pixel_words as u64) * 4
     }
 
-    /// Split sorted bricks into groups (cubes of bricks) whose working set fits the backend
-    /// ([`grouping::cube_side`]).
+    /// Split sorted bricks into groups (boxes of bricks) whose working set fits the backend
+    /// ([`grouping::group_sides`]).
     /// `coarser_by`: how many levels above the finest the bricks are; the default 512-voxel
-    /// cap then spans the same space as a finest-level group (so a shared coarse level is
-    /// split like the finest level above it, and its memory stays that of a finest group).
+    /// cap then spans the same space as a finest-level group (so a shared coarse level's
+    /// groups are no larger than the finest level's above it, and its memory stays bounded
+    /// like a finest group's; each level is evened over its own bounding box).
     fn groups(&self, all: &[Brick], coarser_by: usize) -> Vec<Vec<Brick>> {
         let cap = self.max_chunk_side.unwrap_or(512 >> coarser_by).min(512);
         // The levels up to the bricks' own, with this schedule and these strides.
@@ -1221,8 +1222,8 @@ impl Synthesizer {
             .map(|p| (3 + p.pixel_words as u64) * 4)
             .collect();
         let bound = |extent| grouping::planned_state_bytes(extent, passes, &strides);
-        let side = grouping::cube_side(all, cap, self.state_limit(), bound);
-        grouping::cubes(all, side)
+        let sides = grouping::group_sides(all, cap, self.state_limit(), bound);
+        grouping::cubes(all, sides)
     }
 
     /// The plan of the whole request `all` as one group, when its sparse state fits the
@@ -1234,7 +1235,7 @@ impl Synthesizer {
     /// voxels instead of 2.64 M in five groups).
     fn planned_one_group(&self, all: &[Brick], exact: Option<Box3>) -> Option<Vec<SparseLevel>> {
         let cap = self.max_chunk_side.unwrap_or(512).min(512);
-        if grouping::cubes(all, cap).len() != 1 {
+        if grouping::cubes(all, [cap; 3]).len() != 1 {
             return None;
         }
         let passes = self.params.passes.levels();
