@@ -441,6 +441,35 @@ fn cli_fill_cut_bake() {
             "the sphere covers the centre"
         );
         assert_eq!(img.get_pixel(0, 0)[3], 0, "background is transparent");
+        // `bench lapped --render` starts the render as a child process, which must choose its
+        // own llvmpipe width rather than inherit the 512 bits the bench set for itself (which
+        // the render refuses): session 32.
+        let kiwi = f.dir.path().join("kiwi.nrrd");
+        let out = run(&["lapped", "exemplar", "--kind", "kiwi", "-o", p(&kiwi)]);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let out = run(&[
+            "bench",
+            "lapped",
+            "--resolution",
+            "4",
+            "--exemplar",
+            p(&kiwi),
+            "--runs",
+            "1",
+            "--cuts",
+            "1",
+            "--render",
+        ]);
+        let printed = String::from_utf8_lossy(&out.stdout);
+        assert!(
+            out.status.success() && printed.contains("render 1024x1024"),
+            "{printed}{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
     } else {
         assert!(
             std::env::var_os("CI").is_none() && err.contains("no Vulkan adapter"),

@@ -143,6 +143,20 @@ fn prefer_full_width_cpu_vectors() {
         return;
     }
     std::env::set_var(VARIABLE, "512");
+    WIDTH_SET_HERE.store(true, std::sync::atomic::Ordering::Relaxed);
+}
+
+/// Whether this process set `LP_NATIVE_VECTOR_WIDTH` itself ([`prefer_full_width_cpu_vectors`]).
+static WIDTH_SET_HERE: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+/// A child process gets the user's driver environment, not what this process set for itself:
+/// a `lapped render` started by `bench lapped --render` must choose its own width (a width it
+/// inherits counts as the user's, and llvmpipe's render refuses 512 bits).
+pub fn user_driver_environment(child: &mut std::process::Command) -> &mut std::process::Command {
+    if WIDTH_SET_HERE.load(std::sync::atomic::Ordering::Relaxed) {
+        child.env_remove("LP_NATIVE_VECTOR_WIDTH");
+    }
+    child
 }
 
 /// Whether the CPU has the AVX-512 subsets LLVM uses for 16-lane integer vectors.
