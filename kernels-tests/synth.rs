@@ -114,7 +114,17 @@ fn synthesis_kernels_bit_exact_on_gpu_and_cpu() {
         s.synthesize(thin, &|_, _| {}).unwrap()
     });
     // Four channels (RGB + feature: one value word per voxel) and five (RGBA + feature: two
-    // words; the CPU correction reads those through the brick index, not a window).
+    // words; the CPU correction reads those through the brick index, not a window). Also with
+    // the projection weights as bytes (`GpuOptions::byte_weights`, for packed dot products on
+    // hardware GPUs): one pixel word, and two with three bytes past the channels.
+    let bytes_gpu = Compute::open(
+        BackendChoice::Gpu,
+        &GpuOptions {
+            byte_weights: true,
+            ..GpuOptions::from_env()
+        },
+    )
+    .unwrap();
     for rgba in [false, true] {
         let cells = fixture(include_bytes!("../tests/fixtures/cells32.png"));
         let exemplar = if rgba {
@@ -149,6 +159,10 @@ fn synthesis_kernels_bit_exact_on_gpu_and_cpu() {
         };
         let b = Box3::new([-3, 5, 0], [9, 13, 10]);
         same_on_both(&format!("feature, rgba={rgba}"), &a, &params, &gpu, |s| {
+            s.synthesize(b, &|_, _| {}).unwrap()
+        });
+        let what = format!("feature, rgba={rgba}, byte weights");
+        same_on_both(&what, &a, &params, &bytes_gpu, |s| {
             s.synthesize(b, &|_, _| {}).unwrap()
         });
         if rgba {

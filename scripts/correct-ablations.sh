@@ -7,7 +7,8 @@
 #   scripts/correct-ablations.sh OUTDIR
 #
 # writes OUTDIR/NAME/correct.wgsl (prelude included) for NAME in
-#   proj1   the projection reads one neighbour per plane instead of 25
+#   proj1   the projection reads one neighbour per plane instead of 25 (the default weight
+#           layout, halves; with SOLIDSYNTH_WEIGHT_LAYOUT=bytes it is not shortened)
 #   no2d    the 2D search looks at the voxel's own candidates only, not its 8 neighbours'
 #   no3d    no 3D search (the three best 2D coordinates are taken)
 #   empty   the kernel returns before any work (dispatch overhead)
@@ -27,8 +28,8 @@ variant() {
 }
 
 variant proj1 \
-    $'    for (var dv = -2; dv <= 2; dv++) {\n        for (var du = -2; du <= 2; du++) {\n            add_neighbour(' \
-    $'    for (var dv = 0; dv <= 0; dv++) {\n        for (var du = 0; du <= 0; du++) {\n            add_neighbour('
+    $'        for (var dv = -2; dv <= 2; dv++) {\n            for (var du = -2; du <= 2; du++) {\n                add_neighbour(' \
+    $'        for (var dv = 0; dv <= 0; dv++) {\n            for (var du = 0; du <= 0; du++) {\n                add_neighbour('
 variant no2d \
     $'    for (var dv = -1; dv <= 1; dv++) {\n        for (var du = -1; du <= 1; du++) {\n            // Coordinate a' \
     $'    for (var dv = 0; dv <= 0; dv++) {\n        for (var du = 0; du <= 0; du++) {\n            // Coordinate a'

@@ -30,8 +30,11 @@ struct CorrectParams {
 override CHANNELS: u32 = 3u;
 override PCA_OUT: u32 = 8u;
 override K2D: u32 = 2u;
-// Whether the projection weights come two 16-bit halves to a word (see `ProjectionWeights`).
-override PACKED_WEIGHTS: bool = false;
+// How the projection weights are laid out (see `ProjectionWeights`): PLAIN, HALVES or BYTES.
+override WEIGHT_LAYOUT: u32 = 0u;
+const PLAIN: u32 = 0u;
+const HALVES: u32 = 1u;
+const BYTES: u32 = 2u;
 // Listed bricks per block of the k-major thread layout (`class_voxel`): 16 on a CPU device with
 // 16-lane subgroups (lavapipe at 512 bits, whose lanes' neighbour lookups then agree), else 8
 // (`block_bricks` in src/gpu/synth.rs; `SOLIDSYNTH_BLOCK_BRICKS` overrides it).
@@ -151,11 +154,19 @@ fn neighbour_word(s: u32, w: u32, own: bool, same_class: bool) -> u32 {
 // storage buffer they took ~45% of the kernel on lavapipe, from here about a quarter (lavapipe
 // still reads them lane by lane, their index coming from a loop counter; unrolling the loops to
 // make it constant compiled for seconds and ran slower). Vector g of plane a's bias is v[a * 4 + g]
-// (outputs 4g..4g+3: sum_i mean_i * weight_ji). Input i's weights start at vector
-// PROJECTION_BASE + (a * pca_in + i) * per_input: unpacked, per_input = ceil(PCA_OUT / 4) vectors
-// of outputs 4g..4g+3; with PACKED_WEIGHTS (every weight fits 16 bits), ceil(PCA_OUT / 8) vectors,
-// vector h holding outputs 8h..8h+3 in its low halves and 8h+4..8h+7 in its high halves (half
-// the reads, which lavapipe makes lane by lane).
+// (outputs 4g..4g+3: sum_i mean_i * w_ji). The weights start at vector PROJECTION_BASE, laid out
+// as WEIGHT_LAYOUT says:
+// - PLAIN: input i's weights in per_input = ceil(PCA_OUT / 4) vectors from
+//   PROJECTION_BASE + (a * pca_in + i) * per_input, vector g holding outputs 4g..4g+3.
+// - HALVES (every weight fits 16 bits): the same with per_input = ceil(PCA_OUT / 8), vector h
+//   holding outputs 8h..8h+3 in its low halves and 8h+4..8h+7 in its high halves (half the reads,
+//   which lavapipe makes lane by lane). The default where the weights fit.
+// - BYTES (every weight fits 16 bits): per plane, neighbour and pixel word, 2 * groups vectors
+//   (groups = ceil(PCA_OUT / 4)): the high bytes, then the low bytes, of w + 32768 for the word's
+//   four channels, component j % 4 of vector j / 4 for output j (`add_word`). For packed byte dot
+//   products: on lavapipe 1.3x slower than HALVES (BENCHMARKS.md, session 33), where llvmpipe
+//   expands each dot product while it runs HALVES' multiply-adds as AVX-512 VNNI; for hardware
+//   GPUs with a native 4x8-bit dot product, chosen by `SOLIDSYNTH_WEIGHT_LAYOUT=bytes`.
 const PROJECTION_BASE: u32 = 12u;
 const PROJECTION_VECTORS: u32 = 4096u;
 struct ProjectionWeights {
@@ -192,10 +203,11 @@ struct Sums {
     s3: vec4<i32>,
 }
 
-// Input byte x times its weights (from vector `row` of the projection uniform) added to the sums.
+// Input byte x times its weights (from vector `row` of the projection uniform, PLAIN or
+// HALVES) added to the sums.
 fn add_input(sums: ptr<function, Sums>, x: i32, row: u32) {
     let groups = (PCA_OUT + 3u) / 4u;
-    if (PACKED_WEIGHTS) {
+    if (WEIGHT_LAYOUT == HALVES) {
         // Outputs 0..7 in the first vector's halves, 8..15 in the second's.
         let first = projection.v[row];
         (*sums).s0 += x * ((first << vec4<u32>(16u)) >> vec4<u32>(16u));
@@ -220,6 +232,74 @@ fn add_input(sums: ptr<function, Sums>, x: i32, row: u32) {
         if (groups > 3u) {
             (*sums).s3 += x * projection.v[row + 3u];
         }
+    }
+}
+
+// The projection's sums over byte weights: with W = w + 32768 = 256 H + L per weight,
+// sum_i x_i w_i = 256 sum_i x_i H_i + sum_i x_i L_i - 32768 sum_i x_i, each sum taken four
+// channels at a time as a packed byte dot product of a pixel word (bytes past the channels have
+// H 0x80 and L 0: they cancel). Outputs 4g..4g+3 in high_g and low_g; wrapping u32 sums, as the
+// plain layout's. Against multiplying byte by byte with 16-bit weights: 17 dot products per
+// neighbour (three channels, eight outputs) instead of 24 multiply-adds and their unpacking.
+struct ByteSums {
+    high0: vec4<u32>,
+    high1: vec4<u32>,
+    high2: vec4<u32>,
+    high3: vec4<u32>,
+    low0: vec4<u32>,
+    low1: vec4<u32>,
+    low2: vec4<u32>,
+    low3: vec4<u32>,
+    bytes: u32,
+}
+
+// The four dot products of pixel word x with the four byte-weight words of w.
+fn dot_weights(x: u32, w: vec4<i32>) -> vec4<u32> {
+    let v = bitcast<vec4<u32>>(w);
+    return vec4<u32>(dot4U8Packed(x, v.x), dot4U8Packed(x, v.y), dot4U8Packed(x, v.z),
+        dot4U8Packed(x, v.w));
+}
+
+// Pixel word x of a neighbour added to the sums with its byte weights from vector `row`.
+fn add_word(sums: ptr<function, ByteSums>, x: u32, row: u32) {
+    let groups = (PCA_OUT + 3u) / 4u;
+    let low = row + groups;
+    (*sums).high0 += dot_weights(x, projection.v[row]);
+    (*sums).low0 += dot_weights(x, projection.v[low]);
+    if (groups > 1u) {
+        (*sums).high1 += dot_weights(x, projection.v[row + 1u]);
+        (*sums).low1 += dot_weights(x, projection.v[low + 1u]);
+    }
+    if (groups > 2u) {
+        (*sums).high2 += dot_weights(x, projection.v[row + 2u]);
+        (*sums).low2 += dot_weights(x, projection.v[low + 2u]);
+    }
+    if (groups > 3u) {
+        (*sums).high3 += dot_weights(x, projection.v[row + 3u]);
+        (*sums).low3 += dot_weights(x, projection.v[low + 3u]);
+    }
+    (*sums).bytes += dot4U8Packed(x, 0x01010101u);
+}
+
+// The voxel at (du, dv) in plane a of the voxel `r` surrounds, its pixel words added to the
+// byte sums (weights from vector `row`, 2 * groups vectors per word). Absent voxels read as zero.
+fn add_neighbour_words(sums: ptr<function, ByteSums>, r: Around, a: u32, du: i32, dv: i32, row: u32) {
+    let s = plane_neighbour(r, a, du, dv);
+    let own = in_own_brick(r, a, du, dv);
+    let same_class = ((du | dv) & 1) == 0;
+    let per_word = 2u * ((PCA_OUT + 3u) / 4u);
+    // The first word written out, not looped over (see `add_neighbour`).
+    var word = 0u;
+    if (s != ABSENT) {
+        word = neighbour_word(s, 3u, own, same_class);
+    }
+    add_word(sums, word, row);
+    for (var w = 1u; w < (CHANNELS + 3u) / 4u; w++) {
+        var more = 0u;
+        if (s != ABSENT) {
+            more = neighbour_word(s, 3u + w, own, same_class);
+        }
+        add_word(sums, more, row + w * per_word);
     }
 }
 
@@ -259,13 +339,31 @@ fn project_plane(r: Around, a: u32) -> Projected {
     // Each output's sum starts at minus its bias.
     var sums = Sums(-projection.v[a * 4u], -projection.v[a * 4u + 1u], -projection.v[a * 4u + 2u],
         -projection.v[a * 4u + 3u]);
-    let per_input = select(groups, (groups + 1u) / 2u, PACKED_WEIGHTS);
-    let per_neighbour = CHANNELS * per_input;
-    var row = PROJECTION_BASE + a * params.pca_in * per_input;
-    for (var dv = -2; dv <= 2; dv++) {
-        for (var du = -2; du <= 2; du++) {
-            add_neighbour(&sums, r, a, du, dv, row, per_input);
-            row += per_neighbour;
+    if (WEIGHT_LAYOUT == BYTES) {
+        let per_neighbour = ((CHANNELS + 3u) / 4u) * 2u * groups;
+        var row = PROJECTION_BASE + a * 25u * per_neighbour;
+        let zero = vec4<u32>(0u);
+        var b = ByteSums(zero, zero, zero, zero, zero, zero, zero, zero, 0u);
+        for (var dv = -2; dv <= 2; dv++) {
+            for (var du = -2; du <= 2; du++) {
+                add_neighbour_words(&b, r, a, du, dv, row);
+                row += per_neighbour;
+            }
+        }
+        let offsets = vec4<u32>(32768u * b.bytes);
+        sums.s0 += bitcast<vec4<i32>>(256u * b.high0 + b.low0 - offsets);
+        sums.s1 += bitcast<vec4<i32>>(256u * b.high1 + b.low1 - offsets);
+        sums.s2 += bitcast<vec4<i32>>(256u * b.high2 + b.low2 - offsets);
+        sums.s3 += bitcast<vec4<i32>>(256u * b.high3 + b.low3 - offsets);
+    } else {
+        let per_input = select(groups, (groups + 1u) / 2u, WEIGHT_LAYOUT == HALVES);
+        let per_neighbour = CHANNELS * per_input;
+        var row = PROJECTION_BASE + a * params.pca_in * per_input;
+        for (var dv = -2; dv <= 2; dv++) {
+            for (var du = -2; du <= 2; du++) {
+                add_neighbour(&sums, r, a, du, dv, row, per_input);
+                row += per_neighbour;
+            }
         }
     }
     // Rounded, shifted and offset to a byte, as the CPU reference's quantization.

@@ -12,6 +12,9 @@ use wgpu::util::DeviceExt;
 pub const ADAPTER_ENV: &str = "SOLIDSYNTH_ADAPTER";
 /// Environment variable overriding the bound on any single wait for the GPU, in seconds.
 pub const TIMEOUT_ENV: &str = "SOLIDSYNTH_GPU_TIMEOUT_S";
+/// Environment variable choosing the layout of 16-bit projection weights (`bytes` or `halves`,
+/// the default), for timing the two on a device without rebuilding ([`GpuOptions::byte_weights`]).
+pub const WEIGHT_LAYOUT_ENV: &str = "SOLIDSYNTH_WEIGHT_LAYOUT";
 /// Threads per workgroup of the 1D kernels.
 pub const WORKGROUP_SIZE: u32 = 64;
 
@@ -24,6 +27,9 @@ pub struct GpuOptions {
     pub timeout: Duration,
     /// Use a smaller storage-binding limit than the adapter's (tests exercise chunking with it).
     pub max_binding_bytes: Option<u64>,
+    /// Lay 16-bit projection weights out as bytes for packed dot products instead of as halves
+    /// (`SOLIDSYNTH_WEIGHT_LAYOUT=bytes`; `gpu::synth::WeightLayout`).
+    pub byte_weights: bool,
 }
 
 impl Default for GpuOptions {
@@ -32,6 +38,7 @@ impl Default for GpuOptions {
             adapter_filter: None,
             timeout: Duration::from_secs(120),
             max_binding_bytes: None,
+            byte_weights: false,
         }
     }
 }
@@ -49,6 +56,14 @@ impl GpuOptions {
                 o.timeout = Duration::from_secs_f64(s);
             }
         }
+        o.byte_weights = match std::env::var(WEIGHT_LAYOUT_ENV).as_deref() {
+            Ok("bytes") => true,
+            Ok("halves") | Err(_) => false,
+            Ok(other) => {
+                tracing::warn!("{WEIGHT_LAYOUT_ENV}={other} ignored: not bytes or halves");
+                false
+            }
+        };
         o
     }
 }
@@ -61,6 +76,8 @@ pub struct GpuContext {
     pub limits: wgpu::Limits,
     timeout: Duration,
     max_binding_bytes: u64,
+    /// [`GpuOptions::byte_weights`].
+    pub byte_weights: bool,
     pipelines: Mutex<HashMap<String, Arc<wgpu::ComputePipeline>>>,
     /// The last read-back staging buffer up to [`REUSED_READBACK_BYTES`], kept for the next
     /// read (a warm cut session reads one per cut: no allocation on the request path).
@@ -304,6 +321,7 @@ impl GpuContext {
             limits,
             timeout: opts.timeout,
             max_binding_bytes,
+            byte_weights: opts.byte_weights,
             pipelines: Mutex::new(HashMap::new()),
             readback: Mutex::new(None),
         })

@@ -73,8 +73,8 @@ pub struct GpuSynth {
     ctx: Arc<GpuContext>,
     levels: Vec<wgpu::Buffer>,
     /// Per level, the `correct` kernel's projection weights ([`projection_uniform`]) and
-    /// whether they are packed.
-    projections: Vec<(wgpu::Buffer, bool)>,
+    /// their layout.
+    projections: Vec<(wgpu::Buffer, WeightLayout)>,
     /// Per level, the `correct` kernel's candidate tables ([`candidate_tables`]) and their 3D
     /// slots per pixel; None once released ([`GpuSynth::release_coarse_tables`]) until a
     /// correction of the level needs them again (`GpuSynth::level_tables`).
@@ -140,29 +140,71 @@ fn parameter_arena(ctx: &GpuContext, bytes: u64) -> wgpu::Buffer {
 const PROJECTION_VECTORS: usize = 4096;
 const PROJECTION_BASE: usize = 12;
 
+/// Neighbours of a plane's neighbourhood (5 x 5), each contributing `channels` inputs in a row
+/// to the PCA projection.
+const PLANE_NEIGHBOURS: usize = 25;
+
+/// How the projection uniform holds the weights (the kernel's `WEIGHT_LAYOUT`; its comment on
+/// `ProjectionWeights` describes each).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum WeightLayout {
+    /// One 32-bit weight per output: the only layout for weights beyond 16 bits.
+    Plain,
+    /// 16-bit weights two to a word: the default.
+    Halves,
+    /// 16-bit weights as high and low bytes, for packed byte dot products
+    /// ([`GpuOptions::byte_weights`](crate::gpu::GpuOptions::byte_weights)).
+    Bytes,
+}
+
+impl WeightLayout {
+    /// The kernel's `WEIGHT_LAYOUT` value.
+    fn constant(self) -> f64 {
+        match self {
+            WeightLayout::Plain => 0.0,
+            WeightLayout::Halves => 1.0,
+            WeightLayout::Bytes => 2.0,
+        }
+    }
+}
+
 /// Level `p`'s PCA projection laid out as wgsl/correct.wgsl's `ProjectionWeights` reads it: per
 /// plane a, the biases b_j = sum_i mean_i * w_ji (wrapping, as the kernel's partial sums) in 4
-/// vectors at 4a, then from PROJECTION_BASE, per plane and input i, its weights in
-/// [`ProjectionLayout::vectors_per_input`] vectors. Packed (every weight fits 16 bits, as in
-/// every analysis since revision 2): vector h holds outputs 8h..8h+3 in its low halves and
-/// 8h+4..8h+7 in its high halves; else vector g holds outputs 4g..4g+3. None when the level's
-/// weights do not fit the uniform.
-fn projection_uniform(p: &LevelPack) -> Option<ProjectionLayout> {
+/// vectors at 4a, then from PROJECTION_BASE the weights in `preferred` layout where every weight
+/// fits 16 bits (and, for bytes, the inputs are the 25 neighbours' channels), else plain:
+/// - Plain: per plane and input i, vector g holds outputs 4g..4g+3.
+/// - Halves: per plane and input i, vector h holds outputs 8h..8h+3 in its low halves and
+///   8h+4..8h+7 in its high halves.
+/// - Bytes: per plane, neighbour and pixel word (channels 4w..4w+3), `2 * groups` vectors
+///   (groups = ceil(outputs / 4)): first the high bytes, then the low bytes of w + 32768,
+///   component j % 4 of vector j / 4 holding output j's four channels' bytes (channels past the
+///   last: weight 0, bytes 0x80 and 0). [`byte_weight_projection`] spells out the kernel's sum.
+///
+/// None when the level's weights do not fit the uniform.
+fn projection_uniform(p: &LevelPack, preferred: WeightLayout) -> Option<ProjectionLayout> {
     let (inputs, outputs) = (p.pca_in as usize, p.pca_out as usize);
     let word = |at: u32| p.words[at as usize] as i32;
     let weight =
         |a: usize, j: usize, i: usize| word(p.offsets.weights[a] + (j * inputs + i) as u32);
-    if outputs > 16 || PROJECTION_BASE + 3 * inputs * outputs.div_ceil(8) > PROJECTION_VECTORS {
+    if outputs > 16 {
         return None;
     }
-    let packed = (0..3)
+    let groups = outputs.div_ceil(4);
+    let channels = p.channels as usize;
+    let words_per_pixel = channels.div_ceil(4);
+    let fit_16_bits = (0..3)
         .all(|a| (0..outputs).all(|j| (0..inputs).all(|i| i16::try_from(weight(a, j, i)).is_ok())));
-    let per_input = if packed {
-        outputs.div_ceil(8)
-    } else {
-        outputs.div_ceil(4)
+    let layout = match preferred {
+        _ if !fit_16_bits => WeightLayout::Plain,
+        WeightLayout::Bytes if inputs != PLANE_NEIGHBOURS * channels => WeightLayout::Halves,
+        preferred => preferred,
     };
-    if outputs > 16 || PROJECTION_BASE + 3 * inputs * per_input > PROJECTION_VECTORS {
+    let vectors = 3 * match layout {
+        WeightLayout::Plain => inputs * groups,
+        WeightLayout::Halves => inputs * outputs.div_ceil(8),
+        WeightLayout::Bytes => PLANE_NEIGHBOURS * words_per_pixel * 2 * groups,
+    };
+    if PROJECTION_BASE + vectors > PROJECTION_VECTORS {
         return None;
     }
     let mut v = vec![0i32; PROJECTION_VECTORS * 4];
@@ -173,28 +215,92 @@ fn projection_uniform(p: &LevelPack) -> Option<ProjectionLayout> {
                 b.wrapping_add(word(mean + i as u32).wrapping_mul(weight(a, j, i)))
             });
         }
-        for i in 0..inputs {
-            let row = (PROJECTION_BASE + (a * inputs + i) * per_input) * 4;
-            for j in 0..outputs {
-                let w = weight(a, j, i);
-                if packed {
-                    // Output j = 8h + 4 half + c: component c of vector h, low or high half.
-                    let at = row + (j / 8) * 4 + j % 4;
-                    v[at] |= if j % 8 < 4 { w & 0xFFFF } else { w << 16 };
-                } else {
-                    v[row + j] = w;
+        match layout {
+            WeightLayout::Plain => {
+                for i in 0..inputs {
+                    let row = (PROJECTION_BASE + (a * inputs + i) * groups) * 4;
+                    for j in 0..outputs {
+                        v[row + j] = weight(a, j, i);
+                    }
+                }
+            }
+            WeightLayout::Halves => {
+                let per_input = outputs.div_ceil(8);
+                for i in 0..inputs {
+                    let row = (PROJECTION_BASE + (a * inputs + i) * per_input) * 4;
+                    for j in 0..outputs {
+                        // Output j = 8h + 4 half + c: component c of vector h, low or high half.
+                        let w = weight(a, j, i);
+                        v[row + (j / 8) * 4 + j % 4] |=
+                            if j % 8 < 4 { w & 0xFFFF } else { w << 16 };
+                    }
+                }
+            }
+            WeightLayout::Bytes => {
+                for n in 0..PLANE_NEIGHBOURS {
+                    for w in 0..words_per_pixel {
+                        let row = PROJECTION_BASE
+                            + ((a * PLANE_NEIGHBOURS + n) * words_per_pixel + w) * 2 * groups;
+                        for j in 0..groups * 4 {
+                            let (mut high, mut low) = (0u32, 0u32);
+                            for c in 0..4 {
+                                let channel = 4 * w + c;
+                                let w_ij = if j < outputs && channel < channels {
+                                    weight(a, j, n * channels + channel)
+                                } else {
+                                    0
+                                };
+                                let offset = (w_ij + 32768) as u32;
+                                high |= (offset >> 8) << (8 * c);
+                                low |= (offset & 0xFF) << (8 * c);
+                            }
+                            v[(row + j / 4) * 4 + j % 4] = high as i32;
+                            v[(row + groups + j / 4) * 4 + j % 4] = low as i32;
+                        }
+                    }
                 }
             }
         }
     }
-    Some(ProjectionLayout { vectors: v, packed })
+    Some(ProjectionLayout { vectors: v, layout })
 }
 
-/// A level's projection uniform ([`projection_uniform`]) and whether its weights are packed
-/// two to a word (the kernel's `PACKED_WEIGHTS`).
+/// What the kernel computes for output j of plane a over the bytes layout of
+/// [`projection_uniform`], given the neighbours' pixel words in order: with w + 32768 = 256 H + L,
+/// sum_i x_i w_i = 256 sum x_i H_i + sum x_i L_i - 32768 sum x_i, each sum over a pixel word's
+/// four bytes a packed byte dot product (bytes past the channels cancel: H 0x80, L 0), minus the
+/// bias. Wrapping, as the kernel's u32 sums.
+#[cfg(test)]
+fn byte_weight_projection(
+    v: &[i32],
+    a: usize,
+    j: usize,
+    pixel_words: &[u32],
+    groups: usize,
+) -> u32 {
+    let dot = |x: u32, w: u32| -> u32 {
+        (0..4)
+            .map(|c| ((x >> (8 * c)) & 0xFF) * ((w >> (8 * c)) & 0xFF))
+            .sum()
+    };
+    let words_per_pixel = pixel_words.len() / PLANE_NEIGHBOURS;
+    let (mut high, mut low, mut sum) = (0u32, 0u32, 0u32);
+    for (k, &x) in pixel_words.iter().enumerate() {
+        let row = PROJECTION_BASE + (a * PLANE_NEIGHBOURS * words_per_pixel + k) * 2 * groups;
+        high = high.wrapping_add(dot(x, v[(row + j / 4) * 4 + j % 4] as u32));
+        low = low.wrapping_add(dot(x, v[(row + groups + j / 4) * 4 + j % 4] as u32));
+        sum = sum.wrapping_add(dot(x, 0x0101_0101));
+    }
+    high.wrapping_mul(256)
+        .wrapping_add(low)
+        .wrapping_sub(sum.wrapping_mul(32768))
+        .wrapping_sub(v[a * 16 + j] as u32)
+}
+
+/// A level's projection uniform ([`projection_uniform`]) and its layout.
 struct ProjectionLayout {
     vectors: Vec<i32>,
-    packed: bool,
+    layout: WeightLayout,
 }
 
 /// The `correct` pipeline's override constants (see wgsl/correct.wgsl).
@@ -202,14 +308,14 @@ fn correct_constants(
     channels: u32,
     pca_out: u32,
     k2d: u32,
-    packed: bool,
+    layout: WeightLayout,
     block_bricks: u32,
 ) -> Vec<(&'static str, f64)> {
     vec![
         ("CHANNELS", channels as f64),
         ("PCA_OUT", pca_out as f64),
         ("K2D", k2d as f64),
-        ("PACKED_WEIGHTS", if packed { 1.0 } else { 0.0 }),
+        ("WEIGHT_LAYOUT", layout.constant()),
         ("BLOCK_BRICKS", block_bricks as f64),
     ]
 }
@@ -317,8 +423,13 @@ impl GpuSynth {
             )));
         }
         let mut projections = Vec::with_capacity(packs.len());
+        let preferred = if ctx.byte_weights {
+            WeightLayout::Bytes
+        } else {
+            WeightLayout::Halves
+        };
         for p in packs {
-            let layout = projection_uniform(p).ok_or_else(|| {
+            let layout = projection_uniform(p, preferred).ok_or_else(|| {
                 Error::invalid(
                     "exemplar",
                     format!(
@@ -336,7 +447,7 @@ impl GpuSynth {
                     contents: bytemuck::cast_slice(&layout.vectors),
                     usage: wgpu::BufferUsages::UNIFORM,
                 });
-            projections.push((buffer, layout.packed));
+            projections.push((buffer, layout.layout));
         }
         let levels = packs
             .iter()
@@ -359,8 +470,8 @@ impl GpuSynth {
         let correct_constants: Vec<_> = packs
             .iter()
             .zip(&projections)
-            .map(|(p, (_, packed))| {
-                correct_constants(p.channels, p.pca_out, p.k2d, *packed, block_bricks)
+            .map(|(p, (_, layout))| {
+                correct_constants(p.channels, p.pca_out, p.k2d, *layout, block_bricks)
             })
             .collect();
         // The kernels built before the synthesis starts, together. On a hardware GPU every
@@ -765,8 +876,8 @@ impl GpuSynth {
                 p.k3d_used
             )));
         }
-        let (projection, packed) = &self.projections[level];
-        let constants = correct_constants(p.channels, p.pca_out, p.k2d, *packed, self.block_bricks);
+        let (projection, layout) = &self.projections[level];
+        let constants = correct_constants(p.channels, p.pca_out, p.k2d, *layout, self.block_bricks);
         Ok((candidates, projection, constants))
     }
 
@@ -933,14 +1044,12 @@ mod tests {
     use super::*;
     use crate::lazy::pack::LevelOffsets;
 
-    /// The kernel's sum_i x_i w_ji - b_j over the uniform's layout equals the reference's
-    /// sum_i (x_i - mean_i) w_ji for every plane and output.
-    #[test]
-    fn projection_uniform_reproduces_the_centred_projection() {
-        let (inputs, outputs) = (100usize, 12usize);
+    /// A level of random 16-bit weights and means: `channels` per neighbour, `outputs` outputs.
+    fn random_pack(channels: usize, outputs: usize, seed: u32) -> LevelPack {
+        let inputs = PLANE_NEIGHBOURS * channels;
         let mut words = Vec::new();
         let mut offsets = LevelOffsets::default();
-        let mut rng = 12345u32;
+        let mut rng = seed;
         let mut next = move || {
             rng = crate::util::hash::hash32(rng);
             rng
@@ -949,70 +1058,150 @@ mod tests {
             offsets.mean[a] = words.len() as u32;
             words.extend((0..inputs).map(|_| next() % 256));
             offsets.weights[a] = words.len() as u32;
-            words.extend((0..inputs * outputs).map(|_| ((next() % 65536) as i32 - 32768) as u32));
+            // The extremes of 16 bits included.
+            words.extend((0..inputs * outputs).map(|k| match k % 97 {
+                0 => -32768i32 as u32,
+                1 => 32767,
+                _ => ((next() % 65536) as i32 - 32768) as u32,
+            }));
         }
-        let pack = LevelPack {
+        LevelPack {
             words,
             offsets,
             width: 1,
             height: 1,
-            channels: 4,
-            color_channels: 3,
-            pixel_words: 1,
+            channels: channels as u32,
+            color_channels: channels.min(3) as u32,
+            pixel_words: channels.div_ceil(4) as u32,
             pca_in: inputs as u32,
             pca_out: outputs as u32,
             shift: 16,
-            proj_words: 3,
+            proj_words: outputs.div_ceil(4) as u32,
             k2d: 2,
             k3d_stride: 4,
             shared: false,
-        };
-        let x: Vec<i32> = (0..inputs).map(|_| (next() % 256) as i32).collect();
-        let check = |pack: &LevelPack, packed: bool| {
-            let layout = projection_uniform(pack).unwrap();
-            assert_eq!(layout.packed, packed);
-            let v = &layout.vectors;
-            let per_input = if packed { 2 } else { 3 };
-            // The kernel's unpacking: a vector component's low or high half, sign-extended.
-            let weight = |a: usize, i: usize, j: usize| {
-                let row = (PROJECTION_BASE + (a * inputs + i) * per_input) * 4;
-                if packed {
-                    let w = v[row + (j / 8) * 4 + j % 4];
-                    if j % 8 < 4 {
-                        (w << 16) >> 16
-                    } else {
-                        w >> 16
-                    }
-                } else {
-                    v[row + j]
-                }
+        }
+    }
+
+    /// The kernel's projection over the uniform's layout equals the reference's
+    /// sum_i (x_i - mean_i) w_ji for every plane and output, in each layout (bytes: whatever the
+    /// bytes past the channels hold), and with a weight beyond 16 bits in the plain one.
+    #[test]
+    fn projection_uniform_reproduces_the_centred_projection() {
+        for (channels, outputs) in [(3usize, 8usize), (4, 12), (3, 10), (6, 16), (1, 4)] {
+            let inputs = PLANE_NEIGHBOURS * channels;
+            let words_per_pixel = channels.div_ceil(4);
+            let groups = outputs.div_ceil(4);
+            let mut rng = 777u32 + channels as u32;
+            let mut next = move || {
+                rng = crate::util::hash::hash32(rng);
+                rng
             };
-            for a in 0..3 {
+            // Extreme inputs included.
+            let x: Vec<i32> = (0..inputs)
+                .map(|i| match i % 31 {
+                    0 => 0,
+                    1 => 255,
+                    _ => (next() % 256) as i32,
+                })
+                .collect();
+            // The neighbours' pixel words as the state holds them, random bytes past the channels.
+            let pixel_words: Vec<u32> = (0..PLANE_NEIGHBOURS * words_per_pixel)
+                .map(|k| {
+                    let (n, w) = (k / words_per_pixel, k % words_per_pixel);
+                    (0..4).fold(0u32, |word, c| {
+                        let channel = 4 * w + c;
+                        let byte = if channel < channels {
+                            x[n * channels + channel] as u32
+                        } else {
+                            next() % 256
+                        };
+                        word | byte << (8 * c)
+                    })
+                })
+                .collect();
+            let reference = |pack: &LevelPack, a: usize, j: usize| -> i64 {
                 let word = |at: u32| pack.words[at as usize] as i32;
-                for j in 0..outputs {
-                    let reference: i64 = (0..inputs)
-                        .map(|i| {
-                            let w = word(pack.offsets.weights[a] + (j * inputs + i) as u32);
-                            (x[i] - word(pack.offsets.mean[a] + i as u32)) as i64 * w as i64
-                        })
-                        .sum();
-                    let kernel = (0..inputs).fold(v[a * 16 + j].wrapping_neg(), |acc, i| {
-                        acc.wrapping_add(x[i].wrapping_mul(weight(a, i, j)))
-                    });
-                    assert_eq!(kernel as i64, reference, "plane {a} output {j}");
+                (0..inputs)
+                    .map(|i| {
+                        let w = word(pack.offsets.weights[a] + (j * inputs + i) as u32);
+                        (x[i] - word(pack.offsets.mean[a] + i as u32)) as i64 * w as i64
+                    })
+                    .sum()
+            };
+            let pack = random_pack(channels, outputs, 12345 + channels as u32);
+            // The kernel's sum over the halves or plain layout (halves: a vector component's low
+            // or high half, sign-extended).
+            let by_input = |layout: &ProjectionLayout, a: usize, j: usize| -> i32 {
+                let v = &layout.vectors;
+                let per_input = match layout.layout {
+                    WeightLayout::Halves => outputs.div_ceil(8),
+                    _ => groups,
+                };
+                (0..inputs).fold(v[a * 16 + j].wrapping_neg(), |acc, i| {
+                    let row = (PROJECTION_BASE + (a * inputs + i) * per_input) * 4;
+                    let w = match layout.layout {
+                        WeightLayout::Halves => {
+                            let w = v[row + (j / 8) * 4 + j % 4];
+                            if j % 8 < 4 {
+                                (w << 16) >> 16
+                            } else {
+                                w >> 16
+                            }
+                        }
+                        _ => v[row + j],
+                    };
+                    acc.wrapping_add(x[i].wrapping_mul(w))
+                })
+            };
+            for preferred in [
+                WeightLayout::Halves,
+                WeightLayout::Bytes,
+                WeightLayout::Plain,
+            ] {
+                let layout = projection_uniform(&pack, preferred).unwrap();
+                assert_eq!(
+                    layout.layout, preferred,
+                    "{channels} channels, {outputs} outputs"
+                );
+                for a in 0..3 {
+                    for j in 0..outputs {
+                        let kernel = if preferred == WeightLayout::Bytes {
+                            byte_weight_projection(&layout.vectors, a, j, &pixel_words, groups)
+                                as i32
+                        } else {
+                            by_input(&layout, a, j)
+                        };
+                        assert_eq!(
+                            kernel as i64,
+                            reference(&pack, a, j),
+                            "plane {a} output {j}"
+                        );
+                    }
+                }
+                // One weight beyond 16 bits: the plain layout whatever was preferred.
+                let mut wide = pack.clone();
+                wide.words[wide.offsets.weights[1] as usize + 7] = 40_000;
+                let layout = projection_uniform(&wide, preferred).unwrap();
+                assert_eq!(layout.layout, WeightLayout::Plain);
+                for a in 0..3 {
+                    for j in 0..outputs {
+                        let kernel = by_input(&layout, a, j);
+                        assert_eq!(
+                            kernel as i64,
+                            reference(&wide, a, j),
+                            "plane {a} output {j}"
+                        );
+                    }
                 }
             }
-        };
-        check(&pack, true);
-        // One weight beyond 16 bits: the unpacked layout.
-        let mut wide = pack.clone();
-        wide.words[wide.offsets.weights[1] as usize + 7] = 40_000;
-        check(&wide, false);
-        // Too many inputs for the uniform: refused, not truncated.
-        let big = LevelPack {
-            pca_in: 700,
-            ..pack
-        };
-        assert!(projection_uniform(&big).is_none());
+        }
+        // Too many inputs for the uniform (in either layout): refused, not truncated.
+        for preferred in [WeightLayout::Halves, WeightLayout::Bytes] {
+            assert!(projection_uniform(&random_pack(28, 16, 1), preferred).is_none());
+        }
+        let mut wide = random_pack(28, 16, 1);
+        wide.words[wide.offsets.weights[0] as usize] = 40_000;
+        assert!(projection_uniform(&wide, WeightLayout::Halves).is_none());
     }
 }
