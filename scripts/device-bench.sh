@@ -36,8 +36,6 @@ fi
 phases=("$@")
 ((${#phases[@]})) || phases=(kernels synth cuts surface gradient other)
 wants() { [[ " ${phases[*]} " == *" $1 "* ]]; }
-out=${OUT:-out}
-mkdir -p "$out"
 # shellcheck source=scripts/device-env.sh
 source scripts/device-env.sh
 ss=dist/solidsynth

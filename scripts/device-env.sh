@@ -1,6 +1,6 @@
-# Sourced by scripts/device-bench.sh and scripts/device-profile.sh on the device tool's GPU
-# machine: the Vulkan loader from the carried .debs where the image has none (device README),
-# NVIDIA's ICD when it is there, and the directories solidsynth needs.
+# Sourced by the scripts/device-*.sh scripts on the device tool's GPU machine: the Vulkan loader
+# from the carried .debs where the image has none (device README), NVIDIA's ICD when it is
+# there, the directories solidsynth needs, and $out, the results' directory ($OUT or ./out).
 if [[ -d .gl ]] && ! ldconfig -p | grep -q libvulkan.so.1; then
     for f in .gl/*.deb; do dpkg -x "$f" /; done
     ldconfig
@@ -12,3 +12,5 @@ fi
 export SOLIDSYNTH_CACHE_DIR=${SOLIDSYNTH_CACHE_DIR:-/tmp/solidsynth-cache}
 export XDG_RUNTIME_DIR=${XDG_RUNTIME_DIR:-/tmp/xdg}
 mkdir -p "$XDG_RUNTIME_DIR"
+out=${OUT:-out}
+mkdir -p "$out"

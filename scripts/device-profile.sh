@@ -31,8 +31,6 @@ fi
 name=$1
 samples=$2
 shift 2
-out=${OUT:-out}
-mkdir -p "$out"
 # shellcheck source=scripts/device-env.sh
 source scripts/device-env.sh
 ss=dist/solidsynth-sym

@@ -5,8 +5,6 @@
 # carried); one log per job in $OUT, summed by scripts/timings-summary.py here.
 set -uo pipefail
 cd "$(dirname "$0")/.."
-out=${OUT:-out}
-mkdir -p "$out"
 # shellcheck source=scripts/device-env.sh
 source scripts/device-env.sh
 ss=${SS:-dist/solidsynth}

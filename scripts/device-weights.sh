@@ -12,8 +12,6 @@
 # Locally, through lavapipe: SS="scripts/lavapipe-sid.sh run dist/solidsynth" SIZES=64,128 ...
 set -uo pipefail
 cd "$(dirname "$0")/.."
-out=${OUT:-out}
-mkdir -p "$out"
 # shellcheck source=scripts/device-env.sh
 source scripts/device-env.sh
 ss=${SS:-dist/solidsynth}
