@@ -71,7 +71,8 @@ pub struct SolidParams {
     /// Largest group of the request synthesized at once: a cube of this edge in voxels (a
     /// multiple of 4). Smaller groups bound the working memory of large boxes and surfaces, at
     /// the cost of each group recomputing the finest level's dependency padding (the coarser
-    /// levels are synthesized once for all groups, in groups of the same extent); the output is
+    /// levels are synthesized once for all groups, in groups of this edge in their own voxels,
+    /// a box's a quarter more: their padding makes them a little larger); the output is
     /// the same whatever the grouping. Default: for boxes and surfaces 128 where the device's
     /// memory is the host's (the CPU backend, lavapipe, an integrated GPU), else 512.
     #[arg(long, value_name = "VOXELS", value_parser = clap::value_parser!(u32).range(4..=512))]
@@ -258,8 +259,13 @@ pub fn check_memory(what: &str, b: Box3, args: &SolidArgs) -> solidsynth::Result
         .iter()
         .map(|&d| d + 2 * solidsynth::lazy::PADDING_ESTIMATE as u64)
         .product();
-    let shared = shared_levels_bytes(&args.solid, padded, Synthesizer::chunk_bytes(group));
-    let estimate = Synthesizer::chunk_bytes(group) + slab + whole + cache + shared;
+    let working = Synthesizer::chunk_bytes(group);
+    let shared = shared_levels_bytes(&args.solid, padded, working);
+    let estimate = working.max(coarse_group_bytes(&args.solid, group, largest))
+        + slab
+        + whole
+        + cache
+        + shared;
     let available = available_memory();
     if estimate > available {
         let gib = |b: u64| b as f64 / (1u64 << 30) as f64;
@@ -280,6 +286,19 @@ pub fn check_memory(what: &str, b: Box3, args: &SolidArgs) -> solidsynth::Result
         ));
     }
     Ok(estimate)
+}
+
+/// Working bytes of the largest group of a shared coarse level of a request whose largest side
+/// is `largest` finest voxels, in finest groups of `group`: such a group may exceed the finest
+/// group's side by a quarter ([`solidsynth::lazy::group_cap`]), and holds at most the
+/// parents of the whole request and their padding. Zero where no level is shared (one group,
+/// or the coarse cache).
+pub fn coarse_group_bytes(params: &SolidParams, group: u32, largest: u32) -> u64 {
+    if params.coarse_cache.is_some() || largest <= group {
+        return 0;
+    }
+    let parents = largest.div_ceil(2) + solidsynth::lazy::PADDING_ESTIMATE;
+    Synthesizer::chunk_bytes(solidsynth::lazy::group_cap(Some(group), 1, true).min(parents))
 }
 
 /// Bytes of the shared coarse levels (see `Synthesizer::set_shared_coarse_levels`) of a

@@ -43,10 +43,14 @@ pub fn planned_state_bytes(extent: [u64; 3], passes: &[usize], stride_bytes: &[u
 /// each group's bounding box is what must fit. Fewer groups recompute less padding and make
 /// fewer round trips (a 256^2 cut on lavapipe's 128 MiB buffers: one group instead of four).
 /// Where the cap does not fit, the cubes are then evened out over the request ([`even_sides`]);
-/// a sparse request's only where the even boxes still fit and are no more groups.
+/// a sparse request's only where the even boxes still fit and are no more groups. Where it
+/// fits, cubes of the cap, as asked; with `even_at_cap` evened too where that makes no more
+/// groups (a shared coarse level: 512^3's parents in groups of 132, not 160 and 104, whose
+/// larger group would hold 1.5 times the state).
 pub fn group_sides(
     all: &[Brick],
     cap: u32,
+    even_at_cap: bool,
     limit: u64,
     state_bytes: impl Fn([u64; 3]) -> u64,
 ) -> [u32; 3] {
@@ -77,7 +81,13 @@ pub fn group_sides(
         side /= 2;
     }
     if dense == cap {
-        // The cap fits: cubes of it, as asked (`--max-group`).
+        // The cap fits: cubes of it, as asked (`--max-group`), or equal boxes within it.
+        if even_at_cap {
+            let even = even_sides(all, cap);
+            if cube_bounds(all, even).len() <= cube_bounds(all, [cap; 3]).len() {
+                return even;
+            }
+        }
         return [cap; 3];
     }
     // Any box within a dense cube fits.
@@ -180,17 +190,17 @@ mod tests {
         // take three of those a side, evened out to 172.
         assert!(two_passes([184; 3]) <= limit && two_passes([192; 3]) > limit);
         assert_eq!(
-            group_sides(&slab(128, 128, 128), 512, limit, two_passes),
+            group_sides(&slab(128, 128, 128), 512, false, limit, two_passes),
             [172; 3]
         );
         // A 256^2 cut one brick thick: its padded box fits.
         let cut = slab(64, 64, 1);
-        assert_eq!(group_sides(&cut, 512, limit, two_passes), [512; 3]);
+        assert_eq!(group_sides(&cut, 512, false, limit, two_passes), [512; 3]);
         assert_eq!(cubes(&cut, [512; 3]).len(), 1);
         // 512 wide and 16 thick does not fit whole; its 256 x 256 quarters do.
         let wide = slab(128, 128, 4);
         assert!(two_passes([512, 512, 16]) > limit);
-        assert_eq!(group_sides(&wide, 512, limit, two_passes), [256; 3]);
+        assert_eq!(group_sides(&wide, 512, false, limit, two_passes), [256; 3]);
         assert_eq!(cubes(&wide, [256; 3]).len(), 4);
     }
 
@@ -205,10 +215,64 @@ mod tests {
         let four = |e: [u64; 3]| planned_state_bytes(e, &[2, 2, 2, 4], &[16; 4]);
         assert!(four([64; 3]) > b);
         let limit = 128 << 20;
-        assert!(group_sides(&slab(128, 128, 128), 512, limit, four)[0] < 172);
+        assert!(group_sides(&slab(128, 128, 128), 512, false, limit, four)[0] < 172);
         // No passes: the storage is the box itself (plus the brick rounding).
         let none = planned_state_bytes([64; 3], &[0; 4], &[16; 4]);
         assert_eq!(none, 17u64.pow(3) * 64 * 16);
+    }
+
+    #[test]
+    fn a_shared_coarse_level_just_over_the_cap_is_one_group() {
+        use crate::lazy::group_cap;
+        let limit = 128 << 20;
+        // 256^3 in finest groups of 128 asks the level above for its 128^3 parents and their
+        // padding: 136 voxels (34 bricks) a side. One group, not one of 128 and seven slivers.
+        let parents = slab(34, 34, 34);
+        assert_eq!(group_cap(Some(128), 1, true), 160);
+        let sides = group_sides(
+            &parents,
+            group_cap(Some(128), 1, true),
+            true,
+            limit,
+            two_passes,
+        );
+        assert_eq!(cubes(&parents, sides).len(), 1);
+        assert_eq!(cubes(&parents, [128; 3]).len(), 8);
+        // 512^3's parents (264 a side): two equal groups per axis, not 128 + 128 + 8, nor the
+        // cap's 160 + 104 (evened at the cap), nor more groups for a sparse request.
+        let parents = slab(66, 66, 66);
+        let sides = group_sides(
+            &parents,
+            group_cap(Some(128), 1, true),
+            true,
+            limit,
+            two_passes,
+        );
+        assert_eq!(sides, [132; 3]);
+        assert_eq!(
+            group_sides(
+                &parents,
+                group_cap(Some(128), 1, true),
+                false,
+                limit,
+                two_passes
+            ),
+            [160; 3]
+        );
+        // Three bricks: in two cubes of 160 (40 bricks), in three of the even boxes of 84.
+        let scattered = vec![[0, 0, 0], [25, 0, 0], [41, 41, 0]];
+        assert_eq!(even_sides(&scattered, 160), [84, 84, 160]);
+        assert_eq!(
+            group_sides(&scattered, 160, true, limit, two_passes),
+            [160; 3]
+        );
+        // The finest level and a sparse request's coarse levels keep the cap as given;
+        // without one, levels halve 512.
+        assert_eq!(group_cap(Some(128), 0, true), 128);
+        assert_eq!(group_cap(Some(128), 1, false), 128);
+        assert_eq!(group_cap(None, 2, true), 128);
+        assert_eq!(group_cap(Some(12), 1, true), 12);
+        assert_eq!(group_cap(Some(500), 1, true), 512);
     }
 
     #[test]
@@ -217,14 +281,14 @@ mod tests {
         let fits_488 = |e: [u64; 3]| e.iter().product::<u64>();
         let limit = 488u64.pow(3);
         let all = slab(128, 128, 128);
-        assert_eq!(group_sides(&all, 512, limit, fits_488), [256; 3]);
+        assert_eq!(group_sides(&all, 512, false, limit, fits_488), [256; 3]);
         let groups = cubes(&all, [256; 3]);
         assert_eq!(groups.len(), 8);
         assert!(groups.iter().all(|g| g.len() == 64 * 64 * 64));
         // Uneven extents (whose cubes of 512 fit: 512 x 400 x 400 and a slab): each axis split
         // as few times as the cubes split it, into equal parts.
         let long = slab(150, 100, 100);
-        let sides = group_sides(&long, 512, limit, fits_488);
+        let sides = group_sides(&long, 512, false, limit, fits_488);
         assert_eq!(sides, [300, 512, 512], "600 in two of 300, 400 in one");
         let groups = cubes(&long, sides);
         assert_eq!(groups.len(), 2);
@@ -234,7 +298,10 @@ mod tests {
         let thin = slab(150, 150, 2);
         let limit = 512 * 512 * 8 + 1;
         assert!(fits_488([136; 3]) > limit);
-        assert_eq!(group_sides(&thin, 512, limit, fits_488), [300, 300, 512]);
+        assert_eq!(
+            group_sides(&thin, 512, false, limit, fits_488),
+            [300, 300, 512]
+        );
         assert_eq!(cubes(&thin, [300, 300, 512]).len(), 4);
         // Not where the even boxes would be more groups: an L of bricks in a 600^2 square is
         // three cubes of 512 (the far corner's is empty) but four boxes of 300.
@@ -243,7 +310,7 @@ mod tests {
             .filter(|b| b[0] < 128 || b[1] < 128)
             .collect();
         corner.sort_by_key(|b| (b[2], b[1], b[0]));
-        let sides = group_sides(&corner, 512, limit, fits_488);
+        let sides = group_sides(&corner, 512, false, limit, fits_488);
         assert_eq!(cubes(&corner, sides).len(), 3, "{sides:?}");
     }
 
@@ -251,11 +318,14 @@ mod tests {
     fn the_cap_and_the_smallest_side_hold() {
         // A user's cap is never exceeded, even when a larger cube would fit.
         assert_eq!(
-            group_sides(&slab(8, 8, 1), 64, 128 << 20, two_passes),
+            group_sides(&slab(8, 8, 1), 64, false, 128 << 20, two_passes),
             [64; 3]
         );
         // A limit too small for anything still gives whole bricks.
-        assert_eq!(group_sides(&slab(8, 8, 8), 512, 1, two_passes), [8; 3]);
+        assert_eq!(
+            group_sides(&slab(8, 8, 8), 512, false, 1, two_passes),
+            [8; 3]
+        );
         assert_eq!(cubes(&slab(8, 8, 8), [8; 3]).len(), 8 * 8 * 8 / 8);
     }
 

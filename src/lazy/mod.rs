@@ -1207,13 +1207,14 @@ impl Synthesizer {
     }
 
     /// Split sorted bricks into groups (boxes of bricks) whose working set fits the backend
-    /// ([`grouping::group_sides`]).
-    /// `coarser_by`: how many levels above the finest the bricks are; the default 512-voxel
-    /// cap then spans the same space as a finest-level group (so a shared coarse level's
-    /// groups are no larger than the finest level's above it, and its memory stays bounded
-    /// like a finest group's; each level is evened over its own bounding box).
+    /// ([`grouping::group_sides`]), each at most [`group_cap`] voxels on a side.
+    /// `coarser_by`: how many levels above the finest the bricks are (a shared coarse level's).
     fn groups(&self, all: &[Brick], coarser_by: usize) -> Vec<Vec<Brick>> {
-        let cap = self.max_chunk_side.unwrap_or(512 >> coarser_by).min(512);
+        let whole_box = bricks::bounds(all).is_some_and(|(lo, hi)| {
+            let bricks: usize = (0..3).map(|i| (hi[i] - lo[i] + 1) as usize).product();
+            bricks == all.len()
+        });
+        let cap = group_cap(self.max_chunk_side, coarser_by, whole_box);
         // The levels up to the bricks' own, with this schedule and these strides.
         let levels = ANALYSED_LEVELS - coarser_by;
         let passes = &self.params.passes.levels()[..levels];
@@ -1222,7 +1223,7 @@ impl Synthesizer {
             .map(|p| (3 + p.pixel_words as u64) * 4)
             .collect();
         let bound = |extent| grouping::planned_state_bytes(extent, passes, &strides);
-        let sides = grouping::group_sides(all, cap, self.state_limit(), bound);
+        let sides = grouping::group_sides(all, cap, coarser_by > 0, self.state_limit(), bound);
         grouping::cubes(all, sides)
     }
 
@@ -2380,6 +2381,28 @@ pub fn correct_params(
 
 /// Padding per side assumed when sizing chunks (the plan's exact padding is at most this).
 pub const PADDING_ESTIMATE: u32 = 14;
+
+/// The largest group side, in its own level's voxels, at `coarser_by` levels above the finest,
+/// given the finest level's cap `max_chunk_side` (`--max-group`; None: 512); `whole_box`: the
+/// level's request is every brick of a box.
+///
+/// Without a cap, a coarse level's 512 halves per level, so that its groups span the same space
+/// as the finest level's. With one, a shared coarse level's groups take the cap in their own
+/// voxels (twice the space per level, an eighth of the voxels), and a box's a quarter more, in
+/// whole bricks: a box's coarse level is the finest groups' parents with their padding, a
+/// little more than the cap whenever the finest groups are (256^3 in groups of 128: 136 voxels
+/// at the level above). Cut at exactly the cap, that request took one group of 128 and seven
+/// slivers of 8, each recomputing a whole padding: 1.35 times the voxels of one group of 136
+/// (lavapipe, 256^3: 20.4 / 21.1 / 19.8 s against 22.5 / 22.5 / 21.6 s, the largest state
+/// 107 against 91 MiB; BENCHMARKS.md, session 34). A surface's coarse levels keep the cap:
+/// their cubes are not slivers, and larger ones held the bunny's 1024 at 430 MB against 367.
+pub fn group_cap(max_chunk_side: Option<u32>, coarser_by: usize, whole_box: bool) -> u32 {
+    match max_chunk_side {
+        None => 512 >> coarser_by,
+        Some(side) if coarser_by == 0 || !whole_box => side.min(512),
+        Some(side) => ((side + side / 4) / 4 * 4).max(side).min(512),
+    }
+}
 
 #[cfg(test)]
 mod level_triples_tests {
