@@ -225,40 +225,27 @@ mod tests {
     fn a_shared_coarse_level_just_over_the_cap_is_one_group() {
         use crate::lazy::group_cap;
         let limit = 128 << 20;
+        // A box's level above the finest, with finest groups of 128.
+        let coarse_sides = |bricks: &[Brick], even_at_cap: bool| {
+            group_sides(
+                bricks,
+                group_cap(Some(128), 1, true),
+                even_at_cap,
+                limit,
+                two_passes,
+            )
+        };
         // 256^3 in finest groups of 128 asks the level above for its 128^3 parents and their
         // padding: 136 voxels (34 bricks) a side. One group, not one of 128 and seven slivers.
         let parents = slab(34, 34, 34);
         assert_eq!(group_cap(Some(128), 1, true), 160);
-        let sides = group_sides(
-            &parents,
-            group_cap(Some(128), 1, true),
-            true,
-            limit,
-            two_passes,
-        );
-        assert_eq!(cubes(&parents, sides).len(), 1);
+        assert_eq!(cubes(&parents, coarse_sides(&parents, true)).len(), 1);
         assert_eq!(cubes(&parents, [128; 3]).len(), 8);
         // 512^3's parents (264 a side): two equal groups per axis, not 128 + 128 + 8, nor the
         // cap's 160 + 104 (evened at the cap), nor more groups for a sparse request.
         let parents = slab(66, 66, 66);
-        let sides = group_sides(
-            &parents,
-            group_cap(Some(128), 1, true),
-            true,
-            limit,
-            two_passes,
-        );
-        assert_eq!(sides, [132; 3]);
-        assert_eq!(
-            group_sides(
-                &parents,
-                group_cap(Some(128), 1, true),
-                false,
-                limit,
-                two_passes
-            ),
-            [160; 3]
-        );
+        assert_eq!(coarse_sides(&parents, true), [132; 3]);
+        assert_eq!(coarse_sides(&parents, false), [160; 3]);
         // Three bricks: in two cubes of 160 (40 bricks), in three of the even boxes of 84.
         let scattered = vec![[0, 0, 0], [25, 0, 0], [41, 41, 0]];
         assert_eq!(even_sides(&scattered, 160), [84, 84, 160]);
