@@ -1,0 +1,288 @@
+//! One planned group of bricks synthesized: its first level's state (initialized, read from the
+//! coarse-level cache, or given), then per level the upsampling, the correction passes and, at the
+//! finest, the colours (and triples) of its output bricks.
+
+use super::*;
+
+/// Where a planned synthesis's first level comes from.
+pub(super) enum FirstLevel {
+    /// `init`: the warped tiling of the candidate slab (l_start, or the periodic cache's build).
+    Init,
+    /// A state built elsewhere (the shared coarse levels), given whole.
+    Given(exec::State),
+    /// `init` reading the coarse-level cache (level L-1), warped by the jitter field.
+    Cached,
+}
+
+/// What [`Synthesizer::synthesize_group`] returns.
+pub(super) struct GroupResult {
+    pub(super) colors: exec::Colors,
+    pub(super) triples: Vec<u32>,
+    /// The final state's words, when no colours were asked for.
+    pub(super) state: Vec<u32>,
+}
+
+impl Synthesizer {
+    /// Run a planned synthesis: colours (64 per brick, `group` order) and, when asked, triples
+    /// of the output bricks `group`. `periodic`: whether and how the solid is tileable.
+    /// `levels` are the packs `first_pack..`; `start`: where the first level's state comes from.
+    /// An empty `group` skips the colours (the final state is returned).
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn synthesize_group(
+        &mut self,
+        levels: Vec<SparseLevel>,
+        first_pack: usize,
+        start: FirstLevel,
+        group: &[Brick],
+        periodic: Periodic,
+        progress: Progress,
+        want_triples: bool,
+        stats: &mut SynthStats,
+    ) -> Result<GroupResult> {
+        let recording = std::time::Instant::now();
+        // Each level's brick index is built when the level starts and dropped after it (with
+        // the level's sub-pass plans): a large box's indices are several bytes per voxel.
+        let mut levels = levels;
+        let last = levels.len() - 1;
+        let index_of = |exec: &mut exec::Executor, levels: &[SparseLevel], l: usize| {
+            let timer = std::time::Instant::now();
+            let mut layout = IndexLayout::new(
+                &levels[l],
+                l.checked_sub(1).map(|p| &levels[p]),
+                (l == last).then_some(group),
+            );
+            let index = exec.upload_index(std::mem::take(&mut layout.words));
+            tracing::debug!("level {l}: brick index in {:.1} ms", ms(timer));
+            (layout, index)
+        };
+        let mut state_bytes = 0u64;
+        for (l, lv) in levels.iter().enumerate() {
+            // A first level given whole or read from the cache was synthesized elsewhere.
+            if l > 0 || matches!(start, FirstLevel::Init) {
+                stats.voxels_per_level[first_pack + l] += lv.voxels();
+            }
+            let pixel_words = self.packs[first_pack + l].pixel_words;
+            let words = lv.voxels() * (3 + pixel_words as u64);
+            // With its pass-start copy where the backend keeps one.
+            state_bytes = state_bytes.max(words * 4 * self.exec.state_copies(pixel_words));
+        }
+        stats.peak_state_bytes = stats.peak_state_bytes.max(state_bytes);
+        let (mut layout, mut index) = index_of(&mut self.exec, &levels, 0);
+        let seed_lo = self.params.seed as u32;
+        let seed_hi = (self.params.seed >> 32) as u32;
+        let coarse = &self.packs[first_pack];
+        let amps = jitter::amplitudes(self.params.jitter);
+        let sig = jitter::sigma2_fixed();
+        let count0 = levels[0].bricks.len() as u32;
+        let init = InitParams {
+            list_offset: layout.storage_list,
+            list_count: count0,
+            grid_stride: stride_for(count0 as u64 * 64),
+            period: periodic.init_period(),
+            cache_period: 0,
+            _r2: 0,
+            ex_width: coarse.width,
+            ex_height: coarse.height,
+            border: self.border,
+            seed_lo,
+            seed_hi,
+            jitter_on: (self.params.jitter > 0.0) as u32,
+            tile_x: hash32(seed_lo ^ 0x51) % 5,
+            tile_y: hash32(seed_hi ^ 0x52) % coarse.width,
+            tile_z: hash32(seed_lo ^ seed_hi ^ 0x53) % coarse.height,
+            slab_offset: coarse.offsets.slab,
+            amp0: amps[0],
+            amp1: amps[1],
+            amp2: amps[2],
+            amp3: amps[3],
+            sig0: sig[0],
+            sig1: sig[1],
+            sig2: sig[2],
+            sig3: sig[3],
+            channels: coarse.channels,
+            pixel_words: coarse.pixel_words,
+            pixels0: coarse.offsets.pixels[0],
+            pixels1: coarse.offsets.pixels[1],
+            pixels2: coarse.offsets.pixels[2],
+            _pad0: 0,
+            _pad1: 0,
+            _pad2: 0,
+        };
+        progress("level 0: init", 0.0);
+        let mut state = match start {
+            FirstLevel::Given(s) => s,
+            FirstLevel::Init => exec::timed(&mut self.exec, &mut self.times, "init", |e| {
+                e.init(first_pack, &init, &index, None)
+            })?,
+            FirstLevel::Cached => {
+                let n = self.params.coarse_cache.expect("cache requested") / 2;
+                // A hashed offset so different seeds read the cache at different places.
+                let [tile_x, tile_y, tile_z] =
+                    [0x71u32, 0x72, 0x73].map(|k| hash32(seed_lo ^ seed_hi ^ k) % n);
+                let cached = InitParams {
+                    period: 0,
+                    cache_period: n,
+                    tile_x,
+                    tile_y,
+                    tile_z,
+                    ..init
+                };
+                let cache = self.cache_buf.as_ref().expect("cache uploaded");
+                exec::timed(&mut self.exec, &mut self.times, "init", |e| {
+                    e.init(first_pack, &cached, &index, Some(cache))
+                })?
+            }
+        };
+        for level in 0..levels.len() {
+            if level > 0 {
+                // The previous level's dispatches go to the GPU while this level's index is
+                // built (and its buffers are freed once they ran, as before).
+                self.exec.flush()?;
+                (layout, index) = index_of(&mut self.exec, &levels, level);
+                // The parent's sub-pass plans are done with.
+                levels[level - 1].subpasses = Vec::new();
+            }
+            let lv = &levels[level];
+            let pack_index = first_pack + level;
+            let pack = &self.packs[pack_index];
+            if level > 0 {
+                let parent = &levels[level - 1].grid;
+                let count = lv.bricks.len() as u32;
+                let up = UpsampleParams {
+                    parent_grid_lo_x: parent.lo[0],
+                    parent_grid_lo_y: parent.lo[1],
+                    parent_grid_lo_z: parent.lo[2],
+                    parent_grid_x: parent.dims[0],
+                    parent_grid_y: parent.dims[1],
+                    parent_grid_z: parent.dims[2],
+                    parent_table: layout.parent_table,
+                    list_offset: layout.storage_list,
+                    list_count: count,
+                    grid_stride: stride_for(count as u64 * 64),
+                    ex_width: pack.width,
+                    ex_height: pack.height,
+                    border: self.border,
+                    channels: pack.channels,
+                    pixel_words: pack.pixel_words,
+                    pixels0: pack.offsets.pixels[0],
+                    pixels1: pack.offsets.pixels[1],
+                    pixels2: pack.offsets.pixels[2],
+                    _r0: 0,
+                    _r1: 0,
+                };
+                state = exec::timed(&mut self.exec, &mut self.times, "upsample", |e| {
+                    e.upsample(pack_index, &up, state, &index)
+                })?;
+                // Submitted alone, so the parent's state is freed as soon as it has run (a warm
+                // session keeps it for its next request instead: `keep_buffers`).
+                self.exec.flush()?;
+            }
+            progress(
+                &format!("level {level}: correction"),
+                (level as f32 + 0.1) / levels.len() as f32,
+            );
+            let k3d_used = pack.k3d_used(pack_index + 1 == self.packs.len());
+            // One correction pass at a time: its sub-passes' parameters, then the pass.
+            let mut pass: Vec<CorrectParams> = Vec::with_capacity(SUBPASS_ORDER.len());
+            for (s, sp) in lv.subpasses.iter().enumerate() {
+                if !sp.is_empty() {
+                    let mut p = correct_params(
+                        pack,
+                        &lv.grid,
+                        (layout.subpass_lists[s].0, layout.subpass_lists[s].1),
+                        sp.class,
+                        k3d_used,
+                        self.border,
+                        self.params.candidates,
+                    );
+                    p.mask_offset = layout.subpass_lists[s].2;
+                    p.period = periodic.read_period(level);
+                    pass.push(p);
+                }
+                if (s + 1) % SUBPASS_ORDER.len() == 0 || s + 1 == lv.subpasses.len() {
+                    if !pass.is_empty() {
+                        exec::timed(&mut self.exec, &mut self.times, "correct", |e| {
+                            e.correct_pass(pack_index, &pass, &mut state, &index)
+                        })?;
+                    }
+                    pass.clear();
+                }
+            }
+            if let Some(usage) = self.usage.as_mut() {
+                let words = self.exec.read_state(&state)?;
+                let stride = 3 + pack.pixel_words as usize;
+                let counts = &mut usage[pack_index];
+                for voxel in words.chunks_exact(stride) {
+                    for (a, count) in counts.iter_mut().enumerate() {
+                        let (x, y) = crate::analysis::frame::unpack(voxel[a]);
+                        count[(y * pack.width + x) as usize] += 1;
+                    }
+                }
+            }
+        }
+        if group.is_empty() {
+            return Ok(GroupResult {
+                colors: exec::Colors::Ready(Vec::new()),
+                triples: Vec::new(),
+                state: self.exec.read_state(&state)?,
+            });
+        }
+        let finest = levels.last().unwrap();
+        let pack = self.packs.last().unwrap();
+        let count = group.len() as u32;
+        let c = ColorizeParams {
+            grid_lo_x: finest.grid.lo[0],
+            grid_lo_y: finest.grid.lo[1],
+            grid_lo_z: finest.grid.lo[2],
+            grid_x: finest.grid.dims[0],
+            grid_y: finest.grid.dims[1],
+            grid_z: finest.grid.dims[2],
+            table_offset: 0,
+            list_offset: layout.output_list,
+            list_count: count,
+            grid_stride: stride_for(count as u64 * 64),
+            match_table: pack.offsets.color_match,
+            _r1: 0,
+            color_channels: pack.color_channels,
+            pixel_words: pack.pixel_words,
+            source: self.params.color.kernel_code(),
+            ex_width: pack.width,
+            pixels0: pack.offsets.pixels[0],
+            pixels1: pack.offsets.pixels[1],
+            pixels2: pack.offsets.pixels[2],
+            _pad: 0,
+        };
+        tracing::debug!("group's kernels recorded in {:.1} ms", ms(recording));
+        // In a request of several groups the colours may come back while the next group runs
+        // (see `for_each_group`); with triples they are needed now.
+        let defer = self.deferring && !want_triples;
+        let colors = exec::timed(&mut self.exec, &mut self.times, "colorize", |e| {
+            let colors = e.colorize(first_pack + last, &c, &state, &index)?;
+            match defer {
+                true => Ok(colors),
+                false => e.finish_colors(colors).map(exec::Colors::Ready),
+            }
+        })?;
+        let mut triples = Vec::new();
+        if want_triples {
+            let words = self.exec.read_state(&state)?;
+            let stride = 3 + pack.pixel_words as usize;
+            triples.reserve(group.len() * 64 * 3);
+            for b in group {
+                for l in 0..64 {
+                    let i = finest
+                        .grid
+                        .voxel_index(bricks::voxel_of(*b, l))
+                        .expect("output bricks are stored")
+                        * stride;
+                    triples.extend_from_slice(&words[i..i + 3]);
+                }
+            }
+        }
+        Ok(GroupResult {
+            colors,
+            triples,
+            state: Vec::new(),
+        })
+    }
+}
