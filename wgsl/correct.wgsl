@@ -149,11 +149,14 @@ fn neighbour_word(s: u32, w: u32, own: bool, same_class: bool) -> u32 {
     return pass_start[s * stride() + w];
 }
 
-// The projection's weights and biases (host: `projection_uniform` in src/gpu/synth.rs), in a
-// uniform buffer: every invocation reads the same words at the same time. Read from the level's
-// storage buffer they took ~45% of the kernel on lavapipe, from here about a quarter (lavapipe
-// still reads them lane by lane, their index coming from a loop counter; unrolling the loops to
-// make it constant compiled for seconds and ran slower). Vector g of plane a's bias is v[a * 4 + g]
+// The projection's weights and biases (host: `projection_uniform` in
+// src/gpu/projection_weights.rs), in a uniform buffer: every invocation reads the same words at
+// the same time. Read from the level's storage buffer they took ~45% of the kernel on lavapipe,
+// from here about a quarter: lavapipe loads each word as a scalar and broadcasts it to its 16
+// lanes, and with the sums they outnumber the vector registers, so a neighbour's pass of the
+// projection loop is mostly broadcasts and spills around its multiply-adds (BENCHMARKS.md,
+// sessions 33 and 35; unrolling the loops to make the index constant compiled for seconds and
+// ran slower). Vector g of plane a's bias is v[a * 4 + g]
 // (outputs 4g..4g+3: sum_i mean_i * w_ji). The weights start at vector PROJECTION_BASE, laid out
 // as WEIGHT_LAYOUT says:
 // - PLAIN: input i's weights in per_input = ceil(PCA_OUT / 4) vectors from

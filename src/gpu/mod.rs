@@ -6,6 +6,7 @@ pub mod candidate_tables;
 pub mod context;
 pub mod lapped_render;
 pub mod project;
+mod projection_weights;
 pub mod ptm_relight;
 pub mod shaders;
 pub mod synth;
