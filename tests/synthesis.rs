@@ -194,6 +194,54 @@ mod determinism {
         }
     }
 
+    /// A warm session's cuts equal the voxels they sample in a box around them: axis-aligned
+    /// ones at spacing 1 (synthesized as one-voxel-thick boxes) in every orientation, and an
+    /// oblique one (sampled voxel by voxel), one after the other in the same session.
+    #[test]
+    fn cuts_equal_the_voxels_they_sample() {
+        use solidsynth::lazy::cut::{CutSession, CutSpec};
+        let a = common::analyze(vec![common::fixture("cells32.png")], Border::Wrap);
+        let params = SynthParams {
+            seed: 9,
+            ..Default::default()
+        };
+        let big = Box3::new([-9, -6, -8], [9, 10, 8]);
+        let v = synth(&a, &params, big, None);
+        let mut session =
+            CutSession::new(Synthesizer::new(&a, params.clone(), &Compute::Cpu).unwrap());
+        let specs = [
+            ([0.0, 0.0, 1.0], None, 1.0),
+            ([0.0, 0.0, -1.0], Some([1.0, 0.0, 0.0]), 1.0),
+            ([0.0, 1.0, 0.0], None, 1.0),
+            ([-1.0, 0.0, 0.0], Some([0.0, -1.0, 0.0]), 1.0),
+            ([0.4, 1.0, -0.7], None, 0.9),
+        ];
+        for (normal, up, spacing) in specs {
+            let spec = CutSpec {
+                origin: [0.3, 2.0, -0.6],
+                normal,
+                up,
+                size: 12,
+                spacing,
+            };
+            let img = session.cut(&spec).unwrap();
+            let channels = img.channels as usize;
+            for (k, p) in spec.voxels().unwrap().iter().enumerate() {
+                assert!(big.contains(*p), "{spec:?} leaves the box at {p:?}");
+                let want = v.at(
+                    (p[0] - big.lo[0]) as u32,
+                    (p[1] - big.lo[1]) as u32,
+                    (p[2] - big.lo[2]) as u32,
+                );
+                assert_eq!(
+                    &img.pixels[k * channels..(k + 1) * channels],
+                    want,
+                    "{spec:?}: pixel {k}"
+                );
+            }
+        }
+    }
+
     #[test]
     fn any_box_equals_the_same_voxels_of_a_larger_box() {
         let a = common::analyze(vec![common::fixture("cells32.png")], Border::Wrap);

@@ -1302,47 +1302,37 @@ fn place_group(
         };
         triples = rest_triples;
         consumed = z1;
-        layers.push((z0, run, layer, layer_triples));
+        layers.push((z0, z1, run, layer, layer_triples));
     }
     layers
         .into_par_iter()
-        .for_each(|(z0, run, layer, layer_triples)| {
+        .for_each(|(z0, z1, run, layer, layer_triples)| {
             let with_triples = !layer_triples.is_empty();
             for &(_, j) in run {
-                let b = group[j];
-                let lo = b.map(|v| v * bricks::BRICK);
-                if (0..3).all(|i| lo[i] >= out.lo[i] && lo[i] + bricks::BRICK <= out.hi[i]) {
-                    // A brick inside the box (all of them when it is brick-aligned): its 16 rows
-                    // of 4 voxels are consecutive in the layer.
-                    let o = [lo[0] - out.lo[0], lo[1] - out.lo[1], lo[2] - z0].map(|c| c as usize);
-                    for row in 0..16 {
-                        let first = ((o[2] + row / 4) * sy + o[1] + row % 4) * sx + o[0];
-                        let src = j * 64 + row * 4;
-                        let dst = &mut layer[first * channels..(first + 4) * channels];
-                        for (x, color) in colors[src..src + 4].iter().enumerate() {
-                            dst[x * channels..(x + 1) * channels]
-                                .copy_from_slice(&color.to_le_bytes()[..channels]);
+                // The brick clipped to the box and to the layer: rows of consecutive voxels
+                // along x, copied whole (a brick inside the box is 16 rows of 4).
+                let lo = group[j].map(|v| v * bricks::BRICK);
+                let from = [lo[0].max(out.lo[0]), lo[1].max(out.lo[1]), lo[2].max(z0)];
+                let end = [out.hi[0], out.hi[1], z1];
+                let to = [0, 1, 2].map(|i| (lo[i] + bricks::BRICK).min(end[i]));
+                let run_len = (to[0] - from[0]).max(0) as usize;
+                for z in from[2]..to[2] {
+                    for y in from[1]..to[1] {
+                        let first = ((z - z0) as usize * sy + (y - out.lo[1]) as usize) * sx
+                            + (from[0] - out.lo[0]) as usize;
+                        let src = j * 64
+                            + ((z - lo[2]) * 16 + (y - lo[1]) * 4 + (from[0] - lo[0])) as usize;
+                        let dst = &mut layer[first * channels..(first + run_len) * channels];
+                        for (pixel, color) in dst
+                            .chunks_exact_mut(channels)
+                            .zip(&colors[src..src + run_len])
+                        {
+                            pixel.copy_from_slice(&color.to_le_bytes()[..channels]);
                         }
                         if with_triples {
-                            layer_triples[first * 3..(first + 4) * 3]
-                                .copy_from_slice(&group_triples[src * 3..(src + 4) * 3]);
+                            layer_triples[first * 3..(first + run_len) * 3]
+                                .copy_from_slice(&group_triples[src * 3..(src + run_len) * 3]);
                         }
-                    }
-                    continue;
-                }
-                for local in 0..64 {
-                    let p = bricks::voxel_of(b, local);
-                    if !(0..3).all(|i| (out.lo[i]..out.hi[i]).contains(&p[i])) {
-                        continue;
-                    }
-                    let v = [p[0] - out.lo[0], p[1] - out.lo[1], p[2] - z0].map(|c| c as usize);
-                    let at = (v[2] * sy + v[1]) * sx + v[0];
-                    let src = j * 64 + local as usize;
-                    layer[at * channels..(at + 1) * channels]
-                        .copy_from_slice(&colors[src].to_le_bytes()[..channels]);
-                    if with_triples {
-                        layer_triples[at * 3..at * 3 + 3]
-                            .copy_from_slice(&group_triples[src * 3..src * 3 + 3]);
                     }
                 }
             }
