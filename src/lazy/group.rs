@@ -51,8 +51,12 @@ impl Synthesizer {
                 l.checked_sub(1).map(|p| &levels[p]),
                 (l == last).then_some(group),
             );
+            let built = ms(timer);
             let index = exec.upload_index(std::mem::take(&mut layout.words));
-            tracing::debug!("level {l}: brick index in {:.1} ms", ms(timer));
+            tracing::debug!(
+                "level {l}: brick index in {:.1} ms (built in {built:.1} ms)",
+                ms(timer)
+            );
             (layout, index)
         };
         let mut state_bytes = 0u64;
