@@ -178,13 +178,23 @@ pub fn push_list(words: &mut Vec<u32>, list: &[Brick]) -> u32 {
 }
 
 /// Minkowski sum of a brick set with the brick offsets [lo, hi] (inclusive) per axis, through a
-/// dense occupancy grid and separable running sums.
+/// dense occupancy grid dilated one axis at a time. The offset ranges are a few bricks, so each
+/// axis ORs a handful of shifted copies of whole rows, planes or the grid (contiguous bytes the
+/// compiler vectorizes): an oblique cut's plan dilates a sparse sheet in a large bounding box
+/// several times per level, and running sums along strided lines took most of its planning
+/// (BENCHMARKS.md, session 36).
 pub fn dilate(set: &[Brick], lo: [i32; 3], hi: [i32; 3]) -> Vec<Brick> {
     let Some((bmin, bmax)) = bounds(set) else {
         return Vec::new();
     };
     if (0..3).any(|i| hi[i] < lo[i]) {
         return Vec::new();
+    }
+    if lo == [0; 3] && hi == [0; 3] {
+        // The set itself (an oblique cut's one-pass level asks for this 8 times).
+        let mut out = set.to_vec();
+        normalize(&mut out);
+        return out;
     }
     // The grid covers the set and its image.
     let glo = [0, 1, 2].map(|i| bmin[i] + lo[i].min(0));
@@ -194,49 +204,36 @@ pub fn dilate(set: &[Brick], lo: [i32; 3], hi: [i32; 3]) -> Vec<Brick> {
     for b in set {
         grid[idx([0, 1, 2].map(|i| (b[i] - glo[i]) as usize))] = 1;
     }
+    let mut before = Vec::new();
     for axis in 0..3 {
+        // The grid as blocks of `n` cells along the axis, each cell `inner` contiguous bytes.
         let n = dims[axis];
-        let mut prefix = vec![0u32; n + 1];
-        let others: Vec<[usize; 3]> = {
-            let (a1, a2) = ((axis + 1) % 3, (axis + 2) % 3);
-            let mut v = Vec::new();
-            for j in 0..dims[a2] {
-                for i in 0..dims[a1] {
-                    let mut p = [0usize; 3];
-                    p[a1] = i;
-                    p[a2] = j;
-                    v.push(p);
+        let inner: usize = dims[..axis].iter().product();
+        for block in grid.chunks_exact_mut(n * inner) {
+            before.clear();
+            before.extend_from_slice(block);
+            block.fill(0);
+            // Cell k is set when some set cell k - d has d in [lo, hi].
+            for d in lo[axis]..=hi[axis] {
+                let shift = d.unsigned_abs() as usize;
+                if shift >= n {
+                    continue;
                 }
-            }
-            v
-        };
-        for base in others {
-            let mut p = base;
-            for (k, pre) in (0..n).zip(0..) {
-                p[axis] = k;
-                prefix[pre + 1] = prefix[pre] + grid[idx(p)] as u32;
-            }
-            // Cell k is set when some set cell j has k - j in [lo, hi].
-            for k in 0..n {
-                let from = k as i64 - hi[axis] as i64;
-                let to = (k as i64 - lo[axis] as i64).min(n as i64 - 1);
-                p[axis] = k;
-                grid[idx(p)] = (to >= 0 && {
-                    let from = from.max(0) as usize;
-                    from as i64 <= to && prefix[to as usize + 1] > prefix[from]
-                }) as u8;
+                let (to, from) = if d >= 0 { (shift, 0) } else { (0, shift) };
+                let len = (n - shift) * inner;
+                for (out, cell) in block[to * inner..to * inner + len]
+                    .iter_mut()
+                    .zip(&before[from * inner..from * inner + len])
+                {
+                    *out |= cell;
+                }
             }
         }
     }
     let mut out = Vec::new();
-    for z in 0..dims[2] {
-        for y in 0..dims[1] {
-            for x in 0..dims[0] {
-                if grid[idx([x, y, z])] != 0 {
-                    out.push([glo[0] + x as i32, glo[1] + y as i32, glo[2] + z as i32]);
-                }
-            }
-        }
+    for (i, _) in grid.iter().enumerate().filter(|(_, &cell)| cell != 0) {
+        let (x, y, z) = (i % dims[0], i / dims[0] % dims[1], i / (dims[0] * dims[1]));
+        out.push([glo[0] + x as i32, glo[1] + y as i32, glo[2] + z as i32]);
     }
     out
 }
@@ -365,20 +362,23 @@ impl SubpassPlan {
     }
 }
 
-/// The needed class voxels of the bricks near `deliver` for a sub-pass whose per-brick plan box
-/// is `needed` (relative to a brick at the origin): voxel v is needed when some delivered brick
-/// b has v - 4b inside the box.
-fn subpass_plan(class: usize, needed: Box3, deliver: &[Brick], presence: &Presence) -> SubpassPlan {
+/// The needed class voxels of the bricks near the delivered ones (`presence`) for a sub-pass
+/// whose per-brick plan box is `needed` (relative to a brick at the origin): voxel v is needed
+/// when some delivered brick b has v - 4b inside the box. `candidates`: the delivered bricks
+/// dilated by the brick offsets of `needed` ([`offset_range`]), the bricks that may hold one.
+fn subpass_plan(
+    class: usize,
+    needed: Box3,
+    candidates: &[Brick],
+    presence: &Presence,
+) -> SubpassPlan {
     let mut plan = SubpassPlan::listed(class);
-    let Some((lo, hi)) = offset_range(needed) else {
-        return plan;
-    };
     let c = [
         (class & 1) as i32,
         ((class >> 1) & 1) as i32,
         ((class >> 2) & 1) as i32,
     ];
-    for a in dilate(deliver, lo, hi) {
+    for &a in candidates {
         let mut mask = 0u8;
         for k in 0..8 {
             let v = [0, 1, 2].map(|i| a[i] * BRICK + c[i] + 2 * ((k >> i) & 1));
@@ -587,11 +587,29 @@ fn plan_general(mut deliver: Vec<Brick>, passes: &[usize]) -> Vec<SparseLevel> {
         let storage_range = offset_range(one.storage).expect("storage holds the brick");
         let bricks = dilate(&deliver, storage_range.0, storage_range.1);
         let presence = Presence::new(&deliver);
+        // The sub-passes' candidate bricks: `deliver` dilated by each one's brick offsets,
+        // once per distinct range (the eight classes of a pass usually share one).
+        let mut ranges: Vec<([i32; 3], [i32; 3])> = one
+            .subpasses
+            .iter()
+            .filter_map(|(_, needed)| offset_range(*needed))
+            .collect();
+        ranges.sort_unstable();
+        ranges.dedup();
+        let dilated: Vec<Vec<Brick>> = ranges
+            .par_iter()
+            .map(|&(lo, hi)| dilate(&deliver, lo, hi))
+            .collect();
         // (Independent of each other: planned in parallel.)
         let subpasses = one
             .subpasses
             .par_iter()
-            .map(|(class, needed)| subpass_plan(*class, *needed, &deliver, &presence))
+            .map(|&(class, needed)| {
+                let candidates = offset_range(needed).map_or(&[][..], |range| {
+                    &dilated[ranges.binary_search(&range).expect("range listed")]
+                });
+                subpass_plan(class, needed, candidates, &presence)
+            })
             .collect();
         let grid = BrickGrid::new(&bricks);
         let mut parent: Vec<Brick> = bricks.iter().map(|b| b.map(|v| v >> 1)).collect();
@@ -673,6 +691,25 @@ mod tests {
                 dilate(&set, lo, hi),
                 brute_dilate(&set, lo, hi),
                 "{lo:?} {hi:?}"
+            );
+        }
+        // Random sets and ranges (seeded), ranges beside zero and wider than the set included.
+        let mut rng = crate::util::hash::SeededRng::new(36);
+        for _ in 0..200 {
+            let count = 1 + rng.below(30) as usize;
+            let set: Vec<Brick> = (0..count)
+                .map(|_| [0; 3].map(|_: i32| rng.below(12) as i32 - 6))
+                .collect();
+            let a = [0; 3].map(|_: i32| rng.below(9) as i32 - 4);
+            let b = [0; 3].map(|_: i32| rng.below(9) as i32 - 4);
+            let (lo, hi) = (
+                [0, 1, 2].map(|i| a[i].min(b[i])),
+                [0, 1, 2].map(|i| a[i].max(b[i])),
+            );
+            assert_eq!(
+                dilate(&set, lo, hi),
+                brute_dilate(&set, lo, hi),
+                "{set:?} {lo:?} {hi:?}"
             );
         }
     }
