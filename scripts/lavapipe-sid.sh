@@ -10,7 +10,14 @@
 #
 #   scripts/lavapipe-sid.sh fetch              download and unpack (needs Debian's apt, network)
 #   scripts/lavapipe-sid.sh run CMD [ARGS...]  run CMD (a dynamically linked binary) under it
+#   scripts/lavapipe-sid.sh prepare CMD        only make CMD's patched copy (see below)
 #   scripts/lavapipe-sid.sh version            the Mesa version fetched
+#
+# `run` makes the copy the first time it runs a new build of CMD, with patchelf, which holds the
+# whole binary in memory (~240 MB for a release build with its debug info): a peak RSS measured
+# around that `run` (GNU time's %M counts the largest process of the tree) is patchelf's, and
+# its wall time ~1 s more. `prepare` a new build before measuring it (session 37: the "rare 240
+# MB peaks" of sessions 33-36 were these first runs).
 #
 # sid changes daily and keeps only its latest packages: `fetch` takes whatever is there and
 # records the version, so name it with any number measured this way (BENCHMARKS.md does).
@@ -64,10 +71,11 @@ fetch() {
 case "${1:-}" in
 fetch) fetch ;;
 version) cat "$root/VERSION" ;;
-run)
+run | prepare)
+    action=$1
     shift
     [ -f "$root/lvp_icd.json" ] || { echo "run '$0 fetch' first" >&2; exit 2; }
-    (($#)) || { echo "usage: $0 run CMD [ARGS...]" >&2; exit 2; }
+    (($#)) || { echo "usage: $0 $action CMD [ARGS...]" >&2; exit 2; }
     cmd="$(realpath "$(command -v "$1")")" || { echo "$1: not found" >&2; exit 2; }
     shift
     # A copy of CMD whose ELF interpreter and library path are sid's, so that it, and any copy of
@@ -85,6 +93,7 @@ run)
         chmod +x "$partial"
         mv "$partial" "$copy"
     fi
+    [ "$action" = run ] || exit 0
     export VK_ICD_FILENAMES="$root/lvp_icd.json" LD_LIBRARY_PATH="$libs"
     if [ -z "${XDG_RUNTIME_DIR:-}" ]; then
         mkdir -p -m 700 "$root/xdg"
@@ -93,7 +102,7 @@ run)
     exec "$copy" "$@"
     ;;
 *)
-    sed -n '2,17p' "$0" | sed 's/^# \{0,1\}//'
+    sed -n '2,23p' "$0" | sed 's/^# \{0,1\}//'
     exit 2
     ;;
 esac

@@ -5,6 +5,8 @@ mod cli;
 use clap::Parser;
 
 fn main() {
+    // Before any thread exists (see the function).
+    solidsynth::util::memory::limit_heap_arenas();
     // Mesa's implicit Vulkan layer VK_LAYER_MESA_device_select connects to the display server to
     // order the GPUs; on a headless machine (no XDG_RUNTIME_DIR) libwayland then prints "error:
     // XDG_RUNTIME_DIR is invalid or not set" on every start of a command that probes Vulkan. We
