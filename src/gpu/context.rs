@@ -718,15 +718,20 @@ impl GpuContext {
         let mapped = timer.elapsed();
         // Copied out in parallel: one thread reads mapped memory at 1-2 GB/s here (measured on
         // an H100's driver), so a large read would be bound by the copy.
-        let mut out = vec![0u32; words];
-        {
+        const CHUNK: usize = 1 << 18;
+        let src = bytemuck::cast_slice::<u8, u32>(&view[..size as usize]);
+        let out = if src.len() <= CHUNK {
+            // One chunk: copied straight into a new vector, not into zeroes first (a warm
+            // cut's 1 MiB of colours).
+            src.to_vec()
+        } else {
             use rayon::prelude::*;
-            const CHUNK: usize = 1 << 18;
-            let src = bytemuck::cast_slice::<u8, u32>(&view[..size as usize]);
+            let mut out = vec![0u32; words];
             out.par_chunks_mut(CHUNK)
                 .zip(src.par_chunks(CHUNK))
                 .for_each(|(d, s)| d.copy_from_slice(s));
-        }
+            out
+        };
         drop(view);
         staging.unmap();
         if staging.size() <= REUSED_READBACK_BYTES {

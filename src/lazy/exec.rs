@@ -363,8 +363,10 @@ pub fn timed<T>(
     if let Executor::Gpu(g) = exec {
         g.finish()?;
     }
+    let elapsed = start.elapsed();
+    tracing::trace!("kernel {kernel}: {:.1} ms", elapsed.as_secs_f64() * 1e3);
     let e = t.entry(kernel).or_default();
-    e.0 += start.elapsed();
+    e.0 += elapsed;
     e.1 += 1;
     Ok(out)
 }

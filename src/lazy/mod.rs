@@ -964,7 +964,7 @@ impl Synthesizer {
     /// voxels instead of 2.64 M in five groups).
     fn planned_one_group(&self, all: &[Brick], exact: Option<Box3>) -> Option<Vec<SparseLevel>> {
         let cap = self.max_chunk_side.unwrap_or(512).min(512);
-        if grouping::cubes(all, [cap; 3]).len() != 1 {
+        if !grouping::is_one_cube(all, [cap; 3]) {
             return None;
         }
         let passes = self.params.passes.levels();
