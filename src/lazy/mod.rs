@@ -1329,12 +1329,7 @@ fn place_group(
                         let src = j * 64
                             + ((z - lo[2]) * 16 + (y - lo[1]) * 4 + (from[0] - lo[0])) as usize;
                         let dst = &mut layer[first * channels..(first + run_len) * channels];
-                        for (pixel, color) in dst
-                            .chunks_exact_mut(channels)
-                            .zip(&colors[src..src + run_len])
-                        {
-                            pixel.copy_from_slice(&color.to_le_bytes()[..channels]);
-                        }
+                        write_colors(dst, &colors[src..src + run_len], channels);
                         if with_triples {
                             layer_triples[first * 3..(first + run_len) * 3]
                                 .copy_from_slice(&group_triples[src * 3..(src + run_len) * 3]);
@@ -1343,6 +1338,25 @@ fn place_group(
                 }
             }
         });
+}
+
+/// Packed colours (little-endian bytes) written as `channels` bytes each. The common channel
+/// counts get fixed-size copies: with the count only known at run time each voxel's copy was a
+/// `memcpy` call (place_group was 12% of a warm 256^2 cut's main-thread CPU, session 37).
+fn write_colors(dst: &mut [u8], colors: &[u32], channels: usize) {
+    fn each<const N: usize>(dst: &mut [u8], colors: &[u32]) {
+        for (pixel, color) in dst.chunks_exact_mut(N).zip(colors) {
+            let bytes: [u8; 4] = color.to_le_bytes();
+            pixel.copy_from_slice(&bytes[..N]);
+        }
+    }
+    match channels {
+        1 => each::<1>(dst, colors),
+        2 => each::<2>(dst, colors),
+        3 => each::<3>(dst, colors),
+        4 => each::<4>(dst, colors),
+        _ => unreachable!("{channels} colour channels"),
+    }
 }
 
 /// The plan of a group of bricks: voxel-exact at the finest level when the request is the
