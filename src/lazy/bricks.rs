@@ -259,34 +259,46 @@ struct Presence {
 
 impl Presence {
     fn new(set: &[Brick]) -> Presence {
-        let grid = BrickGrid::new(set);
-        let dims = grid.dims.map(|d| d as i32);
-        let n = |d: i32| (d + 1) as usize;
-        let at = |x: i32, y: i32, z: i32| {
-            (z as usize * n(dims[1]) + y as usize) * n(dims[0]) + x as usize
+        let Some((lo, hi)) = bounds(set) else {
+            return Presence {
+                lo: [0; 3],
+                dims: [1; 3],
+                sat: vec![0; 8],
+            };
         };
-        let mut sat = vec![0u32; n(dims[0]) * n(dims[1]) * n(dims[2])];
-        for z in 1..=dims[2] {
-            for y in 1..=dims[1] {
-                for x in 1..=dims[0] {
-                    let b = [grid.lo[0] + x - 1, grid.lo[1] + y - 1, grid.lo[2] + z - 1];
-                    let own = grid.slot(b).is_some() as u32;
-                    sat[at(x, y, z)] = own
-                        .wrapping_add(sat[at(x - 1, y, z)])
-                        .wrapping_add(sat[at(x, y - 1, z)])
-                        .wrapping_add(sat[at(x, y, z - 1)])
-                        .wrapping_sub(sat[at(x - 1, y - 1, z)])
-                        .wrapping_sub(sat[at(x - 1, y, z - 1)])
-                        .wrapping_sub(sat[at(x, y - 1, z - 1)])
-                        .wrapping_add(sat[at(x - 1, y - 1, z - 1)]);
+        let dims = [0, 1, 2].map(|i| hi[i] - lo[i] + 1);
+        let [nx, ny, nz] = dims.map(|d| (d + 1) as usize);
+        let mut sat = vec![0u32; nx * ny * nz];
+        for b in set {
+            let [x, y, z] = [0, 1, 2].map(|i| (b[i] - lo[i] + 1) as usize);
+            sat[(z * ny + y) * nx + x] = 1;
+        }
+        // The table as three running sums, along x, then y, then z: one addition per cell
+        // and axis instead of the seven-term recurrence with a brick lookup per cell (an
+        // oblique 256^2 cut's bounding box is ~190k cells: building this was 15% of its
+        // warm cut's main-thread CPU on lavapipe, session 37).
+        for row in sat.chunks_exact_mut(nx) {
+            for x in 1..nx {
+                row[x] = row[x].wrapping_add(row[x - 1]);
+            }
+        }
+        for plane in sat.chunks_exact_mut(nx * ny) {
+            for y in 1..ny {
+                let (before, rest) = plane.split_at_mut(y * nx);
+                let previous = &before[(y - 1) * nx..];
+                for (cell, &below) in rest[..nx].iter_mut().zip(previous) {
+                    *cell = cell.wrapping_add(below);
                 }
             }
         }
-        Presence {
-            lo: grid.lo,
-            dims,
-            sat,
+        for z in 1..nz {
+            let (before, rest) = sat.split_at_mut(z * nx * ny);
+            let previous = &before[(z - 1) * nx * ny..];
+            for (cell, &below) in rest[..nx * ny].iter_mut().zip(previous) {
+                *cell = cell.wrapping_add(below);
+            }
         }
+        Presence { lo, dims, sat }
     }
 
     /// Whether a brick of the set lies in [lo, hi] (inclusive).
@@ -834,6 +846,33 @@ mod tests {
     /// v - 4b inside the per-brick box, checked voxel by voxel for seeded random scattered sets
     /// and boxes. (The planner's own boxes are whole bricks grown by whole bricks, whose masks
     /// are all or nothing: random boxes also cut bricks in two.)
+    /// `Presence::any` against a scan of the set, for random sets (empty, repeated bricks,
+    /// negative coordinates) and random boxes reaching past the set's bounds on every side.
+    #[test]
+    fn presence_answers_as_a_scan_does() {
+        let mut rng = crate::util::hash::SeededRng::new(31);
+        for case in 0..300 {
+            let count = rng.below(20) as usize * (case % 5).min(1);
+            let spread = 1 + rng.below(9) as i32;
+            let set: Vec<Brick> = (0..count)
+                .map(|_| [0; 3].map(|_: i32| rng.below(spread as u64) as i32 - spread / 2))
+                .collect();
+            let presence = Presence::new(&set);
+            for _ in 0..40 {
+                let lo = [0; 3].map(|_: i32| rng.below(14) as i32 - 8);
+                let hi = lo.map(|v| v + rng.below(6) as i32 - 1);
+                let scan = set
+                    .iter()
+                    .any(|b| (0..3).all(|i| lo[i] <= b[i] && b[i] <= hi[i]));
+                assert_eq!(
+                    presence.any(lo, hi),
+                    scan,
+                    "case {case}: {lo:?}..={hi:?} in {set:?}"
+                );
+            }
+        }
+    }
+
     #[test]
     fn sub_pass_masks_equal_brute_force() {
         let mut rng = crate::util::hash::SeededRng::new(7);
