@@ -49,7 +49,7 @@ fn whole_analysis(c: &mut Criterion) {
         };
         group.bench_function(format!("{size}x{size} cpu"), |b| {
             b.iter(|| {
-                analysis::analyze(
+                solidsynth::lazy::analyze(
                     &input,
                     &AnalysisParams::default(),
                     &Compute::Cpu,
@@ -75,7 +75,7 @@ fn synthesis(c: &mut Criterion) {
         border: Border::Wrap,
         names: vec!["cobblestone".into()],
     };
-    let a = analysis::analyze(
+    let a = solidsynth::lazy::analyze(
         &input,
         &AnalysisParams::default(),
         &Compute::Cpu,
@@ -85,7 +85,13 @@ fn synthesis(c: &mut Criterion) {
     let b = Box3::new([0; 3], [24; 3]);
     let mut group = c.benchmark_group("synthesize 24^3");
     group.sample_size(10);
-    let mut cpu = Synthesizer::new(&a, SynthParams::default(), &Compute::Cpu).unwrap();
+    let profiled = solidsynth::lazy::SynthOptions {
+        profile: true,
+        ..Default::default()
+    };
+    let mut cpu =
+        Synthesizer::with_options(&a, SynthParams::default(), &Compute::Cpu, profiled.clone())
+            .unwrap();
     group.bench_function("cpu", |bench| {
         bench.iter(|| cpu.synthesize(b, &|_, _| {}).unwrap())
     });
@@ -93,7 +99,9 @@ fn synthesis(c: &mut Criterion) {
         solidsynth::backend::BackendChoice::Gpu,
         &GpuOptions::from_env(),
     ) {
-        let mut g = Synthesizer::new(&a, SynthParams::default(), &gpu).unwrap();
+        let mut g =
+            Synthesizer::with_options(&a, SynthParams::default(), &gpu, profiled.clone())
+                .unwrap();
         group.bench_function("gpu", |bench| {
             bench.iter(|| g.synthesize(b, &|_, _| {}).unwrap())
         });
@@ -119,7 +127,7 @@ fn per_kernel<const N: usize>(
                 bench.iter_custom(|iterations| {
                     let mut total = std::time::Duration::ZERO;
                     for _ in 0..iterations {
-                        s.enable_profiling();
+                        s.reset_kernel_times();
                         s.synthesize(b, &|_, _| {}).unwrap();
                         // A kernel that did not run (none here) adds nothing.
                         total += s

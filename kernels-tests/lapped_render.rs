@@ -66,7 +66,23 @@ fn compare(model: &LstModel, gpu: &image::RgbaImage, camera: &Camera) -> Result<
     let mut coverage_mismatch = 0usize;
     for y in 0..size {
         for x in 0..size {
-            let reference = reference_pixel(model, &faces, &normals, camera, size, x, y);
+            let reference = reference_pixel(
+                &model.mesh.vertices,
+                &faces,
+                &normals,
+                camera,
+                size,
+                x,
+                y,
+                |tet, hit| {
+                    let b = model
+                        .mesh
+                        .barycentric(tet as usize, hit)
+                        .map(|x| x.max(0.0));
+                    let sum: f64 = b.iter().sum();
+                    model.shade(tet as usize, b.map(|x| (x / sum) as f32))
+                },
+            );
             let g = gpu.get_pixel(x, y);
             match reference {
                 None if g[3] == 0 => {}
@@ -111,7 +127,7 @@ fn lapped_render_matches_the_ray_cast() {
         // hosts), where compiling the render pipeline crashes it: the render refuses with a
         // clear error, and the comparison runs in a child process at 256 bits.
         let camera = Camera::orbit(&model, "30,20").unwrap();
-        let refused = render(gpu, &model, &camera, 96).unwrap_err().to_string();
+        let refused = render(gpu, &model.render_scene(), &camera, 96).unwrap_err().to_string();
         assert!(refused.contains("LP_NATIVE_VECTOR_WIDTH=256"), "{refused}");
         // (The child must not refuse and spawn again.)
         assert!(
@@ -138,7 +154,7 @@ fn lapped_render_matches_the_ray_cast() {
     }
     for spec in ["30,20", "200,-35,3"] {
         let camera = Camera::orbit(&model, spec).unwrap();
-        let image = render(gpu, &model, &camera, 96).unwrap();
+        let image = render(gpu, &model.render_scene(), &camera, 96).unwrap();
         match compare(&model, &image, &camera) {
             Ok(report) => eprintln!("camera {spec}: {report}"),
             Err(report) => panic!("camera {spec}: {report}"),

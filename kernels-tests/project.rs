@@ -155,8 +155,8 @@ fn analysis_is_identical_on_gpu_and_cpu() {
         &GpuOptions::from_env(),
     )
     .unwrap();
-    let on_gpu = solidsynth::analysis::analyze(&input, &params, &gpu_backend, &|_, _| {}).unwrap();
-    let on_cpu = solidsynth::analysis::analyze(
+    let on_gpu = solidsynth::lazy::analyze(&input, &params, &gpu_backend, &|_, _| {}).unwrap();
+    let on_cpu = solidsynth::lazy::analyze(
         &input,
         &params,
         &solidsynth::backend::Compute::Cpu,

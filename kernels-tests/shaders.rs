@@ -42,7 +42,7 @@ fn validation_rejects_a_broken_shader() {
 #[test]
 fn shared_struct_layouts_match_wgsl() {
     let _serial = crate::serial();
-    for (kernel, name, rust, size) in solidsynth::kernel_types::all_layouts() {
+    for (kernel, name, rust, size) in solidsynth::contract::uniforms::all_layouts() {
         let (module, _) = shaders::validate(kernel, shaders::source(kernel)).unwrap();
         let (members, span) = shaders::struct_layout(&module, name)
             .unwrap_or_else(|| panic!("{name} not in {kernel}.wgsl"));

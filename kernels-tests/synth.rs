@@ -3,11 +3,13 @@
 //! coordinates, for both candidate modes, shared and three-exemplar analyses, wrap and mirror.
 
 use crate::compare::words_equal;
-use solidsynth::analysis::{self, Analysis, AnalysisInput, AnalysisParams};
+use solidsynth::analysis::{Analysis, AnalysisInput, AnalysisParams};
 use solidsynth::backend::{BackendChoice, Compute};
 use solidsynth::exemplar::{decode_image, Border};
 use solidsynth::gpu::GpuOptions;
-use solidsynth::lazy::{Box3, CandidateMode, ColorSource, SynthParams, Synthesizer};
+use solidsynth::lazy::{
+    Box3, CandidateMode, ColorSource, SynthOptions, SynthParams, Synthesizer,
+};
 
 fn fixture(bytes: &[u8]) -> solidsynth::exemplar::Image {
     decode_image(bytes, "fixture").unwrap()
@@ -47,7 +49,7 @@ fn analyze(
         border,
         names,
     };
-    analysis::analyze(
+    solidsynth::lazy::analyze(
         &input,
         &AnalysisParams::default(),
         &Compute::Cpu,
@@ -97,7 +99,7 @@ fn synthesis_kernels_bit_exact_on_gpu_and_cpu() {
             coarse_cache: None,
         };
         let what = format!("three={three} {border:?} {mode:?} jitter={jitter} {color:?} {b:?}");
-        same_on_both(&what, &a, &params, &gpu, |s| {
+        same_on_both(&what, &a, &params, &gpu, Default::default(), |s| {
             s.synthesize(b, &|_, _| {}).unwrap()
         });
     }
@@ -110,7 +112,7 @@ fn synthesis_kernels_bit_exact_on_gpu_and_cpu() {
         ..Default::default()
     };
     let thin = Box3::new([-6, 1, 5], [13, 22, 6]);
-    same_on_both("one-voxel-thick slab", &a, &params, &gpu, |s| {
+    same_on_both("one-voxel-thick slab", &a, &params, &gpu, Default::default(), |s| {
         s.synthesize(thin, &|_, _| {}).unwrap()
     });
     // Four channels (RGB + feature: one value word per voxel) and five (RGBA + feature: two
@@ -158,11 +160,11 @@ fn synthesis_kernels_bit_exact_on_gpu_and_cpu() {
             ..Default::default()
         };
         let b = Box3::new([-3, 5, 0], [9, 13, 10]);
-        same_on_both(&format!("feature, rgba={rgba}"), &a, &params, &gpu, |s| {
+        same_on_both(&format!("feature, rgba={rgba}"), &a, &params, &gpu, Default::default(), |s| {
             s.synthesize(b, &|_, _| {}).unwrap()
         });
         let what = format!("feature, rgba={rgba}, byte weights");
-        same_on_both(&what, &a, &params, &bytes_gpu, |s| {
+        same_on_both(&what, &a, &params, &bytes_gpu, Default::default(), |s| {
             s.synthesize(b, &|_, _| {}).unwrap()
         });
         if rgba {
@@ -171,7 +173,7 @@ fn synthesis_kernels_bit_exact_on_gpu_and_cpu() {
                 color: "x,matched,average,z".parse().unwrap(),
                 ..params
             };
-            same_on_both("feature, rgba, per channel", &a, &params, &gpu, |s| {
+            same_on_both("feature, rgba, per channel", &a, &params, &gpu, Default::default(), |s| {
                 s.synthesize(b, &|_, _| {}).unwrap()
             });
         }
@@ -187,7 +189,7 @@ fn synthesis_kernels_bit_exact_on_gpu_and_cpu() {
             ..Default::default()
         };
         let b = Box3::new([-4, 6, -2], [8, 14, 9]);
-        same_on_both(&format!("odd size, {border:?}"), &a, &params, &gpu, |s| {
+        same_on_both(&format!("odd size, {border:?}"), &a, &params, &gpu, Default::default(), |s| {
             s.synthesize(b, &|_, _| {}).unwrap()
         });
     }
@@ -202,7 +204,7 @@ fn synthesis_kernels_bit_exact_on_gpu_and_cpu() {
         ..Default::default()
     };
     let b = Box3::new([-2, -7, 3], [9, 2, 12]);
-    same_on_both("weights beyond 16 bits", &a, &params, &gpu, |s| {
+    same_on_both("weights beyond 16 bits", &a, &params, &gpu, Default::default(), |s| {
         s.synthesize(b, &|_, _| {}).unwrap()
     });
     let a = analysis(false, Border::Wrap);
@@ -212,14 +214,14 @@ fn synthesis_kernels_bit_exact_on_gpu_and_cpu() {
         seed: 13,
         ..Default::default()
     };
-    same_on_both("small parameter arena", &a, &params, &gpu, |s| {
+    same_on_both("small parameter arena", &a, &params, &gpu, Default::default(), |s| {
         s.set_parameter_arena_bytes(1024).unwrap();
         s.synthesize(b, &|_, _| {}).unwrap()
     });
     // `correct`'s threads in blocks of 8, 16 and 32 bricks (the adapter picks 8 or 16): list
     // counts that are not whole blocks leave a last block part empty.
     for n in [8, 16, 32] {
-        same_on_both(&format!("blocks of {n} bricks"), &a, &params, &gpu, |s| {
+        same_on_both(&format!("blocks of {n} bricks"), &a, &params, &gpu, Default::default(), |s| {
             s.set_block_bricks(n);
             s.synthesize(b, &|_, _| {}).unwrap()
         });
@@ -229,14 +231,17 @@ fn synthesis_kernels_bit_exact_on_gpu_and_cpu() {
         seed: 5,
         ..Default::default()
     };
-    same_on_both("tileable", &a, &params, &gpu, |s| {
+    same_on_both("tileable", &a, &params, &gpu, Default::default(), |s| {
         s.synthesize_tileable(32, &|_, _| {}, false).unwrap().0
     });
     // The same tileable solid in groups of 16^3 (boxes of the periodic solid with their
     // padding, initial level wrapping): what a solid too large for one buffer goes through.
-    same_on_both("tileable in groups", &a, &params, &gpu, |s| {
-        s.set_max_chunk_side(16);
-        s.set_shared_coarse_levels(false);
+    let in_groups = SynthOptions {
+        max_group: Some(16),
+        shared_coarse_levels: Some(false),
+        ..Default::default()
+    };
+    same_on_both("tileable in groups", &a, &params, &gpu, in_groups, |s| {
         s.synthesize_tileable(32, &|_, _| {}, false).unwrap().0
     });
     // One colour source per channel, the matched table among them, on three different
@@ -248,7 +253,7 @@ fn synthesis_kernels_bit_exact_on_gpu_and_cpu() {
         ..Default::default()
     };
     let b = Box3::new([-5, -1, 2], [6, 8, 9]);
-    same_on_both("per-channel colours", &three, &params, &gpu, |s| {
+    same_on_both("per-channel colours", &three, &params, &gpu, Default::default(), |s| {
         s.synthesize(b, &|_, _| {}).unwrap()
     });
     // The coarse-level cache: level L-1 built once from a tileable solid, uploaded per request.
@@ -258,7 +263,7 @@ fn synthesis_kernels_bit_exact_on_gpu_and_cpu() {
         ..Default::default()
     };
     let b = Box3::new([-6, 2, -9], [6, 10, 3]);
-    same_on_both("coarse cache", &a, &params, &gpu, |s| {
+    same_on_both("coarse cache", &a, &params, &gpu, Default::default(), |s| {
         s.synthesize(b, &|_, _| {}).unwrap()
     });
     // Once the cache is built (or a request's shared coarse levels are done) the GPU releases
@@ -272,6 +277,7 @@ fn synthesis_kernels_bit_exact_on_gpu_and_cpu() {
         &a,
         &params,
         &gpu,
+        Default::default(),
         |s| {
             let mut v = s.synthesize(b, &|_, _| {}).unwrap();
             let t = s.synthesize_tileable(32, &|_, _| {}, false).unwrap().0;
@@ -294,10 +300,13 @@ fn synthesis_kernels_bit_exact_on_gpu_and_cpu() {
         seed: 9,
         ..Default::default()
     };
-    same_on_both("shared coarse levels, twice", &a, &params, &gpu, |s| {
-        // (Not shared by default on a GPU with its own memory.)
-        s.set_shared_coarse_levels(true);
-        s.set_max_chunk_side(16);
+    // (Not shared by default on a GPU with its own memory.)
+    let shared = SynthOptions {
+        max_group: Some(16),
+        shared_coarse_levels: Some(true),
+        ..Default::default()
+    };
+    same_on_both("shared coarse levels, twice", &a, &params, &gpu, shared, |s| {
         let mut v = s
             .synthesize(Box3::new([-9, -3, 0], [20, 12, 24]), &|_, _| {})
             .unwrap();
@@ -324,12 +333,13 @@ fn gpu_boxes_are_windows_of_larger_gpu_boxes() {
         ..Default::default()
     };
     let synth = |b: Box3, max_group: Option<u32>| {
-        let mut s = Synthesizer::new(&a, params.clone(), &gpu).unwrap();
-        if let Some(g) = max_group {
-            s.set_max_chunk_side(g);
-            // Each group's own coarse levels (shared ones below).
-            s.set_shared_coarse_levels(false);
-        }
+        // Each group's own coarse levels (shared ones below).
+        let options = SynthOptions {
+            max_group,
+            shared_coarse_levels: max_group.map(|_| false),
+            ..Default::default()
+        };
+        let mut s = Synthesizer::with_options(&a, params.clone(), &gpu, options).unwrap();
         s.synthesize(b, &|_, _| {}).unwrap()
     };
     let big = Box3::new([-9, -6, -7], [9, 10, 5]);
@@ -369,9 +379,7 @@ fn gpu_boxes_are_windows_of_larger_gpu_boxes() {
     .unwrap();
     // The same groups sharing their coarse levels: each level above the finest synthesized
     // once (itself in groups), its triples read back and uploaded as the groups' parents.
-    let mut s = Synthesizer::new(&a, params.clone(), &gpu).unwrap();
-    s.set_max_chunk_side(12);
-    s.set_shared_coarse_levels(true);
+    let mut s = Synthesizer::with_options(&a, params.clone(), &gpu, SynthOptions { max_group: Some(12), shared_coarse_levels: Some(true), ..Default::default() }).unwrap();
     let shared = s.synthesize(big, &|_, _| {}).unwrap();
     assert!(s.last_stats().unwrap().groups > 1);
     words_equal(
@@ -384,10 +392,7 @@ fn gpu_boxes_are_windows_of_larger_gpu_boxes() {
     // default on a GPU of its own memory only, forced here): with their own and with shared
     // coarse levels.
     for shared_levels in [false, true] {
-        let mut s = Synthesizer::new(&a, params.clone(), &gpu).unwrap();
-        s.set_max_chunk_side(12);
-        s.set_shared_coarse_levels(shared_levels);
-        s.set_overlapped_reads(true);
+        let mut s = Synthesizer::with_options(&a, params.clone(), &gpu, SynthOptions { max_group: Some(12), shared_coarse_levels: Some(shared_levels), overlapped_reads: Some(true), ..Default::default() }).unwrap();
         let overlapped = s.synthesize(big, &|_, _| {}).unwrap();
         let groups = s.last_stats().unwrap().groups;
         assert!(groups > 1);
@@ -410,9 +415,7 @@ fn gpu_boxes_are_windows_of_larger_gpu_boxes() {
         ..params.clone()
     };
     let by_group = |compute: &Compute| {
-        let mut s = Synthesizer::new(&a, cached.clone(), compute).unwrap();
-        s.set_max_chunk_side(12);
-        s.set_overlapped_reads(true);
+        let mut s = Synthesizer::with_options(&a, cached.clone(), compute, SynthOptions { max_group: Some(12), overlapped_reads: Some(true), ..Default::default() }).unwrap();
         let mut bricks = Vec::new();
         let mut colors = Vec::new();
         let requested = solidsynth::lazy::bricks::bricks_of_box(big);
@@ -456,10 +459,14 @@ fn same_on_both(
     a: &solidsynth::analysis::Analysis,
     params: &SynthParams,
     gpu: &Compute,
+    options: SynthOptions,
     f: impl Fn(&mut Synthesizer) -> solidsynth::volume::Volume,
 ) {
-    let on_cpu = f(&mut Synthesizer::new(a, params.clone(), &Compute::Cpu).unwrap());
-    let on_gpu = f(&mut Synthesizer::new(a, params.clone(), gpu).unwrap());
+    let with = |compute: &Compute| {
+        Synthesizer::with_options(a, params.clone(), compute, options.clone()).unwrap()
+    };
+    let on_cpu = f(&mut with(&Compute::Cpu));
+    let on_gpu = f(&mut with(gpu));
     words_equal(
         what,
         &bytes_to_words(&on_cpu.data),
@@ -483,7 +490,7 @@ fn bytes_to_words(b: &[u8]) -> Vec<u32> {
 fn each_synthesis_kernel_matches_its_reference() {
     let _serial = crate::serial();
     let Some(_) = crate::gpu() else { return };
-    use solidsynth::kernel_types::{InitParams, UpsampleParams};
+    use solidsynth::contract::uniforms::{InitParams, UpsampleParams};
     use solidsynth::lazy::{jitter, pack::LevelPack};
     let a = analysis(false, Border::Wrap);
     let pack = LevelPack::new(&a, 3);

@@ -1,18 +1,18 @@
 //! solidsynth: solid texture synthesis from 2D exemplars, GPU-compute-first on wgpu/WGSL with a
 //! CPU reference for every kernel.
 //!
-//! Start with [`analysis::analyze`] (exemplar analysis, the precomputation of "Lazy Solid Texture
+//! Start with [`lazy::analyze`] (exemplar analysis, the precomputation of "Lazy Solid Texture
 //! Synthesis"), persisted with [`io::ssa`].
 
 pub mod analysis;
 pub mod backend;
+pub mod contract;
 pub mod cpu;
 pub mod error;
 pub mod exemplar;
 pub mod gpu;
 pub mod gradient;
 pub mod io;
-pub mod kernel_types;
 pub mod lapped;
 pub mod lazy;
 pub mod mesh;

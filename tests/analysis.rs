@@ -239,7 +239,7 @@ fn gray_rgba_and_feature_channels_are_analysed() {
         border: Border::Wrap,
         names: vec!["cells".into()],
     };
-    let with_feature = solidsynth::analysis::analyze(
+    let with_feature = solidsynth::lazy::analyze(
         &input,
         &Default::default(),
         &solidsynth::backend::Compute::Cpu,

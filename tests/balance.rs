@@ -4,8 +4,9 @@
 
 mod common;
 
-use solidsynth::analysis::balance::{self, top_percent_share};
-use solidsynth::analysis::{self, Analysis, AnalysisInput, AnalysisParams};
+use solidsynth::analysis::balance;
+use solidsynth::lazy::balance::top_percent_share;
+use solidsynth::analysis::{Analysis, AnalysisInput, AnalysisParams};
 use solidsynth::backend::Compute;
 use solidsynth::exemplar::{Border, Image};
 use solidsynth::io::ssa;
@@ -22,7 +23,7 @@ fn analyze(image: Image, rounds: u32) -> Analysis {
         balance_rounds: rounds,
         ..Default::default()
     };
-    analysis::analyze(&input, &params, &Compute::Cpu, &|_, _| {}).unwrap()
+    solidsynth::lazy::analyze(&input, &params, &Compute::Cpu, &|_, _| {}).unwrap()
 }
 
 /// Top-1% usage share of each level (coarsest first) of a tileable solid (another seed than the

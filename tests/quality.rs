@@ -37,7 +37,7 @@ enum Setup {
 /// for each [`Setup`].
 fn synthesized() -> BTreeMap<String, serde_json::Value> {
     use solidsynth::analysis::frame::{to_crate_frame, InputFrame};
-    use solidsynth::analysis::{self, AnalysisInput, AnalysisParams};
+    use solidsynth::analysis::{AnalysisInput, AnalysisParams};
     use solidsynth::exemplar::{feature, Border};
     use solidsynth::lazy::{Box3, SynthParams, Synthesizer};
     let names = [
@@ -71,7 +71,7 @@ fn synthesized() -> BTreeMap<String, serde_json::Value> {
             exemplars: exemplars.clone(),
             border: Border::Wrap,
         };
-        let a = analysis::analyze(
+        let a = solidsynth::lazy::analyze(
             &input,
             &AnalysisParams::default(),
             &solidsynth::backend::Compute::Cpu,

@@ -85,9 +85,9 @@ fn exact_plane_is_kept(axis: usize) {
         );
     }
     for mode in [CandidateMode::TwoD, CandidateMode::ThreeD] {
-        let p = solidsynth::kernel_types::CorrectParams {
+        let p = solidsynth::contract::uniforms::CorrectParams {
             mask_offset: masks,
-            ..solidsynth::lazy::correct_params(
+            ..solidsynth::lazy::kernel_params::correct_params(
                 &pack,
                 &grid,
                 (list, interior.len() as u32),
@@ -115,7 +115,7 @@ fn exact_plane_is_kept(axis: usize) {
     }
     // 2D mode: exemplar `axis`'s own search decides its coordinate.
     for class in [0, 5] {
-        let p = solidsynth::lazy::correct_params(
+        let p = solidsynth::lazy::kernel_params::correct_params(
             &pack,
             &grid,
             (list, interior.len() as u32),
@@ -124,7 +124,7 @@ fn exact_plane_is_kept(axis: usize) {
             0,
             CandidateMode::TwoD,
         );
-        let p = solidsynth::kernel_types::CorrectParams {
+        let p = solidsynth::contract::uniforms::CorrectParams {
             mask_offset: masks,
             ..p
         };
@@ -157,7 +157,7 @@ mod determinism {
     use super::common;
     use solidsynth::backend::Compute;
     use solidsynth::exemplar::Border;
-    use solidsynth::lazy::{Box3, SynthParams, Synthesizer};
+    use solidsynth::lazy::{Box3, SynthOptions, SynthParams, Synthesizer};
     use solidsynth::volume::Volume;
 
     fn synth(
@@ -166,10 +166,11 @@ mod determinism {
         b: Box3,
         chunk: Option<u32>,
     ) -> Volume {
-        let mut s = Synthesizer::new(a, params.clone(), &Compute::Cpu).unwrap();
-        if let Some(c) = chunk {
-            s.set_max_chunk_side(c);
-        }
+        let options = SynthOptions {
+            max_group: chunk,
+            ..Default::default()
+        };
+        let mut s = Synthesizer::with_options(a, params.clone(), &Compute::Cpu, options).unwrap();
         s.synthesize(b, &|_, _| {}).unwrap()
     }
 
@@ -272,13 +273,9 @@ mod determinism {
         // Grouping (seams at multiples of 12 voxels) changes nothing, whether each group
         // synthesizes its own coarse levels or all share them (each level above the finest
         // synthesized once, itself in groups of 12 down to l_start).
-        let mut own = Synthesizer::new(&a, params.clone(), &Compute::Cpu).unwrap();
-        own.set_max_chunk_side(12);
-        own.set_shared_coarse_levels(false);
+        let mut own = Synthesizer::with_options(&a, params.clone(), &Compute::Cpu, SynthOptions { max_group: Some(12), shared_coarse_levels: Some(false), ..Default::default() }).unwrap();
         assert_eq!(own.synthesize(big, &|_, _| {}).unwrap(), v);
-        let mut shared = Synthesizer::new(&a, params.clone(), &Compute::Cpu).unwrap();
-        shared.set_max_chunk_side(12);
-        shared.set_shared_coarse_levels(true);
+        let mut shared = Synthesizer::with_options(&a, params.clone(), &Compute::Cpu, SynthOptions { max_group: Some(12), shared_coarse_levels: Some(true), ..Default::default() }).unwrap();
         assert_eq!(shared.synthesize(big, &|_, _| {}).unwrap(), v);
         let (own, shared) = (own.last_stats().unwrap(), shared.last_stats().unwrap());
         assert!(shared.groups > 1);
@@ -292,8 +289,7 @@ mod determinism {
         }
         // Streamed in slabs of groups (what `synth` writes to its file): the slabs follow each
         // other along z, span the box in x and y, and together are the volume.
-        let mut s = Synthesizer::new(&a, params.clone(), &Compute::Cpu).unwrap();
-        s.set_max_chunk_side(8);
+        let mut s = Synthesizer::with_options(&a, params.clone(), &Compute::Cpu, SynthOptions { max_group: Some(8), ..Default::default() }).unwrap();
         let mut joined = Vec::new();
         let mut next_z = 0;
         let mut depths = Vec::new();
@@ -323,9 +319,7 @@ mod determinism {
         let colors = s.sample(&points, &|_, _| {}).unwrap();
         // The same points in groups of 8 sharing their coarse levels (a sparse request's
         // parents: scattered bricks, not a box).
-        let mut shared = Synthesizer::new(&a, params.clone(), &Compute::Cpu).unwrap();
-        shared.set_max_chunk_side(8);
-        shared.set_shared_coarse_levels(true);
+        let mut shared = Synthesizer::with_options(&a, params.clone(), &Compute::Cpu, SynthOptions { max_group: Some(8), shared_coarse_levels: Some(true), ..Default::default() }).unwrap();
         assert_eq!(shared.sample(&points, &|_, _| {}).unwrap(), colors);
         assert!(shared.last_stats().unwrap().groups > 1);
         for (p, c) in points.iter().zip(&colors) {
@@ -351,12 +345,10 @@ mod determinism {
         let dense_bound =
             solidsynth::lazy::grouping::planned_state_bytes([64, 56, 48], &[2; 4], &[16; 4]);
         assert!(dense_bound > fitting, "{dense_bound} vs {fitting}");
-        let mut limited = Synthesizer::new(&a, params.clone(), &Compute::Cpu).unwrap();
-        limited.set_state_limit(fitting);
+        let mut limited = Synthesizer::with_options(&a, params.clone(), &Compute::Cpu, SynthOptions { state_limit: Some(fitting), ..Default::default() }).unwrap();
         assert_eq!(limited.sample(&far, &|_, _| {}).unwrap(), far_colors);
         assert_eq!(limited.last_stats().unwrap().groups, 1);
-        let mut split = Synthesizer::new(&a, params.clone(), &Compute::Cpu).unwrap();
-        split.set_state_limit(fitting - 1);
+        let mut split = Synthesizer::with_options(&a, params.clone(), &Compute::Cpu, SynthOptions { state_limit: Some(fitting - 1), ..Default::default() }).unwrap();
         assert_eq!(split.sample(&far, &|_, _| {}).unwrap(), far_colors);
         assert!(split.last_stats().unwrap().groups > 1);
         // Storage follows the request: two scattered points cost less than the box around them
@@ -480,18 +472,15 @@ mod determinism {
 fn triples_explain_the_colours() {
     use solidsynth::analysis::frame::unpack;
     use solidsynth::backend::Compute;
-    use solidsynth::lazy::{Box3, SynthParams, Synthesizer};
+    use solidsynth::lazy::{Box3, SynthOptions, SynthParams, Synthesizer};
     let a = common::analyze(vec![common::fixture("cells32.png")], Border::Wrap);
-    let mut s = Synthesizer::new(
-        &a,
+    let mut s = Synthesizer::with_options(&a,
         SynthParams {
             seed: 4,
             ..Default::default()
         },
-        &Compute::Cpu,
-    )
+        &Compute::Cpu, SynthOptions { max_group: Some(8), ..Default::default() })
     .unwrap();
-    s.set_max_chunk_side(8);
     let b = Box3::new([-3, 2, 7], [7, 11, 15]);
     let (v, triples) = s.synthesize_with_triples(b, &|_, _| {}).unwrap();
     assert_eq!(triples.len() as u64, b.voxels() * 3);
@@ -734,7 +723,7 @@ fn seam_ratio(v: &solidsynth::volume::Volume, n: u32) -> f64 {
 #[test]
 fn tileable_solids_in_groups_equal_the_one_piece_solid() {
     use solidsynth::backend::Compute;
-    use solidsynth::lazy::{SynthParams, Synthesizer};
+    use solidsynth::lazy::{SynthOptions, SynthParams, Synthesizer};
     let a = common::analyze(vec![common::fixture("cells32.png")], Border::Wrap);
     let params = SynthParams {
         seed: 3,
@@ -744,10 +733,13 @@ fn tileable_solids_in_groups_equal_the_one_piece_solid() {
     let mut whole = Synthesizer::new(&a, params.clone(), &Compute::Cpu).unwrap();
     let (one_piece, one_piece_triples) = whole.synthesize_tileable(n, &|_, _| {}, true).unwrap();
     assert_eq!(whole.last_stats().unwrap().groups, 1);
-    let mut grouped = Synthesizer::new(&a, params, &Compute::Cpu).unwrap();
     // Groups of 16^3: 8 of them, each with its dependency padding reaching across the period.
-    grouped.set_max_chunk_side(16);
-    grouped.set_shared_coarse_levels(false);
+    let options = SynthOptions {
+        max_group: Some(16),
+        shared_coarse_levels: Some(false),
+        ..Default::default()
+    };
+    let mut grouped = Synthesizer::with_options(&a, params, &Compute::Cpu, options).unwrap();
     let (in_groups, group_triples) = grouped.synthesize_tileable(n, &|_, _| {}, true).unwrap();
     assert_eq!(grouped.last_stats().unwrap().groups, 8);
     assert_eq!(in_groups.dims(), one_piece.dims());
@@ -758,17 +750,13 @@ fn tileable_solids_in_groups_equal_the_one_piece_solid() {
     assert!(group_triples == one_piece_triples, "grouped triples differ");
     // The same groups sharing their coarse levels (each synthesized once, as boxes of the
     // periodic solid whose initial level wraps).
-    let mut shared = Synthesizer::new(
-        &a,
+    let mut shared = Synthesizer::with_options(&a,
         SynthParams {
             seed: 3,
             ..Default::default()
         },
-        &Compute::Cpu,
-    )
+        &Compute::Cpu, SynthOptions { max_group: Some(16), shared_coarse_levels: Some(true), ..Default::default() })
     .unwrap();
-    shared.set_max_chunk_side(16);
-    shared.set_shared_coarse_levels(true);
     let (in_shared, shared_triples) = shared.synthesize_tileable(n, &|_, _| {}, true).unwrap();
     assert_eq!(shared.last_stats().unwrap().groups, 8);
     assert!(
@@ -786,7 +774,7 @@ fn tileable_solids_in_groups_equal_the_one_piece_solid() {
 #[test]
 fn coarse_cache_solids_are_spatially_deterministic() {
     use solidsynth::backend::Compute;
-    use solidsynth::lazy::{Box3, SynthParams, Synthesizer};
+    use solidsynth::lazy::{Box3, SynthOptions, SynthParams, Synthesizer};
     let a = common::analyze(vec![common::fixture("cells32.png")], Border::Wrap);
     let params = SynthParams {
         seed: 6,
@@ -825,8 +813,7 @@ fn coarse_cache_solids_are_spatially_deterministic() {
         .build()
         .unwrap();
     let (grouped, groups) = pool.install(|| {
-        let mut g = Synthesizer::new(&a, params.clone(), &Compute::Cpu).unwrap();
-        g.set_max_chunk_side(8);
+        let mut g = Synthesizer::with_options(&a, params.clone(), &Compute::Cpu, SynthOptions { max_group: Some(8), ..Default::default() }).unwrap();
         let out = g.synthesize(big, &|_, _| {}).unwrap();
         (out, g.last_stats().unwrap().groups)
     });
@@ -864,7 +851,7 @@ fn coarse_cache_solids_are_spatially_deterministic() {
 #[test]
 fn brick_by_brick_passes_equal_the_sub_pass_reference() {
     use solidsynth::backend::Compute;
-    use solidsynth::lazy::{SynthParams, Synthesizer};
+    use solidsynth::lazy::{SynthOptions, SynthParams, Synthesizer};
     let a = common::analyze(vec![common::fixture("cells32.png")], Border::Wrap);
     let params = SynthParams {
         seed: 9,
@@ -876,11 +863,13 @@ fn brick_by_brick_passes_equal_the_sub_pass_reference() {
             .build()
             .unwrap();
         pool.install(|| {
-            let mut s = Synthesizer::new(&a, params.clone(), &Compute::Cpu).unwrap();
+            let options = SynthOptions {
+                max_group: group,
+                ..Default::default()
+            };
+            let mut s =
+                Synthesizer::with_options(&a, params.clone(), &Compute::Cpu, options).unwrap();
             s.set_sub_pass_reference(reference);
-            if let Some(g) = group {
-                s.set_max_chunk_side(g);
-            }
             let b = s
                 .synthesize(Box3::new([-21, -6, -13], [19, 18, 7]), &|_, _| {})
                 .unwrap();

@@ -271,8 +271,10 @@ fn check_input(input: &AnalysisInput) -> Result<()> {
     Ok(())
 }
 
-/// Run the analysis.
-pub fn analyze(
+/// Run the analysis, without the usage balancing: its penalties are zero. The balancing runs
+/// calibration syntheses, so it belongs to the synthesis layer: `lazy::analyze` runs this and
+/// then the balancing, which is what every synthesis reads.
+pub fn analyze_unbalanced(
     input: &AnalysisInput,
     params: &AnalysisParams,
     compute: &Compute,
@@ -310,9 +312,8 @@ pub fn analyze(
 
     let mut per_exemplar: Vec<Vec<LevelData>> = vec![Vec::new(); pyramids.len()];
     for level in 0..ANALYSED_LEVELS {
-        // The last tenth of the progress is the usage balancing.
-        let base = 0.9 * level as f32 / ANALYSED_LEVELS as f32;
-        let step = 0.9 / ANALYSED_LEVELS as f32;
+        let base = level as f32 / ANALYSED_LEVELS as f32;
+        let step = 1.0 / ANALYSED_LEVELS as f32;
         let say = |what: &str, f: f32| progress(&format!("level {level}: {what}"), base + step * f);
         let images: Vec<&Image> = pyramids.iter().map(|p| &p[level]).collect();
 
@@ -338,7 +339,7 @@ pub fn analyze(
             )?;
             drop(vectors);
             let projected = compute.project(img, border, &basis)?;
-            let bytes = crate::cpu::project::unpack_bytes(&projected, &basis);
+            let bytes = crate::contract::pca::unpack_bytes(&projected, &basis);
             let candidates_2d = kcoherent::candidates(
                 &bytes,
                 basis.output_dims as usize,
@@ -419,7 +420,7 @@ pub fn analyze(
             });
         }
     }
-    let mut analysis = Analysis {
+    let analysis = Analysis {
         params: params.clone(),
         border,
         color_channels,
@@ -430,10 +431,7 @@ pub fn analyze(
             .map(|levels| ExemplarData { levels })
             .collect(),
     };
-    balance::balance(&mut analysis, compute, &|stage, f| {
-        progress(&format!("usage balancing: {stage}"), 0.9 + 0.1 * f)
-    })?;
-    progress("done", 1.0);
+    progress("analysed", 1.0);
     Ok(analysis)
 }
 

@@ -1,19 +1,11 @@
 //! Gathering 2D neighbourhood vectors and strips from exemplar images.
 //!
-//! Vector layout (shared with `wgsl/project.wgsl`): rows dv = -2..=2 outermost, then columns
-//! du = -2..=2, then channels: index ((dv + 2) * 5 + (du + 2)) * C + channel.
+//! The neighbourhood vectors' layout is the `project` kernel's (`contract::pca`).
 
 use super::frame::HALF;
 use crate::exemplar::{Border, Image};
 
-/// The neighbourhood vector of pixel (x, y), appended to `out`.
-pub fn gather(img: &Image, border: Border, x: u32, y: u32, out: &mut Vec<u8>) {
-    for dv in -HALF..=HALF {
-        for du in -HALF..=HALF {
-            out.extend_from_slice(img.at_border(x as i32 + du, y as i32 + dv, border));
-        }
-    }
-}
+pub use crate::contract::pca::gather;
 
 /// The horizontal strip (row through the pixel, u varying) of pixel (x, y).
 pub fn h_strip(img: &Image, border: Border, x: u32, y: u32, out: &mut Vec<u8>) {

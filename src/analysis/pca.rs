@@ -12,22 +12,7 @@
 use crate::error::{Error, Result};
 use nalgebra::{DMatrix, SymmetricEigen};
 
-/// A fitted, quantized PCA basis.
-#[derive(Clone, Debug, PartialEq)]
-pub struct PcaBasis {
-    /// Length of the input vectors (25 x channels).
-    pub input_dims: u32,
-    /// Kept dimensions (8..=12): bytes per projected neighbourhood.
-    pub output_dims: u32,
-    /// Fixed-point shift F.
-    pub shift: u32,
-    /// Rounded mean of the raw input values.
-    pub mean: Vec<i32>,
-    /// output_dims x input_dims fixed-point weights, row-major.
-    pub weights: Vec<i32>,
-    /// All eigenvalues of the weighted covariance, descending (for the energy report).
-    pub eigenvalues: Vec<f32>,
-}
+pub use crate::contract::pca::PcaBasis;
 
 impl PcaBasis {
     /// Fraction of the variance captured by the kept dimensions.
@@ -203,24 +188,11 @@ fn choose_shift(basis: &[f64], dims: usize, keep: usize, scale: f64) -> (u32, Ve
     (1, weights)
 }
 
-/// Project one raw vector exactly as the kernels do (the CPU reference's inner step).
-#[inline]
-pub fn project_vector(pca: &PcaBasis, x: &[u8], out: &mut [u8]) {
-    let d = pca.input_dims as usize;
-    let round = 1i32 << (pca.shift - 1);
-    for (j, o) in out.iter_mut().enumerate().take(pca.output_dims as usize) {
-        let row = &pca.weights[j * d..(j + 1) * d];
-        let mut acc = 0i32;
-        for i in 0..d {
-            acc += (x[i] as i32 - pca.mean[i]) * row[i];
-        }
-        *o = (((acc + round) >> pca.shift) + 128).clamp(0, 255) as u8;
-    }
-}
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::cpu::project::project_vector;
     use crate::util::hash::SeededRng;
 
     #[test]

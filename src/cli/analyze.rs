@@ -250,7 +250,7 @@ pub fn load_or_analyze(
         bar.set_position((f * 1000.0) as u64);
         bar.set_message(format!("analysis {stage}"));
     };
-    let a = analysis::analyze(&input, &params, compute, &report)?;
+    let a = solidsynth::lazy::analyze(&input, &params, compute, &report)?;
     bar.finish_and_clear();
     if let Some(path) = &cache {
         let saved = path
@@ -325,7 +325,7 @@ pub fn run(args: AnalyzeArgs, quiet: bool) -> anyhow::Result<()> {
         bar.set_position((f * 1000.0) as u64);
         bar.set_message(stage.to_string());
     };
-    let result = analysis::analyze(&input, &params, &compute, &report)?;
+    let result = solidsynth::lazy::analyze(&input, &params, &compute, &report)?;
     bar.finish_and_clear();
     let bytes = ssa::to_bytes(&result);
     atomic::write_file(&args.output, &bytes)?;

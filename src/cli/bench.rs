@@ -205,7 +205,7 @@ fn bench_gradient_synth(args: BenchGradientArgs) -> anyhow::Result<()> {
 
 fn bench_gradient_render(args: BenchRenderArgs) -> anyhow::Result<()> {
     use solidsynth::backend::Compute;
-    use solidsynth::cpu::tricubic_eval::Query;
+    use solidsynth::gradient::Query;
     use solidsynth::gradient::render::{random_solid, render_u8};
     let mut backends = vec![("cpu", Compute::Cpu)];
     if !args.no_gpu {

@@ -92,18 +92,15 @@ pub fn run(args: CutArgs, quiet: bool) -> anyhow::Result<()> {
     )?;
     let compute = args.solid.input.backend.open()?;
     let analysis = load_or_analyze(&args.solid.input, &compute, quiet || args.json)?;
-    let mut session = CutSession::new(args.solid.synthesizer(&analysis, &compute)?);
+    let mut session = CutSession::new(args.solid.synthesizer(&analysis, &compute, args.profile)?);
     // The session keeps what it reads: the analysis is not held through the cuts.
     drop(analysis);
-    if args.profile {
-        session.synthesizer_mut().enable_profiling();
-    }
     let mut latencies = Vec::new();
     let mut image = None;
     for i in 0..args.repeat {
         if args.profile && i == 1 {
             // Kernel times of warm cuts only: restart the count after the first.
-            session.synthesizer_mut().enable_profiling();
+            session.synthesizer_mut().reset_kernel_times();
         }
         let start = Instant::now();
         image = Some(session.cut(&spec)?);

@@ -3,7 +3,7 @@
 
 use clap::{Args, Subcommand};
 use solidsynth::backend::Compute;
-use solidsynth::cpu::tricubic_eval::{quantize, tricubic_eval, Query};
+use solidsynth::gradient::{quantize, Query};
 use solidsynth::gradient::regions::{self, Blend, RegionSolid};
 use solidsynth::gradient::{detail, edit, format, vectorize, GradientSolid};
 use solidsynth::io::{atomic, nrrd};
@@ -319,12 +319,7 @@ impl AnySolid {
     ) -> solidsynth::Result<Vec<f32>> {
         match self {
             AnySolid::Plain(s) => {
-                let values = match compute {
-                    Compute::Cpu => tricubic_eval(s, query),
-                    Compute::Gpu(ctx) => {
-                        solidsynth::gpu::tricubic_eval::tricubic_eval(ctx, s, query)?
-                    }
-                };
+                let values = compute.tricubic_eval(s, query)?;
                 Ok(if s.detail > 0 {
                     detail::colours(s, query, &values, grain)
                 } else {

@@ -332,12 +332,12 @@ fn render(args: RenderArgs, quiet: bool) -> anyhow::Result<()> {
     let mut backend = args.backend.clone();
     // `auto` means the CPU backend on machines with only lavapipe; the render needs wgpu.
     backend.backend = BackendChoice::Gpu;
-    let gpu = match backend.open()? {
-        Compute::Gpu(g) => g,
-        Compute::Cpu => unreachable!("--backend gpu opens a GPU"),
+    let compute = backend.open()?;
+    let Compute::Gpu(gpu) = &compute else {
+        unreachable!("--backend gpu opens a GPU")
     };
     let start = Instant::now();
-    let image = solidsynth::gpu::lapped_render::render(&gpu, &model, &camera, args.size)?;
+    let image = compute.lapped_render(&model.render_scene(), &camera, args.size)?;
     let ms = start.elapsed().as_secs_f64() * 1000.0;
     atomic::save_png(&args.output, &image)?;
     if args.json {

@@ -2,7 +2,7 @@
 //! fit, synthesize, relight).
 
 use clap::{Args, Subcommand};
-use solidsynth::cpu::ptm_relight::Lighting;
+use solidsynth::ptm::Lighting;
 use solidsynth::io::atomic;
 use solidsynth::ptm::quilt::{Boundary, QuiltParams, SearchMethod};
 use solidsynth::ptm::search::Tolerance;

@@ -4,8 +4,7 @@
 
 use clap::Args;
 use solidsynth::backend::{BackendChoice, Compute};
-use solidsynth::cpu::ptm_relight::{ptm_relight, Lighting};
-use solidsynth::gpu::ptm_relight::GpuPtm;
+use solidsynth::ptm::Lighting;
 use solidsynth::ptm::quilt::{self, QuiltParams, SearchMethod};
 use solidsynth::ptm::{capture, fit, Ptm, PtmFormat};
 use std::time::Instant;
@@ -127,17 +126,13 @@ pub fn run(a: BenchPtmArgs) -> anyhow::Result<()> {
         specular: 0.0,
     };
     println!("relight {0}x{0} (one light, no specular):", a.relight_size);
-    let (t_cpu, cpu) = timed(a.runs.max(5), || Ok(ptm_relight(&big, &light)))?;
+    let (t_cpu, cpu) = timed(a.runs.max(5), || Ok(Compute::Cpu.ptm_relight(&big, &light)?))?;
     println!("  {:<34} {:>10.2} ms", "cpu", t_cpu * 1e3);
     if !a.no_gpu {
-        let Compute::Gpu(gpu) =
-            Compute::open(BackendChoice::Gpu, &solidsynth::gpu::GpuOptions::from_env())?
-        else {
-            unreachable!()
-        };
-        let (t_up, resident) = timed(a.runs, || Ok(GpuPtm::upload(&gpu, &big)))?;
-        resident.relight(&gpu, &light)?; // warm the pipeline
-        let (t_gpu, out) = timed(a.runs.max(5), || Ok(resident.relight(&gpu, &light)?))?;
+        let gpu = Compute::open(BackendChoice::Gpu, &solidsynth::gpu::GpuOptions::from_env())?;
+        let (t_up, resident) = timed(a.runs, || Ok(gpu.resident_ptm(&big)))?;
+        resident.relight(&light)?; // warm the pipeline
+        let (t_gpu, out) = timed(a.runs.max(5), || Ok(resident.relight(&light)?))?;
         let worst = cpu
             .iter()
             .zip(&out)

@@ -136,7 +136,7 @@ pub fn run(args: SurfaceArgs, quiet: bool) -> anyhow::Result<()> {
         bar.set_position((f * 1000.0) as u64);
         bar.set_message(m.to_string());
     };
-    let mut synth = args.solid.volume_synthesizer(&analysis, &compute)?;
+    let mut synth = args.solid.synthesizer(&analysis, &compute, false)?;
     // The synthesizer keeps what it reads: the analysis (10 MiB for the built-in exemplar) is
     // not held through the synthesis.
     drop(analysis);

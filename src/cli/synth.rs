@@ -3,7 +3,9 @@
 use super::analyze::{load_or_analyze, InputArgs};
 use clap::Args;
 use solidsynth::io::{atomic, nrrd};
-use solidsynth::lazy::{Box3, CandidateMode, ColorSource, SynthParams, Synthesizer};
+use solidsynth::lazy::{
+    memory, Box3, CandidateMode, ColorSource, SynthOptions, SynthParams, Synthesizer,
+};
 use solidsynth::metrics::sheet::contact_sheet;
 use solidsynth::volume::Volume;
 use solidsynth::Error;
@@ -80,44 +82,28 @@ pub struct SolidParams {
 }
 
 impl SolidParams {
-    /// A synthesizer for these parameters, grouped as asked.
+    /// A synthesizer for these parameters, grouped as asked (the library's defaults
+    /// otherwise: [`SynthOptions`]).
     pub fn synthesizer(
         &self,
         analysis: &solidsynth::analysis::Analysis,
         compute: &solidsynth::backend::Compute,
+        profile: bool,
     ) -> solidsynth::Result<Synthesizer> {
-        let mut synth = Synthesizer::new(analysis, self.synth_params(), compute)?;
-        if let Some(side) = self.max_group {
-            synth.set_max_chunk_side(side);
-        }
-        Ok(synth)
-    }
-
-    /// [`Self::synthesizer`] for boxes and surfaces, whose default group is
-    /// [`HOST_MEMORY_GROUP`] where the device's memory is the host's: measured on the CPU
-    /// backend, `synth --size 256` 12.5 s and 468 MB in one group, 12.7 s and 153 MB in groups
-    /// of 128; the bunny's surface at 1024 33 s either way, 451 or 240 MB; on lavapipe 256^3
-    /// 30.6 s either way, 594 or 441 MB (BENCHMARKS.md, session 27). A discrete GPU keeps its
-    /// own memory and runs fewer, larger dispatches best. Cuts keep one group: small already,
-    /// and grouping slowed them (CPU, 256^2 with the paper's passes: 655 -> 715 ms).
-    pub fn volume_synthesizer(
-        &self,
-        analysis: &solidsynth::analysis::Analysis,
-        compute: &solidsynth::backend::Compute,
-    ) -> solidsynth::Result<Synthesizer> {
-        let mut synth = self.synthesizer(analysis, compute)?;
-        if self.max_group.is_none() && compute.memory_is_hosts() {
-            synth.set_max_chunk_side(HOST_MEMORY_GROUP);
-        }
-        Ok(synth)
+        let options = SynthOptions {
+            max_group: self.max_group,
+            profile,
+            ..Default::default()
+        };
+        Synthesizer::with_options(analysis, self.synth_params(), compute, options)
     }
 
     /// The group edge the memory checks of boxes and surfaces assume, before the backend is
-    /// open: [`HOST_MEMORY_GROUP`] for `--backend cpu`, else the largest (a conservative
+    /// open: [`memory::HOST_MEMORY_GROUP`] for `--backend cpu`, else the largest (a conservative
     /// estimate).
     pub fn planned_group(&self) -> u32 {
         self.max_group.unwrap_or(match self.input.backend.backend {
-            solidsynth::backend::BackendChoice::Cpu => HOST_MEMORY_GROUP,
+            solidsynth::backend::BackendChoice::Cpu => memory::HOST_MEMORY_GROUP,
             _ => 512,
         })
     }
@@ -201,10 +187,6 @@ impl TriplesWriter {
     }
 }
 
-/// The default group edge of boxes and surfaces where the device's memory is the host's
-/// ([`SolidParams::volume_synthesizer`]).
-pub const HOST_MEMORY_GROUP: u32 = 128;
-
 /// Largest --size accepted before the memory estimate is even computed.
 pub const MAX_SIZE: u32 = 2048;
 
@@ -254,18 +236,8 @@ pub fn check_memory(what: &str, b: Box3, args: &SolidArgs) -> solidsynth::Result
         || args.sheet.is_some()
         || args.slices.is_some();
     let whole = if keeps_volume { b.voxels() * 4 } else { 0 };
-    let cache = coarse_cache_bytes(&args.solid);
-    let padded: u64 = size
-        .iter()
-        .map(|&d| d + 2 * solidsynth::lazy::PADDING_ESTIMATE as u64)
-        .product();
-    let working = Synthesizer::chunk_bytes(group);
-    let shared = shared_levels_bytes(&args.solid, padded, working);
-    let estimate = working.max(coarse_group_bytes(&args.solid, group, largest))
-        + slab
-        + whole
-        + cache
-        + shared;
+    let cache = memory::coarse_cache_bytes(args.solid.coarse_cache);
+    let estimate = memory::box_working_bytes(size, group, args.solid.coarse_cache) + slab + whole;
     let available = available_memory();
     if estimate > available {
         let gib = |b: u64| b as f64 / (1u64 << 30) as f64;
@@ -288,45 +260,6 @@ pub fn check_memory(what: &str, b: Box3, args: &SolidArgs) -> solidsynth::Result
     Ok(estimate)
 }
 
-/// Working bytes of the largest group of a shared coarse level of a request whose largest side
-/// is `largest` finest voxels, in finest groups of `group`: such a group may exceed the finest
-/// group's side by a quarter ([`solidsynth::lazy::group_cap`]), and holds at most the
-/// parents of the whole request and their padding. Zero where no level is shared (one group,
-/// or the coarse cache).
-pub fn coarse_group_bytes(params: &SolidParams, group: u32, largest: u32) -> u64 {
-    if params.coarse_cache.is_some() || largest <= group {
-        return 0;
-    }
-    let parents = largest.div_ceil(2) + solidsynth::lazy::PADDING_ESTIMATE;
-    Synthesizer::chunk_bytes(solidsynth::lazy::group_cap(Some(group), 1, true).min(parents))
-}
-
-/// Bytes of the shared coarse levels (see `Synthesizer::set_shared_coarse_levels`) of a
-/// request of `finest_voxels` finest-level voxels (padding included) whose groups' working sets
-/// are `group_working` bytes: held only when the request takes several groups, counted
-/// whenever it may (without the coarse cache), so also for a GPU with its own memory, which
-/// does not share them (the estimate runs before the device is opened: an over-estimate
-/// there of about 2 bytes per voxel). The parent level's triples (6
-/// or, for exemplars over 512 pixels, 12 bytes per voxel, an eighth of the finest voxels, and
-/// the level below it while it is built: at most 1.7 bytes per finest voxel, 2 with the
-/// padding) and one group's parent state built on the host (an
-/// eighth of its voxels, one copy: a sixteenth of its working set).
-pub fn shared_levels_bytes(params: &SolidParams, finest_voxels: u64, group_working: u64) -> u64 {
-    if params.coarse_cache.is_some() {
-        return 0;
-    }
-    finest_voxels * 2 + group_working / 16
-}
-
-/// Bytes of the coarse-level cache when one is asked for: its build (a tileable state of
-/// period N/2, two copies on a GPU) and the triples it keeps, copied once per group.
-pub fn coarse_cache_bytes(params: &SolidParams) -> u64 {
-    params.coarse_cache.map_or(0, |n| {
-        let voxels = (n as u64 / 2).pow(3);
-        voxels * (16 * 2 + 12 * 2)
-    })
-}
-
 /// Refuse a sparse request (cut, surface) whose synthesis would not fit in memory, before
 /// allocating for it: the colours and bookkeeping of its `bricks` requested 4^3-voxel bricks
 /// spread over a surface `extent` voxels wide, one group's working set (the group's bricks
@@ -340,19 +273,8 @@ pub fn check_sparse_memory(
     params: &SolidParams,
     group_side: u32,
 ) -> solidsynth::Result<u64> {
-    // Per requested brick: 64 colours and its list and lookup entries.
-    let requested = bricks * (256 + 32);
-    // A group is a cube of the request: on a surface it holds about (side / extent)^2 of the
-    // bricks, and stores their padding too, about eight times their voxels at the finest
-    // level (13 voxels of padding around a 4-voxel brick layer before session 25's brick-local
-    // sub-passes, 6 to 9 since, so this over-estimates; the coarser levels halving),
-    // 16 bytes a voxel, two copies (the GPU's state and its pass-start copy; the CPU holds one).
-    let share = (group_side as f64 / extent.max(1.0)).powi(2).min(1.0);
-    let group_bricks = ((bricks as f64 * share) as u64).min((group_side as u64 / 4).pow(3));
-    let working = Synthesizer::chunk_bytes(group_side).min(group_bricks * 64 * 16 * 2 * 8);
-    // Shared coarse levels: the stored finest voxels, about eight per requested voxel.
-    let shared = shared_levels_bytes(params, bricks * 64 * 8, working);
-    let estimate = requested + working + coarse_cache_bytes(params) + shared + extra;
+    let estimate =
+        memory::sparse_working_bytes(bricks, extent, group_side, params.coarse_cache) + extra;
     let available = available_memory();
     if estimate > available {
         return Err(Error::invalid(
@@ -480,14 +402,11 @@ fn run_box(args: &SolidArgs, region: Box3, tileable: bool, quiet: bool) -> anyho
         bar.set_message(m.to_string());
     };
     let synth_start = Instant::now();
-    let mut synth = args.solid.volume_synthesizer(&analysis, &compute)?;
+    let mut synth = args.solid.synthesizer(&analysis, &compute, args.profile)?;
     tracing::debug!(
         "synthesizer built in {:.1} ms",
         synth_start.elapsed().as_secs_f64() * 1e3
     );
-    if args.profile {
-        synth.enable_profiling();
-    }
     // The synthesizer keeps what it reads; of the analysis the outputs need only the
     // exemplars' size (triples) and images (sheet), so the rest (11 MiB for the built-in
     // exemplar) is not held through the synthesis.

@@ -5,8 +5,8 @@
 //! (`lazy::color_match`).
 
 use super::synth_common::{brick_at, voxel_index};
-use crate::kernel_types::ColorizeParams;
-use crate::lazy::bricks::voxel_of;
+use crate::contract::uniforms::ColorizeParams;
+use crate::contract::bricks::voxel_of;
 use rayon::prelude::*;
 
 /// Colours of the bricks of the list in `p`: 64 per brick (x fastest), list order.
@@ -31,7 +31,7 @@ pub fn colorize(p: &ColorizeParams, level: &[u32], state: &[u32], bricks: &[u32]
             let i = slot * stride;
             let value = state[i + 3];
             let pixel = |a: usize| {
-                let (x, y) = crate::analysis::frame::unpack(state[i + a]);
+                let (x, y) = crate::contract::triple::unpack(state[i + a]);
                 let pixels = [p.pixels0, p.pixels1, p.pixels2][a];
                 level[(pixels + (y * p.ex_width + x) * p.pixel_words) as usize]
             };

@@ -2,10 +2,10 @@
 //! (5 voxels thick along x), warped by the jitter field.
 
 use super::synth_common::{brick_at, coord, pack_resolved, write_voxel};
-use crate::analysis::frame::pack;
-use crate::kernel_types::InitParams;
-use crate::lazy::bricks::voxel_of;
-use crate::lazy::jitter;
+use crate::contract::triple::pack;
+use crate::contract::uniforms::InitParams;
+use crate::contract::bricks::voxel_of;
+use crate::contract::jitter;
 use crate::util::hash::hash32;
 use rayon::prelude::*;
 
@@ -61,10 +61,10 @@ pub fn init(
     out
 }
 
-const _: () = assert!(jitter::CELL == crate::lazy::bricks::BRICK);
+const _: () = assert!(jitter::CELL == crate::contract::bricks::BRICK);
 
 fn brick_origin(b: [i32; 3]) -> [i32; 3] {
-    b.map(|v| v * crate::lazy::bricks::BRICK)
+    b.map(|v| v * crate::contract::bricks::BRICK)
 }
 
 /// The cached triple of voxel `pos`, warped by `warp`: the periodic cache read at the warped

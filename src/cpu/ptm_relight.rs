@@ -3,7 +3,8 @@
 //! that maximizes the luminance polynomial. Same order of operations as the shader; rayon over
 //! rows.
 
-use crate::ptm::{Ptm, PtmFormat, COEFFS};
+pub use crate::contract::ptm::Lighting;
+use crate::contract::ptm::{Ptm, PtmFormat, COEFFS};
 use rayon::prelude::*;
 
 /// 1/255 rounded to f32; colours are byte * INV_255 on both backends.
@@ -12,23 +13,6 @@ pub const INV_255: f32 = 1.0 / 255.0;
 /// Highlight exponent (applied as five squarings, no `pow`).
 pub const SHININESS: u32 = 32;
 
-/// Where the light is and how strong the highlight is.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Lighting {
-    pub lu: f32,
-    pub lv: f32,
-    /// Highlight strength (0: none).
-    pub specular: f32,
-}
-
-impl Lighting {
-    /// The z component of the unit light direction (0 for lights on or beyond the horizon).
-    pub fn lw(&self) -> f32 {
-        (1.0 - self.lu * self.lu - self.lv * self.lv)
-            .max(0.0)
-            .sqrt()
-    }
-}
 
 fn poly(a: &[f32; COEFFS], lu: f32, lv: f32) -> f32 {
     a[0] * lu * lu + a[1] * lv * lv + a[2] * lu * lv + a[3] * lu + a[4] * lv + a[5]

@@ -1,7 +1,7 @@
 //! Helpers shared by the synthesis kernels' CPU references, one per WGSL helper function of the
 //! same name (the shaders repeat them: WGSL has no includes).
 
-use crate::analysis::frame::{pack, unpack};
+use crate::contract::triple::{pack, unpack};
 
 /// Border::resolve with the kernels' code (0 wrap, 1 mirror).
 #[inline]
@@ -62,8 +62,8 @@ pub fn voxel_index(
     }
     let cell = (d[2] as u32 * dims[1] + d[1] as u32) * dims[0] + d[0] as u32;
     let slot = bricks[(table + cell) as usize];
-    (slot != crate::lazy::bricks::ABSENT)
-        .then(|| slot as usize * 64 + crate::lazy::bricks::local_index(p) as usize)
+    (slot != crate::contract::bricks::ABSENT)
+        .then(|| slot as usize * 64 + crate::contract::bricks::local_index(p) as usize)
 }
 
 /// Byte `ch` of an exemplar pixel stored `pixel_words` words per pixel at word `base`.

@@ -1,9 +1,9 @@
 //! Dispatch of `wgsl/bucket_accumulate.wgsl` (CPU reference: `src/cpu/bucket_accumulate.rs`).
 
 use super::context::{dispatch_grid, GpuContext};
-use crate::cpu::bucket_accumulate::Buckets;
+use crate::contract::buckets::Buckets;
 use crate::error::{Error, Result};
-use crate::kernel_types::BucketParams;
+use crate::contract::uniforms::BucketParams;
 
 /// Same result as [`crate::cpu::bucket_accumulate::bucket_accumulate`], bit for bit.
 pub fn bucket_accumulate(

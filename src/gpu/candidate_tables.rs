@@ -26,7 +26,7 @@
 //!   y and z coordinates, which the rotation for plane a puts on planes (a + 1) % 3 and
 //!   (a + 2) % 3: the same order.
 
-use crate::lazy::pack::LevelPack;
+use crate::contract::level::LevelPack;
 use rayon::prelude::*;
 
 pub const HEADER_WORDS: usize = 8;

@@ -7,57 +7,16 @@
 
 use super::context::GpuContext;
 use crate::error::{Error, Result};
-use crate::kernel_types::RenderParams;
-use crate::lapped::camera::Camera;
-use crate::lapped::model::LstModel;
+use crate::contract::uniforms::RenderParams;
+use crate::contract::lapped::{Camera, RenderScene, VERTEX_FLOATS};
 
-/// Floats per vertex: position, normal, texture coordinate, mask index.
-const VERTEX_FLOATS: usize = 10;
 /// Largest image side.
 pub const MAX_RENDER_SIZE: u32 = 4096;
 
-/// The vertex stream: the depth pre-pass (one copy of each face) and the layers (one copy per
-/// face and layer, sorted by patch). Normals are the smooth per-vertex surface normals.
-pub fn vertex_streams(model: &LstModel) -> (Vec<f32>, Vec<f32>) {
-    let faces = model.mesh.boundary_faces(&model.mesh.face_neighbors());
-    let normals = model.mesh.surface_normals(&faces);
-    let mut prepass = Vec::new();
-    let mut layered: Vec<(u32, [f32; 3 * VERTEX_FLOATS])> = Vec::new();
-    for (face, t) in &faces {
-        let tet = model.mesh.tets[*t as usize];
-        // The face's corners as indices into the tet (for the layers' texture coordinates).
-        let local = face.map(|v| tet.iter().position(|&u| u == v).expect("face of its tet"));
-        let corner = |c: usize, coord: [f32; 3], mask: f32| {
-            let q = model.mesh.vertices[face[c] as usize].as_vec3();
-            let n = normals[face[c] as usize].as_vec3();
-            [
-                q.x, q.y, q.z, n.x, n.y, n.z, coord[0], coord[1], coord[2], mask,
-            ]
-        };
-        for c in 0..3 {
-            prepass.extend_from_slice(&corner(c, [0.0; 3], 0.0));
-        }
-        for layer in &model.layers[*t as usize] {
-            let mut tri = [0.0f32; 3 * VERTEX_FLOATS];
-            for c in 0..3 {
-                tri[c * VERTEX_FLOATS..(c + 1) * VERTEX_FLOATS].copy_from_slice(&corner(
-                    c,
-                    layer.coords[local[c]],
-                    layer.mask as f32,
-                ));
-            }
-            layered.push((layer.patch, tri));
-        }
-    }
-    // Stable: within a patch, triangles keep tet order.
-    layered.sort_by_key(|(patch, _)| *patch);
-    (prepass, layered.iter().flat_map(|(_, t)| *t).collect())
-}
-
-/// Render the model from `camera` into a size x size RGBA image (transparent off the model).
+/// Render the scene from `camera` into a size x size RGBA image (transparent off the model).
 pub fn render(
     gpu: &GpuContext,
-    model: &LstModel,
+    scene: &RenderScene,
     camera: &Camera,
     size: u32,
 ) -> Result<image::RgbaImage> {
@@ -76,7 +35,7 @@ pub fn render(
             gpu.info.name
         )));
     }
-    gpu.checked("lapped render", || render_inner(gpu, model, camera, size))
+    gpu.checked("lapped render", || render_inner(gpu, scene, camera, size))
 }
 
 fn texture_3d(
@@ -122,7 +81,7 @@ fn texture_3d(
 
 fn render_inner(
     gpu: &GpuContext,
-    model: &LstModel,
+    scene: &RenderScene,
     camera: &Camera,
     size: u32,
 ) -> Result<image::RgbaImage> {
@@ -202,24 +161,23 @@ fn render_inner(
     let depth_pipeline = pipeline("lapped depth pre-pass", false);
     let layer_pipeline = pipeline("lapped layers", true);
 
-    let e = model.exemplar.size;
+    let e = scene.exemplar_size;
     let exemplar = texture_3d(
         gpu,
         "exemplar",
         wgpu::TextureFormat::Rgba8Unorm,
         [e, e, e],
         4,
-        &model.exemplar.rgba,
+        scene.exemplar_rgba,
     );
-    let m = model.masks[0].size;
-    let mask_bytes: Vec<u8> = model.masks.iter().flat_map(|k| k.alpha.clone()).collect();
+    let m = scene.mask_size;
     let masks = texture_3d(
         gpu,
         "masks",
         wgpu::TextureFormat::R8Unorm,
-        [m, m, m * model.masks.len() as u32],
+        [m, m, m * scene.mask_count],
         1,
-        &mask_bytes,
+        &scene.mask_alpha,
     );
     let sampler = |mode: wgpu::AddressMode| {
         device.create_sampler(&wgpu::SamplerDescriptor {
@@ -238,8 +196,8 @@ fn render_inner(
         view_proj: camera.view_proj_f32().to_cols_array(),
         eye: [eye.x, eye.y, eye.z, 1.0],
         flags: [
-            if model.kind.depth_varying() { 1.0 } else { 0.0 },
-            model.masks.len() as f32,
+            if scene.depth_varying { 1.0 } else { 0.0 },
+            scene.mask_count as f32,
             e as f32,
             m as f32,
         ],
@@ -280,7 +238,7 @@ fn render_inner(
         }],
     });
 
-    let (prepass, layered) = vertex_streams(model);
+    let (prepass, layered) = (&scene.prepass, &scene.layered);
     let vertex_buffer = |label: &str, data: &[f32]| {
         let buffer = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some(label),
@@ -292,8 +250,8 @@ fn render_inner(
             .write_buffer(&buffer, 0, bytemuck::cast_slice(data));
         buffer
     };
-    let prepass_buffer = vertex_buffer("depth pre-pass vertices", &prepass);
-    let layer_buffer = vertex_buffer("layer vertices", &layered);
+    let prepass_buffer = vertex_buffer("depth pre-pass vertices", prepass);
+    let layer_buffer = vertex_buffer("layer vertices", layered);
 
     let target_extent = wgpu::Extent3d {
         width: size,

@@ -1,10 +1,10 @@
 //! Dispatch of `wgsl/project.wgsl` (CPU reference: `src/cpu/project.rs`).
 
 use super::context::{chunk_ranges, dispatch_grid, GpuContext};
-use crate::analysis::pca::PcaBasis;
+use crate::contract::pca::PcaBasis;
 use crate::error::Result;
 use crate::exemplar::{Border, Image};
-use crate::kernel_types::ProjectParams;
+use crate::contract::uniforms::ProjectParams;
 
 /// Written into the output before the kernel runs; a quantized vector whose bytes are all 0xFF
 /// can occur, so callers that test coverage look at words the kernel must zero-pad instead.

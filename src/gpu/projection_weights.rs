@@ -1,7 +1,7 @@
 //! `correct`'s projection weights as its uniform buffer holds them (`ProjectionWeights` in
 //! wgsl/correct.wgsl): the biases, then the weights in one of three layouts.
 
-use crate::lazy::pack::LevelPack;
+use crate::contract::level::LevelPack;
 
 /// Vectors (`vec4<i32>`) of `ProjectionWeights` in wgsl/correct.wgsl, and where its weights
 /// start (after 4 bias vectors per plane).
@@ -177,7 +177,7 @@ pub(super) struct ProjectionLayout {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::lazy::pack::LevelOffsets;
+    use crate::contract::level::LevelOffsets;
 
     /// The kernel reads the projection uniform with the layout's constants.
     #[test]

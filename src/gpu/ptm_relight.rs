@@ -2,10 +2,9 @@
 //! stay on the GPU ([`GpuPtm`]) so relighting under a new light costs one dispatch and a readback.
 
 use super::context::{dispatch_grid, GpuContext};
-use crate::cpu::ptm_relight::Lighting;
 use crate::error::Result;
-use crate::kernel_types::PtmRelightParams;
-use crate::ptm::{Ptm, PtmFormat};
+use crate::contract::uniforms::PtmRelightParams;
+use crate::contract::ptm::{Lighting, Ptm, PtmFormat};
 use std::ops::Range;
 
 /// Written into a new output buffer, and before every relight in debug builds (a NaN: never a

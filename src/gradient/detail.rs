@@ -11,7 +11,8 @@
 
 use super::vectorize::{fit_point, point_position};
 use super::GradientSolid;
-use crate::cpu::tricubic_eval::{tricubic_eval, Query};
+use crate::backend::host_tricubic_eval as tricubic_eval;
+use crate::contract::tricubic::Query;
 use crate::error::Result;
 use crate::util::hash::hash32;
 use crate::volume::Volume;

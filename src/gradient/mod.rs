@@ -23,24 +23,10 @@ pub mod synth;
 pub mod vectorize;
 
 use crate::error::{Error, Result};
+pub use crate::contract::tricubic::{hermite_g, hermite_h, quantize, GradientSolid, Query, SPACING};
 
-/// Control-point spacing in voxels (the paper's d).
-pub const SPACING: u32 = 4;
 /// Sub-positions per cube edge of the weight table (the paper's 33: 1/8 voxel at d = 4).
 pub const TABLE_SAMPLES: usize = 33;
-
-#[derive(Clone, Debug, PartialEq)]
-pub struct GradientSolid {
-    /// Control points per axis.
-    pub dims: [u32; 3],
-    /// Feature channels (e.g. 3 for RGB, 0..255 scale).
-    pub channels: u32,
-    /// Per point (x fastest), per channel: f, df/dx, df/dy, df/dz (per voxel).
-    pub data: Vec<f32>,
-    /// Trailing channels that hold the detail residual's standard deviation sigma (paper 5.4),
-    /// one per colour channel, or 0. See [`detail`].
-    pub detail: u32,
-}
 
 impl GradientSolid {
     pub fn new(dims: [u32; 3], channels: u32) -> Result<GradientSolid> {
@@ -127,28 +113,6 @@ impl GradientSolid {
                 *o += cw[0] * v[0] + cw[1] * v[1] + cw[2] * v[2] + cw[3] * v[3];
             }
         }
-    }
-}
-
-/// Cubic Hermite value basis of corner `c` (0 or 1) at `s` in [0, 1] (the kernels' order of
-/// operations).
-#[inline]
-pub fn hermite_h(c: u32, s: f32) -> f32 {
-    if c == 0 {
-        2.0 * s * s * s - 3.0 * s * s + 1.0
-    } else {
-        3.0 * s * s - 2.0 * s * s * s
-    }
-}
-
-/// Cubic Hermite derivative basis of corner `c` at `s`, scaled to per-voxel gradients.
-#[inline]
-pub fn hermite_g(c: u32, s: f32) -> f32 {
-    let d = SPACING as f32;
-    if c == 0 {
-        d * (s * s * s - 2.0 * s * s + s)
-    } else {
-        d * (s * s * s - s * s)
     }
 }
 

@@ -19,7 +19,8 @@ use super::format::{self, Encoding};
 use super::vectorize::{fit_point, grid_for, point_position};
 use super::{GradientSolid, SPACING};
 use crate::backend::Compute;
-use crate::cpu::tricubic_eval::{tricubic_eval, Query};
+use crate::backend::host_tricubic_eval as tricubic_eval;
+use crate::contract::tricubic::Query;
 use crate::error::{Error, Result};
 use crate::exemplar::feature::edt_1d;
 use crate::volume::Volume;
@@ -294,12 +295,7 @@ impl RegionSolid {
     /// `channels` values per point of `query`, on `compute`'s backend (three `tricubic_eval`
     /// runs, then the blend on the host).
     pub fn eval_query(&self, query: &Query, compute: &Compute, blend: Blend) -> Result<Vec<f32>> {
-        let run = |s: &GradientSolid| -> Result<Vec<f32>> {
-            match compute {
-                Compute::Cpu => Ok(tricubic_eval(s, query)),
-                Compute::Gpu(ctx) => crate::gpu::tricubic_eval::tricubic_eval(ctx, s, query),
-            }
-        };
+        let run = |s: &GradientSolid| compute.tricubic_eval(s, query);
         let d = run(&self.distance)?;
         let p = run(&self.positive)?;
         let n = run(&self.negative)?;

@@ -3,23 +3,14 @@
 
 use super::GradientSolid;
 use crate::backend::Compute;
-use crate::cpu::tricubic_eval::{quantize, tricubic_eval_u8, Query};
+use crate::contract::tricubic::Query;
 use crate::error::Result;
 
 /// `solid`'s channels at the points of `query`, rounded half up and clamped to 8 bits. On the
 /// GPU a solid of at most 4 channels is quantized by the kernel (a quarter of the float output
 /// to write and read back); wider solids are quantized on the host.
 pub fn render_u8(solid: &GradientSolid, query: &Query, compute: &Compute) -> Result<Vec<u8>> {
-    match compute {
-        Compute::Cpu => Ok(tricubic_eval_u8(solid, query)),
-        Compute::Gpu(ctx) if solid.channels <= 4 => {
-            crate::gpu::tricubic_eval::tricubic_eval_u8(ctx, solid, query)
-        }
-        Compute::Gpu(ctx) => Ok(crate::gpu::tricubic_eval::tricubic_eval(ctx, solid, query)?
-            .into_iter()
-            .map(quantize)
-            .collect()),
-    }
+    compute.tricubic_eval_u8(solid, query)
 }
 
 /// A deterministic random solid with an extent of `side` voxels per axis (side = 4 k + 1) and

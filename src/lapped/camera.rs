@@ -1,21 +1,11 @@
-//! The orbit camera of `lapped render` (GPU: `crate::gpu::lapped_render`; CPU reference ray cast:
-//! `crate::cpu::lapped_render`).
+//! The orbit camera of `lapped render`, placed around a model (the camera itself is
+//! `contract::lapped::Camera`, which the render kernel and its reference read).
 
 use super::model::LstModel;
 use crate::error::{Error, Result};
-use glam::{DMat4, DVec3, Mat4};
+use glam::DVec3;
 
-/// Vertical field of view, degrees.
-pub const FOV_DEGREES: f64 = 35.0;
-
-/// A camera orbiting the model's bounding-sphere centre, y up.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Camera {
-    pub eye: DVec3,
-    pub target: DVec3,
-    pub near: f64,
-    pub far: f64,
-}
+pub use crate::contract::lapped::{Camera, FOV_DEGREES};
 
 impl Camera {
     /// From `AZ,EL[,DIST]`: azimuth around +y from +z and elevation in degrees, distance in
@@ -58,30 +48,5 @@ impl Camera {
             near: (dist - 1.0) * radius * 0.5,
             far: (dist + 1.0) * radius * 1.5,
         })
-    }
-
-    /// World to clip space (wgpu conventions: depth in [0, 1]), square aspect.
-    pub fn view_proj(&self) -> DMat4 {
-        let proj = glam::dcamera::rh::proj::directx::perspective(
-            FOV_DEGREES.to_radians(),
-            1.0,
-            self.near,
-            self.far,
-        );
-        proj * glam::dcamera::rh::view::look_at_mat4(self.eye, self.target, DVec3::Y)
-    }
-
-    pub fn view_proj_f32(&self) -> Mat4 {
-        self.view_proj().as_mat4()
-    }
-
-    /// The world-space ray through the centre of pixel (x, y) of a size x size image.
-    pub fn ray(&self, x: u32, y: u32, size: u32) -> (DVec3, DVec3) {
-        let inv = self.view_proj().inverse();
-        let ndc_x = (x as f64 + 0.5) / size as f64 * 2.0 - 1.0;
-        let ndc_y = 1.0 - (y as f64 + 0.5) / size as f64 * 2.0;
-        let near = inv.project_point3(DVec3::new(ndc_x, ndc_y, 0.0));
-        let far = inv.project_point3(DVec3::new(ndc_x, ndc_y, 1.0));
-        (near, (far - near).normalize())
     }
 }

@@ -5,7 +5,7 @@
 //! Pipeline ([`build`]): triangle mesh -> tet mesh ([`stuffing`], inside test by [`winding`]
 //! number) -> tensor field from a constraints file ([`field`]) -> pasting loop ([`paste`]) ->
 //! [`model::LstModel`] (the `.lst` file). Consumers: planar cuts ([`cut`]), surface bakes
-//! ([`bake`]) and the GPU render (`crate::gpu::lapped_render`).
+//! ([`bake`]) and the GPU render (kernel `lapped_render`, of the [`scene`] a model gives).
 
 pub mod bake;
 pub mod camera;
@@ -14,6 +14,7 @@ pub mod exemplar;
 pub mod field;
 pub mod model;
 pub mod paste;
+pub mod scene;
 pub mod shapes;
 pub mod stuffing;
 pub mod tetmesh;

@@ -16,19 +16,7 @@
 use super::plan::{plan, Box3};
 use rayon::prelude::*;
 
-/// Brick edge in voxels (a power of two: positions split into brick and local index by shifts).
-pub const BRICK: i32 = 4;
-/// Voxels per brick.
-pub const BRICK_VOXELS: u32 = 64;
-/// Table entry of a brick that is not stored.
-pub const ABSENT: u32 = u32::MAX;
-
-/// Brick coordinates (voxel position >> 2).
-pub type Brick = [i32; 3];
-
-pub fn brick_of(p: [i32; 3]) -> Brick {
-    p.map(|v| v >> 2)
-}
+pub use crate::contract::bricks::{brick_of, local_index, voxel_of, Brick, ABSENT, BRICK, BRICK_VOXELS};
 
 /// The inclusive per-axis bounds of points (bricks or voxels); None when there are none.
 pub fn bounds(points: &[[i32; 3]]) -> Option<([i32; 3], [i32; 3])> {
@@ -39,21 +27,6 @@ pub fn bounds(points: &[[i32; 3]]) -> Option<([i32; 3], [i32; 3])> {
             [0, 1, 2].map(|i| hi[i].max(p[i])),
         )
     }))
-}
-
-/// Index of a voxel inside its brick: x fastest.
-pub fn local_index(p: [i32; 3]) -> u32 {
-    (((p[2] & 3) * 16 + (p[1] & 3) * 4) + (p[0] & 3)) as u32
-}
-
-/// The voxel at `local` in brick `b`.
-pub fn voxel_of(b: Brick, local: u32) -> [i32; 3] {
-    let l = local as i32;
-    [
-        b[0] * BRICK + (l & 3),
-        b[1] * BRICK + ((l >> 2) & 3),
-        b[2] * BRICK + (l >> 4),
-    ]
 }
 
 /// Sort (z, then y, then x) and remove duplicates.

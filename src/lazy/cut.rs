@@ -262,7 +262,7 @@ impl CutSession {
     /// The cut image (colour channels of the solid).
     pub fn cut(&mut self, spec: &CutSpec) -> Result<Image> {
         if let Some(axis_cut) = spec.axis_cut()? {
-            let region = self.synth.synthesize(axis_cut.region, &|_, _| {})?;
+            let region = self.synth.synthesize_cut_box(axis_cut.region)?;
             let timer = std::time::Instant::now();
             let img = axis_cut.image(region);
             tracing::debug!("cut: image of a box in {:.1} ms", ms(timer));

@@ -2,6 +2,8 @@
 //! coarse-level cache, or given), then per level the upsampling, the correction passes and, at the
 //! finest, the colours (and triples) of its output bricks.
 
+use super::kernel_params;
+use super::request::Job;
 use super::*;
 
 /// Where a planned synthesis's first level comes from.
@@ -24,21 +26,24 @@ pub(super) struct GroupResult {
 
 impl Synthesizer {
     /// Run a planned synthesis: colours (64 per brick, `group` order) and, when asked, triples
-    /// of the output bricks `group`. `periodic`: whether and how the solid is tileable.
+    /// of the output bricks `group`. `job.periodic`: whether and how the solid is tileable.
     /// `levels` are the packs `first_pack..`; `start`: where the first level's state comes from.
     /// An empty `group` skips the colours (the final state is returned).
-    #[allow(clippy::too_many_arguments)]
     pub(super) fn synthesize_group(
         &mut self,
         levels: Vec<SparseLevel>,
         first_pack: usize,
         start: FirstLevel,
         group: &[Brick],
-        periodic: Periodic,
-        progress: Progress,
-        want_triples: bool,
+        job: Job,
         stats: &mut SynthStats,
     ) -> Result<GroupResult> {
+        let Job {
+            periodic,
+            progress,
+            want_triples,
+            ..
+        } = job;
         let recording = std::time::Instant::now();
         // Each level's brick index is built when the level starts and dropped after it (with
         // the level's sub-pass plans): a large box's indices are several bytes per voxel.
@@ -74,44 +79,14 @@ impl Synthesizer {
         let (mut layout, mut index) = index_of(&mut self.exec, &levels, 0);
         let seed_lo = self.params.seed as u32;
         let seed_hi = (self.params.seed >> 32) as u32;
-        let coarse = &self.packs[first_pack];
-        let amps = jitter::amplitudes(self.params.jitter);
-        let sig = jitter::sigma2_fixed();
-        let count0 = levels[0].bricks.len() as u32;
-        let init = InitParams {
-            list_offset: layout.storage_list,
-            list_count: count0,
-            grid_stride: stride_for(count0 as u64 * 64),
-            period: periodic.init_period(),
-            cache_period: 0,
-            _r2: 0,
-            ex_width: coarse.width,
-            ex_height: coarse.height,
-            border: self.border,
-            seed_lo,
-            seed_hi,
-            jitter_on: (self.params.jitter > 0.0) as u32,
-            tile_x: hash32(seed_lo ^ 0x51) % 5,
-            tile_y: hash32(seed_hi ^ 0x52) % coarse.width,
-            tile_z: hash32(seed_lo ^ seed_hi ^ 0x53) % coarse.height,
-            slab_offset: coarse.offsets.slab,
-            amp0: amps[0],
-            amp1: amps[1],
-            amp2: amps[2],
-            amp3: amps[3],
-            sig0: sig[0],
-            sig1: sig[1],
-            sig2: sig[2],
-            sig3: sig[3],
-            channels: coarse.channels,
-            pixel_words: coarse.pixel_words,
-            pixels0: coarse.offsets.pixels[0],
-            pixels1: coarse.offsets.pixels[1],
-            pixels2: coarse.offsets.pixels[2],
-            _pad0: 0,
-            _pad1: 0,
-            _pad2: 0,
-        };
+        let init = kernel_params::init_params(
+            &self.packs[first_pack],
+            self.border,
+            (layout.storage_list, levels[0].bricks.len() as u32),
+            periodic.init_period(),
+            self.params.seed,
+            self.params.jitter,
+        );
         progress("level 0: init", 0.0);
         let mut state = match start {
             FirstLevel::Given(s) => s,
@@ -123,7 +98,7 @@ impl Synthesizer {
                 // A hashed offset so different seeds read the cache at different places.
                 let [tile_x, tile_y, tile_z] =
                     [0x71u32, 0x72, 0x73].map(|k| hash32(seed_lo ^ seed_hi ^ k) % n);
-                let cached = InitParams {
+                let cached = crate::contract::uniforms::InitParams {
                     period: 0,
                     cache_period: n,
                     tile_x,
@@ -150,30 +125,13 @@ impl Synthesizer {
             let pack_index = first_pack + level;
             let pack = &self.packs[pack_index];
             if level > 0 {
-                let parent = &levels[level - 1].grid;
-                let count = lv.bricks.len() as u32;
-                let up = UpsampleParams {
-                    parent_grid_lo_x: parent.lo[0],
-                    parent_grid_lo_y: parent.lo[1],
-                    parent_grid_lo_z: parent.lo[2],
-                    parent_grid_x: parent.dims[0],
-                    parent_grid_y: parent.dims[1],
-                    parent_grid_z: parent.dims[2],
-                    parent_table: layout.parent_table,
-                    list_offset: layout.storage_list,
-                    list_count: count,
-                    grid_stride: stride_for(count as u64 * 64),
-                    ex_width: pack.width,
-                    ex_height: pack.height,
-                    border: self.border,
-                    channels: pack.channels,
-                    pixel_words: pack.pixel_words,
-                    pixels0: pack.offsets.pixels[0],
-                    pixels1: pack.offsets.pixels[1],
-                    pixels2: pack.offsets.pixels[2],
-                    _r0: 0,
-                    _r1: 0,
-                };
+                let up = kernel_params::upsample_params(
+                    pack,
+                    self.border,
+                    &levels[level - 1].grid,
+                    layout.parent_table,
+                    (layout.storage_list, lv.bricks.len() as u32),
+                );
                 state = exec::timed(&mut self.exec, &mut self.times, "upsample", |e| {
                     e.upsample(pack_index, &up, state, &index)
                 })?;
@@ -190,7 +148,7 @@ impl Synthesizer {
             let mut pass: Vec<CorrectParams> = Vec::with_capacity(SUBPASS_ORDER.len());
             for (s, sp) in lv.subpasses.iter().enumerate() {
                 if !sp.is_empty() {
-                    let mut p = correct_params(
+                    let mut p = kernel_params::correct_params(
                         pack,
                         &lv.grid,
                         (layout.subpass_lists[s].0, layout.subpass_lists[s].1),
@@ -218,7 +176,7 @@ impl Synthesizer {
                 let counts = &mut usage[pack_index];
                 for voxel in words.chunks_exact(stride) {
                     for (a, count) in counts.iter_mut().enumerate() {
-                        let (x, y) = crate::analysis::frame::unpack(voxel[a]);
+                        let (x, y) = crate::contract::triple::unpack(voxel[a]);
                         count[(y * pack.width + x) as usize] += 1;
                     }
                 }
@@ -233,29 +191,12 @@ impl Synthesizer {
         }
         let finest = levels.last().unwrap();
         let pack = self.packs.last().unwrap();
-        let count = group.len() as u32;
-        let c = ColorizeParams {
-            grid_lo_x: finest.grid.lo[0],
-            grid_lo_y: finest.grid.lo[1],
-            grid_lo_z: finest.grid.lo[2],
-            grid_x: finest.grid.dims[0],
-            grid_y: finest.grid.dims[1],
-            grid_z: finest.grid.dims[2],
-            table_offset: 0,
-            list_offset: layout.output_list,
-            list_count: count,
-            grid_stride: stride_for(count as u64 * 64),
-            match_table: pack.offsets.color_match,
-            _r1: 0,
-            color_channels: pack.color_channels,
-            pixel_words: pack.pixel_words,
-            source: self.params.color.kernel_code(),
-            ex_width: pack.width,
-            pixels0: pack.offsets.pixels[0],
-            pixels1: pack.offsets.pixels[1],
-            pixels2: pack.offsets.pixels[2],
-            _pad: 0,
-        };
+        let c = kernel_params::colorize_params(
+            pack,
+            &finest.grid,
+            (layout.output_list, group.len() as u32),
+            self.params.color.kernel_code(),
+        );
         tracing::debug!("group's kernels recorded in {:.1} ms", ms(recording));
         // In a request of several groups the colours may come back while the next group runs
         // (see `for_each_group`); with triples they are needed now.

@@ -126,7 +126,7 @@ const BRICK_COORDS: usize = bricks::BRICK_VOXELS as usize * 3;
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::lazy::parent_level;
+    use crate::lazy::group_plans::parent_level;
 
     #[test]
     fn stored_triples_come_back_as_the_state_words_narrow_or_wide() {

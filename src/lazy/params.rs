@@ -1,7 +1,7 @@
 //! What defines a solid besides its analysis ([`SynthParams`]: seed, jitter, candidate mode,
 //! correction passes per level, colour rule, coarse-level cache), with the checks on them.
 
-use super::jitter;
+use crate::contract::jitter;
 use crate::analysis::ANALYSED_LEVELS;
 use crate::error::{Error, Result};
 

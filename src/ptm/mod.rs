@@ -19,64 +19,7 @@ pub mod quilt;
 pub mod relight;
 pub mod search;
 
-/// How a PTM stores colour.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
-pub enum PtmFormat {
-    /// One biquadratic polynomial per colour channel (18 coefficients a pixel).
-    Rgb,
-    /// One polynomial for the luminance and a constant colour per pixel (6 + 3 values): the pixel's
-    /// colour under light l is L(l) * rgb.
-    Lrgb,
-}
-
-impl PtmFormat {
-    /// Bytes per texel in [`Ptm::texels`].
-    pub fn texel_bytes(self) -> usize {
-        match self {
-            PtmFormat::Rgb => 18,
-            PtmFormat::Lrgb => 9,
-        }
-    }
-
-    /// Polynomials per texel (3 for RGB, 1 for LRGB).
-    pub fn planes(self) -> usize {
-        match self {
-            PtmFormat::Rgb => 3,
-            PtmFormat::Lrgb => 1,
-        }
-    }
-
-    /// The format's name in a `.ptm` header.
-    pub fn header_name(self) -> &'static str {
-        match self {
-            PtmFormat::Rgb => "PTM_FORMAT_RGB",
-            PtmFormat::Lrgb => "PTM_FORMAT_LRGB",
-        }
-    }
-}
-
-/// Coefficients per polynomial: a0 lu^2 + a1 lv^2 + a2 lu lv + a3 lu + a4 lv + a5.
-pub const COEFFS: usize = 6;
-
-/// A polynomial texture map as the `.ptm` file holds it: quantized coefficients with one
-/// (scale, bias) per coefficient index, shared by all pixels and planes.
-///
-/// The value of coefficient i stored as byte q is `(q - bias[i]) * scale[i]`, in the file's
-/// units where 255 is full intensity (so a polynomial evaluating to 255 is white).
-///
-/// `texels` holds, per pixel (rows top to bottom, x fastest; the file stores rows bottom to top):
-/// LRGB: a0..a5 of the luminance then r, g, b; RGB: a0..a5 of red, of green, of blue. Keeping the
-/// bytes (not decoded floats) makes file round trips byte-identical and lets synthesis copy texels
-/// exactly.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Ptm {
-    pub format: PtmFormat,
-    pub width: u32,
-    pub height: u32,
-    pub scale: [f32; COEFFS],
-    pub bias: [i32; COEFFS],
-    pub texels: Vec<u8>,
-}
+pub use crate::contract::ptm::{Lighting, Ptm, PtmFormat, COEFFS};
 
 /// Evaluate a biquadratic PTM polynomial at light (lu, lv).
 #[inline]

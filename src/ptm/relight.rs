@@ -3,15 +3,12 @@
 
 use super::Ptm;
 use crate::backend::Compute;
-use crate::cpu::ptm_relight::{ptm_relight, Lighting};
+use super::Lighting;
 use crate::error::Result;
 
 /// r, g, b per pixel (unit intensity, unclamped) under `light`, on `compute`.
 pub fn relight(compute: &Compute, ptm: &Ptm, light: &Lighting) -> Result<Vec<f32>> {
-    match compute {
-        Compute::Cpu => Ok(ptm_relight(ptm, light)),
-        Compute::Gpu(gpu) => crate::gpu::ptm_relight::ptm_relight(gpu, ptm, light),
-    }
+    compute.ptm_relight(ptm, light)
 }
 
 /// Unit-intensity RGB values as an 8-bit image (clamped, rounded).
@@ -56,15 +53,9 @@ pub fn contact_sheet(
         rows * (h + GUTTER) + GUTTER,
         image::Rgba([24, 24, 24, 255]),
     );
-    let resident = match compute {
-        Compute::Gpu(gpu) => Some(crate::gpu::ptm_relight::GpuPtm::upload(gpu, ptm)),
-        Compute::Cpu => None,
-    };
+    let resident = compute.resident_ptm(ptm);
     for (k, light) in lights.iter().enumerate() {
-        let rgb = match (&resident, compute) {
-            (Some(r), Compute::Gpu(gpu)) => r.relight(gpu, light)?,
-            _ => ptm_relight(ptm, light),
-        };
+        let rgb = resident.relight(light)?;
         let img = to_image(w, h, &rgb);
         let (cx, cy) = (k as u32 % cols, k as u32 / cols);
         image::imageops::replace(

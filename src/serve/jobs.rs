@@ -3,7 +3,7 @@
 //! synthesis work.
 
 use super::ServeConfig;
-use crate::analysis::{self, Analysis, AnalysisInput, AnalysisParams};
+use crate::analysis::{Analysis, AnalysisInput, AnalysisParams};
 use crate::backend::Compute;
 use crate::error::{Error, Result};
 use crate::exemplar::{self, procedural, Border, Image};
@@ -348,7 +348,7 @@ impl State {
                             border,
                         };
                         let _work = lock(&self.work);
-                        let a = Arc::new(analysis::analyze(
+                        let a = Arc::new(crate::lazy::analyze(
                             &input,
                             &AnalysisParams::default(),
                             &self.compute,

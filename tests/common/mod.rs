@@ -1,5 +1,5 @@
 #![allow(dead_code)]
-use solidsynth::analysis::{self, Analysis, AnalysisInput, AnalysisParams};
+use solidsynth::analysis::{Analysis, AnalysisInput, AnalysisParams};
 use solidsynth::backend::Compute;
 use solidsynth::exemplar::{decode_image, Border, Image};
 
@@ -18,7 +18,7 @@ pub fn analyze(images: Vec<Image>, border: Border) -> Analysis {
         border,
         names,
     };
-    analysis::analyze(
+    solidsynth::lazy::analyze(
         &input,
         &AnalysisParams::default(),
         &Compute::Cpu,

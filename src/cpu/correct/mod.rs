@@ -38,8 +38,8 @@ pub use pass::correct_pass;
 pub use prepared::Prepared;
 
 use super::synth_common::{brick_at, coord, pack_resolved, voxel_index, write_voxel};
-use crate::analysis::frame::rotate_from_shared;
-use crate::kernel_types::CorrectParams;
+use crate::contract::triple::rotate_from_shared;
+use crate::contract::uniforms::CorrectParams;
 use neighbours::*;
 use pass::*;
 use prepared::*;

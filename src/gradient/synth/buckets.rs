@@ -13,14 +13,14 @@
 //! voxel's two dominant clusters. On the CPU backend the samples are streamed straight into
 //! per-(voxel, cluster) counts and sums (packed 16-bit lanes, [`PackedSums`], or with four
 //! channels plain ones), from which each voxel keeps its two dominant clusters': the same
-//! integers as `crate::cpu::bucket_accumulate`, without the kernel's sample list. On the GPU
+//! integers as the kernel's CPU reference, without the kernel's sample list. On the GPU
 //! the tiles' samples are listed in parallel and a batch of tiles dispatched at once.
 
 use super::matching::{Match, MatchContext, UNMATCHED};
 use super::refine::Targets;
 use super::{wrap, PeriodicSolid};
 use crate::backend::Compute;
-use crate::cpu::bucket_accumulate::{dominant, Buckets};
+use crate::backend::buckets::{dominant, Buckets, PackedSums};
 use crate::error::Result;
 use crate::gradient::SPACING;
 use nalgebra::{Matrix4, Vector4};
@@ -70,134 +70,6 @@ fn indices_in_band(
     }
 }
 
-/// Per (voxel, cluster), the sample count and channel sums as the four 16-bit lanes of one u64
-/// (the CPU backend's bucket sums; a sample is packed alike: 1, then its channel values, at
-/// most 3). A channel lane could overflow past 257 samples of 255, so a slot whose count reaches
-/// 256 is moved to a list of spilled sums and restarts at zero: the totals are exact.
-#[derive(Clone)]
-pub(super) struct PackedSums {
-    clusters: usize,
-    acc: Vec<u64>,
-    spills: Vec<(usize, u64)>,
-}
-
-impl PackedSums {
-    const SPILL_AT: u16 = 256;
-    /// Channels a packed sample holds besides its count.
-    pub(super) const CHANNELS: usize = 3;
-
-    /// A sample of `values` (at most [`Self::CHANNELS`]) as lanes: 1, then each value.
-    pub(super) fn pack(values: &[u8]) -> u64 {
-        debug_assert!(values.len() <= Self::CHANNELS);
-        let lanes = values.iter().enumerate();
-        lanes.fold(1, |word, (c, &v)| word | (v as u64) << (16 * (c + 1)))
-    }
-
-    fn new(voxels: usize, clusters: usize) -> PackedSums {
-        PackedSums {
-            clusters,
-            acc: vec![0; voxels * clusters],
-            spills: Vec::new(),
-        }
-    }
-
-    /// Adds a sample of `cluster` (`word`: its packed count and values) to voxel `v`.
-    #[inline(always)]
-    fn add(&mut self, v: usize, (cluster, word): (u32, u64)) {
-        let i = v * self.clusters + cluster as usize;
-        let sum = self.acc[i] + word;
-        if sum as u16 == Self::SPILL_AT {
-            self.spills.push((i, sum));
-            self.acc[i] = 0;
-        } else {
-            self.acc[i] = sum;
-        }
-    }
-
-    /// The kernel's result: each voxel's two dominant clusters' counts and sums in 8.8 fixed
-    /// point, and with `with_counts` every (voxel, cluster) count (only the region separation
-    /// reads those; the packed path has no regions, so synthesis leaves them out).
-    fn finish(self, channels: usize, with_counts: bool) -> Buckets {
-        let (clusters, per) = (self.clusters, 1 + channels);
-        let voxels = self.acc.len() / clusters;
-        let lane = |word: u64, l: usize| ((word >> (16 * l)) & 0xFFFF) as u32;
-        // Slot -> its unpacked lanes, for the few slots that spilled.
-        let mut spilled: std::collections::BTreeMap<usize, [u32; 4]> = Default::default();
-        for (i, word) in self.spills {
-            let lanes = spilled.entry(i).or_default();
-            for (l, lane_sum) in lanes.iter_mut().enumerate() {
-                *lane_sum += lane(word, l);
-            }
-        }
-        let acc = self.acc;
-        let any_spilled = !spilled.is_empty();
-        let unpacked = |i: usize, l: usize| {
-            let spilled_lanes = if any_spilled {
-                spilled.get(&i).map_or(0, |lanes| lanes[l])
-            } else {
-                0
-            };
-            lane(acc[i], l) + spilled_lanes
-        };
-        let counts: Vec<u32> = if with_counts {
-            (0..acc.len()).map(|i| unpacked(i, 0)).collect()
-        } else {
-            Vec::new()
-        };
-        let mut sums = vec![0u32; voxels * 2 * per];
-        let mut voxel_counts = vec![0u32; clusters];
-        for (v, out) in sums.chunks_exact_mut(2 * per).enumerate() {
-            let ids = if any_spilled {
-                for (k, count) in voxel_counts.iter_mut().enumerate() {
-                    *count = unpacked(v * clusters + k, 0);
-                }
-                dominant(&voxel_counts)
-            } else {
-                dominant_of_words(&acc[v * clusters..(v + 1) * clusters])
-            };
-            for (slot, &id) in ids.iter().enumerate() {
-                if id != u32::MAX {
-                    let i = v * clusters + id as usize;
-                    out[slot * per] = unpacked(i, 0);
-                    for l in 1..per {
-                        // Raw value sums, scaled to 8.8 fixed point like the kernel's.
-                        out[slot * per + l] = unpacked(i, l) << 8;
-                    }
-                }
-            }
-        }
-        Buckets { counts, sums }
-    }
-}
-
-/// [`dominant`] of the counts in the low lanes of packed `words` (none spilled): the two
-/// clusters with most samples, ties to the lower id, `u32::MAX` for none. Two maxima of keys
-/// (count, then the complement of the id) instead of a chain of compare-and-swaps whose
-/// branches the random counts mispredict (that had cost a tenth of the synthesis).
-#[inline(always)]
-fn dominant_of_words(words: &[u64]) -> [u32; 2] {
-    const ID_BITS: u32 = 8;
-    const ID_MASK: u32 = (1 << ID_BITS) - 1;
-    debug_assert!(words.len() <= 1 << ID_BITS);
-    let key =
-        |(k, &word): (usize, &u64)| ((word as u32 & 0xFFFF) << ID_BITS) | (ID_MASK - k as u32);
-    let first = words.iter().enumerate().map(key).fold(0, u32::max);
-    let second =
-        words
-            .iter()
-            .enumerate()
-            .map(key)
-            .fold(0, |best, k| if k == first { best } else { best.max(k) });
-    // A count of 0 is no cluster.
-    let id = |key: u32| {
-        if key >> ID_BITS == 0 {
-            u32::MAX
-        } else {
-            ID_MASK - (key & ID_MASK)
-        }
-    };
-    [id(first), id(second)]
-}
 
 /// One tile's view of the samples: the buckets of control layers `layers` (voxels z in
 /// [4 layers.start - 2, 4 layers.end - 2)), control rows `rows` (likewise along y) and control
@@ -704,7 +576,7 @@ fn tile_bands(m: u32) -> Vec<std::ops::Range<u32>> {
 /// The buckets of `tiles` from kernel `bucket_accumulate`: their sample lists built in
 /// parallel, then as few dispatches as the device's binding size allows, each over several
 /// tiles' buckets laid end to end.
-fn accumulate_on_gpu(gpu: &crate::gpu::GpuContext, tiles: &[Tile]) -> Result<Vec<Buckets>> {
+fn accumulate_on_gpu(gpu: &Compute, tiles: &[Tile]) -> Result<Vec<Buckets>> {
     let Some(first) = tiles.first() else {
         return Ok(Vec::new());
     };
@@ -742,8 +614,7 @@ fn accumulate_on_gpu(gpu: &crate::gpu::GpuContext, tiles: &[Tile]) -> Result<Vec
                 }
             });
         let parts: Vec<&[u32]> = lists[start..end].iter().map(|l| &l[..]).collect();
-        let all = crate::gpu::bucket_accumulate::bucket_accumulate_parts(
-            gpu,
+        let all = gpu.bucket_accumulate_parts(
             &parts,
             voxels,
             clusters as u32,
@@ -823,18 +694,18 @@ pub fn update(
                 finish(&tile, &buckets)
             })
             .collect(),
-        Compute::Gpu(gpu) => {
+        Compute::Gpu(_) => {
             // The host's work (sample lists, fits) in parallel; the device's, a batch of tiles
-            // per dispatch. (Before, one control layer per dispatch with the host's work on one
-            // thread: 13x slower than the CPU backend on an H100, and a layer's list outgrew
-            // a storage binding at 512^3.)
+            // per dispatch (one control layer per dispatch, with the host's work on one thread,
+            // was 13x slower than the CPU backend on an H100, and a layer's list outgrew a
+            // storage binding at 512^3).
             // Two tiles a thread keep the cores busy; at most 16 bound the lists held (a tile's
             // list is ~12 MB: some 75 samples of 5 words per bucket).
             let batch = (2 * rayon::current_num_threads()).clamp(4, 16);
             let mut results = Vec::with_capacity(tiles.len());
             for chunk in tiles.chunks(batch) {
                 let chunk: Vec<Tile> = chunk.iter().map(tile_at).collect();
-                let buckets = accumulate_on_gpu(gpu, &chunk)?;
+                let buckets = accumulate_on_gpu(compute, &chunk)?;
                 results.par_extend(
                     chunk
                         .par_iter()
@@ -882,81 +753,4 @@ pub fn update(
         },
         refitted as f64 / (solid.m as f64).powi(3),
     ))
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::util::hash::SeededRng;
-
-    /// The packed sums equal the CPU reference of the kernel, also for slots far past the
-    /// 16-bit lanes' range (thousands of samples of 255 in one voxel and cluster).
-    #[test]
-    fn dominant_of_words_equals_the_kernels_choice() {
-        let mut rng = SeededRng::new(5);
-        for round in 0..2000 {
-            let n = 1 + rng.below(32) as usize;
-            // Few distinct counts (ties), zeros included; the other lanes hold sums.
-            let counts: Vec<u32> = (0..n)
-                .map(|_| rng.below(1 + (round % 7) as u64) as u32)
-                .collect();
-            let words: Vec<u64> = counts
-                .iter()
-                .map(|&c| c as u64 | (rng.below(1 << 40) << 16))
-                .collect();
-            assert_eq!(dominant_of_words(&words), dominant(&counts), "{counts:?}");
-        }
-    }
-
-    #[test]
-    fn packed_sums_equal_the_kernel_reference_past_the_lanes_range() {
-        let (voxels, clusters, channels) = (7usize, 5usize, 3usize);
-        let mut rng = SeededRng::new(11);
-        let mut below = |n: usize| rng.below(n as u64) as u32;
-        let mut samples: Vec<[u32; 5]> = Vec::new();
-        for _ in 0..20_000 {
-            let v = below(voxels);
-            // Voxel 0 gets one heavy cluster of saturated values, the rest are random.
-            let (cluster, values) = if v == 0 && below(4) > 0 {
-                (2, [255, 255, 254])
-            } else {
-                let c = below(clusters);
-                (c, [below(256), below(256), below(256)])
-            };
-            samples.push([v, cluster, values[0], values[1], values[2]]);
-        }
-        let mut packed = PackedSums::new(voxels, clusters);
-        for s in &samples {
-            let values = [s[2], s[3], s[4]].map(|v| v as u8);
-            packed.add(s[0] as usize, (s[1], PackedSums::pack(&values)));
-        }
-        assert!(packed.spills.len() > 10, "the test must spill");
-        let flat: Vec<u32> = samples.iter().flatten().copied().collect();
-        let want = crate::cpu::bucket_accumulate::bucket_accumulate(
-            &flat,
-            voxels,
-            clusters as u32,
-            channels as u32,
-        );
-        let without_counts = packed.clone().finish(channels, false);
-        assert!(without_counts.counts.is_empty());
-        assert_eq!(without_counts.sums, want.sums);
-        assert_eq!(packed.finish(channels, true), want);
-        // And without any spill (the usual case, a path of its own): the first 300 samples.
-        let few = &samples[..300];
-        let mut packed = PackedSums::new(voxels, clusters);
-        for s in few {
-            let values = [s[2], s[3], s[4]].map(|v| v as u8);
-            packed.add(s[0] as usize, (s[1], PackedSums::pack(&values)));
-        }
-        assert!(packed.spills.is_empty());
-        let flat: Vec<u32> = few.iter().flatten().copied().collect();
-        let want = crate::cpu::bucket_accumulate::bucket_accumulate(
-            &flat,
-            voxels,
-            clusters as u32,
-            channels as u32,
-        );
-        assert_eq!(packed.finish(channels, true), want);
-    }
 }

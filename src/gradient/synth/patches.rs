@@ -3,7 +3,7 @@
 //! grid), their PCA projections for the nearest-patch search, and what the bucket step reads back: the sample
 //! values and, at the finest level, their colour clusters.
 
-use super::buckets::PackedSums;
+use crate::backend::buckets::PackedSums;
 use super::folded::FoldedProjection;
 use super::ivf::IvfIndex;
 use super::pca::{PatchPca, KEPT, MAX_SAMPLES};

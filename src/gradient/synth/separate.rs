@@ -28,7 +28,8 @@
 
 use super::refine::Targets;
 use super::PeriodicSolid;
-use crate::cpu::tricubic_eval::{tricubic_eval, Query};
+use crate::backend::host_tricubic_eval as tricubic_eval;
+use crate::contract::tricubic::Query;
 use crate::error::{Error, Result};
 use crate::gradient::regions::{vectorize_regions, RegionSolid};
 use crate::gradient::{GradientSolid, SPACING};

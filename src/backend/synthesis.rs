@@ -1,14 +1,15 @@
-//! Running the synthesis kernels on the chosen backend. The CPU executor calls the references in
-//! `cpu/`; the GPU executor keeps the level data resident. The GPU keeps, during a correction
+//! The door of the four synthesis kernels (`init`, `upsample`, `correct`, `colorize`) on the
+//! chosen backend: the CPU executor calls the references in `cpu/`; the GPU executor
+//! (`gpu::synth`) keeps the level data resident. The GPU keeps, during a correction
 //! pass, a copy of the state as the pass began (`begin_pass`); the CPU only for passes that are
 //! not whole bricks (its whole-brick passes hold back blocks of results instead,
 //! `cpu::correct::correct_pass`).
 
-use super::pack::LevelPack;
-use crate::backend::Compute;
+use super::Compute;
+use crate::contract::level::LevelPack;
 use crate::error::Result;
 use crate::gpu::synth::GpuSynth;
-use crate::kernel_types::{ColorizeParams, CorrectParams, InitParams, UpsampleParams};
+use crate::contract::uniforms::{ColorizeParams, CorrectParams, InitParams, UpsampleParams};
 
 /// A level's brick index (tables and brick lists, `lazy::bricks`) on the backend.
 pub enum IndexBuf {
