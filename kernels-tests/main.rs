@@ -1,16 +1,23 @@
-//! GPU-vs-CPU tests of every WGSL kernel: one test binary, run on whatever Vulkan adapter wgpu
+//! GPU-vs-CPU tests of every WGSL kernel, one file per kernel named like it (`kernel_files`
+//! enforces that), plus whole syntheses (`synth`): one test binary, run on whatever Vulkan adapter wgpu
 //! finds (Mesa lavapipe in CI). With `CI` set, a missing adapter fails the run: a skipped GPU
 //! test must never look like a passing one.
 
-mod bucket;
+mod bucket_accumulate;
 mod buffers;
+mod colorize;
 mod compare;
+mod correct;
+mod init;
+mod kernel_files;
 mod lapped_render;
 mod project;
 mod ptm_relight;
 mod shaders;
 mod synth;
-mod tricubic;
+mod synth_inputs;
+mod tricubic_eval;
+mod upsample;
 
 use solidsynth::gpu::{GpuContext, GpuOptions};
 use std::sync::OnceLock;

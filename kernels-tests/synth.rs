@@ -1,62 +1,17 @@
-//! Kernels `init`, `upsample`, `correct`, `colorize`: GPU and CPU bit-exact, on states built from
-//! a real analysis (random states would not exercise the candidate logic), in boxes with negative
-//! coordinates, for both candidate modes, shared and three-exemplar analyses, wrap and mirror.
+//! Whole syntheses through the four synthesis kernels (`init`, `upsample`, `correct`,
+//! `colorize`, each tested alone in its own file): GPU and CPU bit-exact, on states built from a
+//! real analysis (random states would not exercise the candidate logic), in boxes with negative
+//! coordinates, for both candidate modes, shared and three-exemplar analyses, wrap and mirror,
+//! in groups, with shared coarse levels, the coarse cache and warm cut sessions.
 
 use crate::compare::words_equal;
-use solidsynth::analysis::{Analysis, AnalysisInput, AnalysisParams};
+use crate::synth_inputs::{analysis, analyze, fixture};
 use solidsynth::backend::{BackendChoice, Compute};
-use solidsynth::exemplar::{decode_image, Border};
+use solidsynth::exemplar::Border;
 use solidsynth::gpu::GpuOptions;
 use solidsynth::lazy::{
     Box3, CandidateMode, ColorSource, SynthOptions, SynthParams, Synthesizer,
 };
-
-fn fixture(bytes: &[u8]) -> solidsynth::exemplar::Image {
-    decode_image(bytes, "fixture").unwrap()
-}
-
-fn analysis(three: bool, border: Border) -> Analysis {
-    let cells = fixture(include_bytes!("../tests/fixtures/cells32.png"));
-    let marble = fixture(include_bytes!("../tests/fixtures/marble32.png"));
-    let exemplars = if three {
-        vec![cells.clone(), marble, cells]
-    } else {
-        vec![cells]
-    };
-    let a = analyze(exemplars, vec![], border);
-    // The default analysis balances usage: the kernels then scale distances by penalties.
-    assert!(
-        a.exemplars
-            .iter()
-            .all(|e| e.levels.iter().any(|l| l.penalty.iter().any(|&p| p > 0))),
-        "the kernels must be tested with usage penalties"
-    );
-    a
-}
-
-/// The default analysis (on the CPU) of `exemplars` with feature masks `masks`.
-fn analyze(
-    exemplars: Vec<solidsynth::exemplar::Image>,
-    masks: Vec<solidsynth::exemplar::Image>,
-    border: Border,
-) -> Analysis {
-    let names = (0..exemplars.len())
-        .map(|i| format!("fixture {i}"))
-        .collect();
-    let input = AnalysisInput {
-        exemplars,
-        masks,
-        border,
-        names,
-    };
-    solidsynth::lazy::analyze(
-        &input,
-        &AnalysisParams::default(),
-        &Compute::Cpu,
-        &|_, _| {},
-    )
-    .unwrap()
-}
 
 /// Whole box syntheses run every kernel in sequence (init, upsample, 8 sub-passes x passes per
 /// level, colorize) on both backends; any kernel differing makes the volumes differ.
@@ -483,147 +438,6 @@ fn bytes_to_words(b: &[u8]) -> Vec<u32> {
                 .fold(0u32, |w, (i, &x)| w | (x as u32) << (8 * i))
         })
         .collect()
-}
-
-/// Single kernels in isolation: each GPU kernel against its CPU reference on the same inputs.
-#[test]
-fn each_synthesis_kernel_matches_its_reference() {
-    let _serial = crate::serial();
-    let Some(_) = crate::gpu() else { return };
-    use solidsynth::contract::uniforms::{InitParams, UpsampleParams};
-    use solidsynth::lazy::{jitter, pack::LevelPack};
-    let a = analysis(false, Border::Wrap);
-    let pack = LevelPack::new(&a, 3);
-    let o = &pack.offsets;
-    let table = jitter::table();
-    let amps = jitter::amplitudes(3.0);
-    let sig = jitter::sigma2_fixed();
-    // The parent level: the bricks of a box straddling zero, in a shuffled order (slots need not
-    // be sorted).
-    use solidsynth::lazy::bricks;
-    let mut parent_bricks =
-        bricks::bricks_of_box(solidsynth::lazy::Box3::new([-9, -2, 5], [2, 4, 12]));
-    parent_bricks.reverse();
-    let parent_grid = bricks::BrickGrid::new(&parent_bricks);
-    let mut parent_index = parent_grid.table.clone();
-    let parent_list = bricks::push_list(&mut parent_index, &parent_bricks);
-    let count = parent_bricks.len() as u32;
-    let init = InitParams {
-        list_offset: parent_list,
-        list_count: count,
-        grid_stride: solidsynth::gpu::context::dispatch_grid(count * 64).2,
-        ex_width: pack.width,
-        ex_height: pack.height,
-        border: 0,
-        seed_lo: 0xDEAD,
-        seed_hi: 3,
-        jitter_on: 1,
-        tile_x: 2,
-        tile_y: 1,
-        tile_z: 0,
-        slab_offset: o.slab,
-        amp0: amps[0],
-        amp1: amps[1],
-        amp2: amps[2],
-        amp3: amps[3],
-        sig0: sig[0],
-        sig1: sig[1],
-        sig2: sig[2],
-        sig3: sig[3],
-        channels: pack.channels,
-        pixel_words: pack.pixel_words,
-        pixels0: o.pixels[0],
-        pixels1: o.pixels[1],
-        pixels2: o.pixels[2],
-        ..Default::default()
-    };
-    let cpu_init = solidsynth::cpu::init::init(&init, &table, &pack.words, &parent_index, &[]);
-    let ctx = solidsynth::gpu::GpuContext::new(&GpuOptions::from_env()).unwrap();
-    let mut g =
-        solidsynth::gpu::synth::GpuSynth::new(std::sync::Arc::new(ctx), &[pack.clone()], &table)
-            .unwrap();
-    let gpu_parent_index = g.upload_index(&parent_index);
-    let gpu_state = g.init(0, &init, &gpu_parent_index, None).unwrap();
-    words_equal("init", &cpu_init, &g.read_state(&gpu_state).unwrap()).unwrap();
-    // The jitter moves voxels: with it off, the same box differs.
-    let flat = solidsynth::cpu::init::init(
-        &InitParams {
-            jitter_on: 0,
-            ..init
-        },
-        &table,
-        &pack.words,
-        &parent_index,
-        &[],
-    );
-    assert!(words_equal("jitter matters", &cpu_init, &flat).is_err());
-    // Level L-1 from the coarse-level cache: the same bricks read from a periodic cube of
-    // triples (valid coordinates of this level) at the warped position plus the tile offset.
-    let n = 8u32;
-    let cache: Vec<u32> = (0..n.pow(3) * 3)
-        .map(|i| {
-            let h = solidsynth::util::hash::hash32(i ^ 0xCAC4E);
-            solidsynth::analysis::frame::pack(h % pack.width, (h >> 16) % pack.height)
-        })
-        .collect();
-    let cached = InitParams {
-        cache_period: n,
-        tile_x: 5,
-        tile_y: 1,
-        tile_z: 7,
-        ..init
-    };
-    let cpu_cached =
-        solidsynth::cpu::init::init(&cached, &table, &pack.words, &parent_index, &cache);
-    let gpu_cache = g.upload_index(&cache);
-    let gpu_cached = g
-        .init(0, &cached, &gpu_parent_index, Some(&gpu_cache))
-        .unwrap();
-    words_equal(
-        "init from the cache",
-        &cpu_cached,
-        &g.read_state(&gpu_cached).unwrap(),
-    )
-    .unwrap();
-    assert!(words_equal("the cache is read", &cpu_init, &cpu_cached).is_err());
-
-    // Upsampling into a child box (the same level's data serves for the values).
-    // The child bricks: some of the parents' children, and one whose parent is absent (reads as
-    // coordinate 0 on both backends).
-    let mut child_bricks =
-        bricks::bricks_of_box(solidsynth::lazy::Box3::new([-17, -3, 11], [3, 6, 14]));
-    child_bricks.push([40, 40, 40]);
-    let child_grid = bricks::BrickGrid::new(&child_bricks);
-    let mut child_index = child_grid.table.clone();
-    let child_list = bricks::push_list(&mut child_index, &child_bricks);
-    let parent_table = child_index.len() as u32;
-    child_index.extend_from_slice(&parent_grid.table);
-    let count = child_bricks.len() as u32;
-    let up = UpsampleParams {
-        parent_grid_lo_x: parent_grid.lo[0],
-        parent_grid_lo_y: parent_grid.lo[1],
-        parent_grid_lo_z: parent_grid.lo[2],
-        parent_grid_x: parent_grid.dims[0],
-        parent_grid_y: parent_grid.dims[1],
-        parent_grid_z: parent_grid.dims[2],
-        parent_table,
-        list_offset: child_list,
-        list_count: count,
-        grid_stride: solidsynth::gpu::context::dispatch_grid(count * 64).2,
-        ex_width: pack.width,
-        ex_height: pack.height,
-        border: 0,
-        channels: pack.channels,
-        pixel_words: pack.pixel_words,
-        pixels0: o.pixels[0],
-        pixels1: o.pixels[1],
-        pixels2: o.pixels[2],
-        ..Default::default()
-    };
-    let cpu_up = solidsynth::cpu::upsample::upsample(&up, &pack.words, &cpu_init, &child_index);
-    let gpu_child_index = g.upload_index(&child_index);
-    let gpu_up = g.upsample(0, &up, gpu_state, &gpu_child_index).unwrap();
-    words_equal("upsample", &cpu_up, &g.read_state(&gpu_up).unwrap()).unwrap();
 }
 
 /// A warm GPU cut session keeps its buffers from one cut to the next (`CutSession`): cuts of
