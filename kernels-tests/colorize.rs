@@ -27,7 +27,7 @@ fn colorize_matches_its_reference_and_its_comparison_can_fail() {
     let mut outputs = Vec::new();
     for source in [0x000, 0x123, 0x321, 0x444, 0x041] {
         let what = format!("colorize, sources {source:#05x}");
-        let p = kernel_params::colorize_params(&pack, &bricks.grid, (bricks.list, bricks.count()), source);
+        let p = kernel_params::colorize_params(&pack, Border::Mirror.code(), &bricks.grid, (bricks.list, bricks.count()), source);
         let reference = solidsynth::cpu::colorize::colorize(&p, &pack.words, &state, &bricks.index);
         let read = g.colorize(0, &p, &s, &index).unwrap();
         let on_gpu = g.finish_read(read).unwrap();

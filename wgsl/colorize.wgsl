@@ -5,14 +5,13 @@
 // CPU reference: src/cpu/colorize.rs.
 
 struct ColorizeParams {
+    ex: ExemplarFields,
     grid_lo_x: i32, grid_lo_y: i32, grid_lo_z: i32,
     grid_x: u32, grid_y: u32, grid_z: u32,
     table_offset: u32,
     list_offset: u32, list_count: u32, grid_stride: u32,
-    match_table: u32, _r1: u32,
-    color_channels: u32, pixel_words: u32,
-    source: u32, ex_width: u32,
-    pixels0: u32, pixels1: u32, pixels2: u32, _pad: u32,
+    match_table: u32, color_channels: u32, source: u32,
+    _r0: u32, _r1: u32, _r2: u32,
 }
 
 @group(0) @binding(0) var<uniform> params: ColorizeParams;
@@ -34,14 +33,14 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         colors[tid] = 0u; // never expected: output bricks are stored
         return;
     }
-    let i = slot * (3u + params.pixel_words);
+    let i = slot * (3u + params.ex.pixel_words);
     // Colour channels are the first ones (at most 4: one word).
     var mask = 0xFFFFFFFFu;
     if (params.color_channels < 4u) {
         mask = (1u << (params.color_channels * 8u)) - 1u;
     }
     let value = state[i + 3u];
-    let pixels = array<u32, 3>(params.pixels0, params.pixels1, params.pixels2);
+    let pixels = array<u32, 3>(params.ex.pixels0, params.ex.pixels1, params.ex.pixels2);
     var word = 0u;
     for (var c = 0u; c < 4u; c++) {
         let code = (params.source >> (c * 4u)) & 0xFu;
@@ -52,7 +51,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         } else if (code != 0u) {
             let a = code - 1u;
             let t = state[i + a];
-            picked = level[pixels[a] + (u32(coord_y(t)) * params.ex_width + u32(coord_x(t))) * params.pixel_words];
+            picked = level[pixels[a] + (u32(coord_y(t)) * params.ex.width + u32(coord_x(t))) * params.ex.pixel_words];
         }
         word |= picked & (0xFFu << (c * 8u));
     }

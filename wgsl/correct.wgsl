@@ -3,17 +3,16 @@
 // description of each step: src/cpu/correct/mod.rs.
 
 struct CorrectParams {
+    ex: ExemplarFields,
     grid_lo_x: i32, grid_lo_y: i32, grid_lo_z: i32,
     grid_x: u32, grid_y: u32, grid_z: u32,
     table_offset: u32,
     list_offset: u32, list_count: u32,
     class_x: u32, class_y: u32, class_z: u32,
-    ex_width: u32, ex_height: u32, channels: u32, pixel_words: u32,
     pca_in: u32, pca_out: u32, shift: u32, proj_words: u32,
-    k2d: u32, k3d_used: u32, k3d_stride: u32, border: u32,
+    k2d: u32, k3d_used: u32, k3d_stride: u32,
     mode: u32,
     shared_sets: u32,
-    pixels0: u32, pixels1: u32, pixels2: u32,
     proj0: u32, proj1: u32, proj2: u32,
     mean0: u32, mean1: u32, mean2: u32,
     weights0: u32, weights1: u32, weights2: u32,
@@ -24,7 +23,7 @@ struct CorrectParams {
     _r0: u32, _r1: u32,
 }
 
-// Pipeline-overridable copies of params.channels, params.pca_out and params.k2d (the host sets
+// Pipeline-overridable copies of params.ex.channels, params.pca_out and params.k2d (the host sets
 // them equal): constant loop bounds let the driver unroll the hot loops and keep the
 // accumulators in registers. The kernel checks they agree with the uniforms.
 override CHANNELS: u32 = 3u;
@@ -69,7 +68,7 @@ fn state_index(pos: vec3<i32>) -> u32 {
 }
 
 fn stride() -> u32 {
-    return 3u + params.pixel_words;
+    return 3u + params.ex.pixel_words;
 }
 
 // The stored bricks that a voxel's three 5x5 plane neighbourhoods reach. Along each axis a
@@ -468,7 +467,7 @@ fn squares(p: vec4<u32>) -> u32 {
 // not negative).
 fn distance(q: Projected, a: u32, c: u32) -> u32 {
     let proj = select(select(params.proj2, params.proj1, a == 1u), params.proj0, a == 0u);
-    let p = level_words(proj + (u32(coord_y(c)) * params.ex_width + u32(coord_x(c))) * params.proj_words);
+    let p = level_words(proj + (u32(coord_y(c)) * params.ex.width + u32(coord_x(c))) * params.proj_words);
     return q.squares + squares(p) - 2u * cross(q, p);
 }
 
@@ -482,9 +481,9 @@ const SCALE_MASK: u32 = (1u << SCALE_BITS) - 1u;
 // Usage penalty of pixel c of E_a in sixteenths (analysis::balance): one word per pixel right
 // after E_a's pixels in the level data (lazy::pack).
 fn penalty(a: u32, c: u32) -> u32 {
-    let pixels = select(select(params.pixels2, params.pixels1, a == 1u), params.pixels0, a == 0u);
-    let table = pixels + params.ex_width * params.ex_height * params.pixel_words;
-    return level[table + u32(coord_y(c)) * params.ex_width + u32(coord_x(c))];
+    let pixels = select(select(params.ex.pixels2, params.ex.pixels1, a == 1u), params.ex.pixels0, a == 0u);
+    let table = pixels + params.ex.width * params.ex.height * params.ex.pixel_words;
+    return level[table + u32(coord_y(c)) * params.ex.width + u32(coord_x(c))];
 }
 
 // The scale of a triple's distance: 16 + the penalties of its three pixels (the scaled
@@ -527,11 +526,11 @@ fn best_2d(r: Around, a: u32, q: Projected) -> vec2<u32> {
             }
             let sx = coord_x(c) - du;
             let sy = coord_y(c) - dv;
-            if (params.border != 0u && (sx < 0 || sy < 0 || sx >= i32(params.ex_width) || sy >= i32(params.ex_height))) {
+            if (params.ex.border != 0u && (sx < 0 || sy < 0 || sx >= i32(params.ex.width) || sy >= i32(params.ex.height))) {
                 continue;
             }
-            let src = pack_coord(resolve_near(sx, params.ex_width, params.border), resolve_near(sy, params.ex_height, params.border));
-            let list = table + (u32(coord_y(src)) * params.ex_width + u32(coord_x(src))) * K2D * entry;
+            let src = pack_coord(resolve_near(sx, params.ex.width, params.ex.border), resolve_near(sy, params.ex.height, params.ex.border));
+            let list = table + (u32(coord_y(src)) * params.ex.width + u32(coord_x(src))) * K2D * entry;
             // The list's candidates in order, written out up to four.
             score_2d(&best, q, list);
             if (K2D > 1u) {
@@ -582,7 +581,7 @@ fn search_3d(a: u32, pixel2d: u32, own_d: u32, q_next: Projected, q_last: Projec
     }
     // Every 3D candidate of pixel2d has it as its a coordinate (the .ssa reader checks it): its
     // distance on plane a is best_2d's.
-    let pixel = u32(coord_y(pixel2d)) * params.ex_width + u32(coord_x(pixel2d));
+    let pixel = u32(coord_y(pixel2d)) * params.ex.width + u32(coord_x(pixel2d));
     let counts = select(select(params.counts2, params.counts1, owner == 1u), params.counts0, owner == 0u);
     let count = min(level[counts + pixel], params.k3d_used);
     let list = tables[3u + owner] + pixel * slots * entry;
@@ -644,7 +643,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (b >= params.list_count) {
         return;
     }
-    if (CHANNELS != params.channels || PCA_OUT != params.pca_out || K2D != params.k2d) {
+    if (CHANNELS != params.ex.channels || PCA_OUT != params.pca_out || K2D != params.k2d) {
         return; // a pipeline built for other constants: leave the voxel as it was
     }
     if (((bricks[params.mask_offset + b / 4u] >> ((b % 4u) * 8u + k)) & 1u) == 0u) {
@@ -662,8 +661,8 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     state[i] = best.x;
     state[i + 1u] = best.y;
     state[i + 2u] = best.z;
-    let pixels = vec3<u32>(params.pixels0, params.pixels1, params.pixels2);
-    for (var wd = 0u; wd < params.pixel_words; wd++) {
-        state[i + 3u + wd] = value_word(best, wd, pixels, params.ex_width, params.pixel_words, params.channels);
+    let pixels = vec3<u32>(params.ex.pixels0, params.ex.pixels1, params.ex.pixels2);
+    for (var wd = 0u; wd < params.ex.pixel_words; wd++) {
+        state[i + 3u + wd] = value_word(best, wd, pixels, params.ex.width, params.ex.pixel_words, params.ex.channels);
     }
 }

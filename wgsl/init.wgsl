@@ -4,17 +4,15 @@
 // src/cpu/init.rs and src/lazy/jitter.rs.
 
 struct InitParams {
+    ex: ExemplarFields,
     list_offset: u32, list_count: u32, grid_stride: u32,
-    period: u32, cache_period: u32, _r2: u32,
-    ex_width: u32, ex_height: u32, border: u32,
+    period: u32, cache_period: u32,
     seed_lo: u32, seed_hi: u32,
     jitter_on: u32,
     tile_x: u32, tile_y: u32, tile_z: u32,
     slab_offset: u32,
     amp0: i32, amp1: i32, amp2: i32, amp3: i32,
     sig0: i32, sig1: i32, sig2: i32, sig3: i32,
-    channels: u32, pixel_words: u32, pixels0: u32, pixels1: u32,
-    pixels2: u32, _pad0: u32, _pad1: u32, _pad2: u32,
 }
 
 const CELL: i32 = 4;
@@ -136,9 +134,9 @@ fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) 
         warp = jitter_offset(pos);
     }
     var q = pos + warp + vec3<i32>(i32(params.tile_x), i32(params.tile_y), i32(params.tile_z));
-    let stride = 3u + params.pixel_words;
+    let stride = 3u + params.ex.pixel_words;
     let i = tid * stride;
-    let pixels = vec3<u32>(params.pixels0, params.pixels1, params.pixels2);
+    let pixels = vec3<u32>(params.ex.pixels0, params.ex.pixels1, params.ex.pixels2);
     if (params.cache_period != 0u) {
         let n = i32(params.cache_period);
         let c = vec3<u32>(vec3<i32>(rem_euclid(q.x, n), rem_euclid(q.y, n), rem_euclid(q.z, n)));
@@ -147,8 +145,8 @@ fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) 
         out_state[i] = t.x;
         out_state[i + 1u] = t.y;
         out_state[i + 2u] = t.z;
-        for (var wd = 0u; wd < params.pixel_words; wd++) {
-            out_state[i + 3u + wd] = value_word(t, wd, pixels, params.ex_width, params.pixel_words, params.channels);
+        for (var wd = 0u; wd < params.ex.pixel_words; wd++) {
+            out_state[i + 3u + wd] = value_word(t, wd, pixels, params.ex.width, params.ex.pixel_words, params.ex.channels);
         }
         return;
     }
@@ -156,8 +154,8 @@ fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) 
         let n = i32(params.period);
         q = vec3<i32>(rem_euclid(q.x, n), rem_euclid(q.y, n), rem_euclid(q.z, n));
     }
-    let w = params.ex_width;
-    let h = params.ex_height;
+    let w = params.ex.width;
+    let h = params.ex.height;
     // Each 5-voxel layer of slabs along x gets its own hashed (y, z) offset (see the CPU reference).
     let layer = q.x / 5 - select(0, 1, q.x % 5 < 0); // floor division
     let shift = hash32(hash32(params.seed_lo ^ 0x5EEDu) ^ bitcast<u32>(layer));
@@ -169,13 +167,13 @@ fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) 
     let c2 = level[s + 2u];
     let t = vec3<u32>(
         pack_coord(u, v),
-        pack_resolved(coord_x(c1), coord_y(c1) + depth, w, h, params.border),
-        pack_resolved(coord_x(c2) + depth, coord_y(c2), w, h, params.border),
+        pack_resolved(coord_x(c1), coord_y(c1) + depth, w, h, params.ex.border),
+        pack_resolved(coord_x(c2) + depth, coord_y(c2), w, h, params.ex.border),
     );
     out_state[i] = t.x;
     out_state[i + 1u] = t.y;
     out_state[i + 2u] = t.z;
-    for (var wd = 0u; wd < params.pixel_words; wd++) {
-        out_state[i + 3u + wd] = value_word(t, wd, pixels, w, params.pixel_words, params.channels);
+    for (var wd = 0u; wd < params.ex.pixel_words; wd++) {
+        out_state[i + 3u + wd] = value_word(t, wd, pixels, w, params.ex.pixel_words, params.ex.channels);
     }
 }

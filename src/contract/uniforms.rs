@@ -2,11 +2,13 @@
 //! then its value (the mean of its three exemplar pixels, `pixel_words` words): stride
 //! 3 + pixel_words.
 //!
-//! Structs shared between Rust and WGSL. Each is `#[repr(C)]` + `Pod` with only 4-byte scalar
-//! fields (so WGSL's uniform layout matches C's), has its size asserted at compile time, and
-//! exposes `layout()` (field names and offsets) that `kernels-tests` compares with naga's layout of
-//! the WGSL struct of the same name.
+//! Each struct is `#[repr(C)]` + `Pod` with 4-byte scalar fields, or, first in the four
+//! synthesis kernels' uniforms, one [`ExemplarFields`] (32 bytes, so WGSL's 16-byte alignment of
+//! a struct member is C's offset 0), so WGSL's uniform layout matches C's. Each has its size
+//! asserted at compile time and exposes `layout()` (field names and offsets) that `kernels-tests`
+//! compares with naga's layout of the WGSL struct of the same name.
 
+use super::level::LevelPack;
 use bytemuck::{Pod, Zeroable};
 
 macro_rules! gpu_struct {
@@ -44,8 +46,46 @@ gpu_struct! {
 }
 
 gpu_struct! {
+    /// A level's exemplar fields, the first member of the four synthesis kernels' uniforms
+    /// (`ExemplarFields` in wgsl/lib/synth_common.wgsl): built once per level, by [`Self::of`].
+    ExemplarFields size 32 {
+        /// Exemplar size in pixels.
+        width: u32, height: u32,
+        /// `Border::code()`: 0 wrap, 1 mirror.
+        border: u32,
+        /// Working channels (colour + feature) and u32 words per pixel (channels packed 4 per
+        /// word).
+        channels: u32, pixel_words: u32,
+        /// Word offsets of each exemplar's pixels in the level data.
+        pixels0: u32, pixels1: u32, pixels2: u32,
+    }
+}
+
+impl ExemplarFields {
+    /// The fields of `pack`'s level with exemplar border `border` (`Border::code()`).
+    pub fn of(pack: &LevelPack, border: u32) -> ExemplarFields {
+        ExemplarFields {
+            width: pack.width,
+            height: pack.height,
+            border,
+            channels: pack.channels,
+            pixel_words: pack.pixel_words,
+            pixels0: pack.offsets.pixels[0],
+            pixels1: pack.offsets.pixels[1],
+            pixels2: pack.offsets.pixels[2],
+        }
+    }
+
+    /// Each exemplar's pixels' word offset.
+    pub fn pixels(&self) -> [u32; 3] {
+        [self.pixels0, self.pixels1, self.pixels2]
+    }
+}
+
+gpu_struct! {
     /// Uniforms of `wgsl/init.wgsl`: tiling of the candidate slab, warped by the jitter field.
-    InitParams size 128 {
+    InitParams size 112 {
+        ex: ExemplarFields,
         /// The level's stored bricks (word offset of the brick list in the brick index, count)
         /// and the threads per row of the 2D dispatch grid (one thread per voxel).
         list_offset: u32, list_count: u32, grid_stride: u32,
@@ -55,8 +95,6 @@ gpu_struct! {
         /// the coarse-level cache, a periodic n^3 volume of triples (binding 5, x fastest), read
         /// at the warped position plus the tile offset, modulo n (`--coarse-cache`, level L-1).
         cache_period: u32,
-        _r2: u32,
-        ex_width: u32, ex_height: u32, border: u32,
         seed_lo: u32, seed_hi: u32,
         /// 0: no jitter.
         jitter_on: u32,
@@ -66,15 +104,14 @@ gpu_struct! {
         slab_offset: u32,
         amp0: i32, amp1: i32, amp2: i32, amp3: i32,
         sig0: i32, sig1: i32, sig2: i32, sig3: i32,
-        /// For the cached voxel value: working channels, words per pixel, exemplar pixel offsets.
-        channels: u32, pixel_words: u32, pixels0: u32, pixels1: u32,
-        pixels2: u32, _pad0: u32, _pad1: u32, _pad2: u32,
     }
 }
 
 gpu_struct! {
     /// Uniforms of `wgsl/upsample.wgsl`: coordinate inheritance from the coarser level.
     UpsampleParams size 80 {
+        /// The child level's exemplar (for the cached voxel value).
+        ex: ExemplarFields,
         /// The parent level's brick grid (origin and size in bricks) and the word offset of its
         /// table, copied into the child's brick index.
         parent_grid_lo_x: i32, parent_grid_lo_y: i32, parent_grid_lo_z: i32,
@@ -82,9 +119,6 @@ gpu_struct! {
         parent_table: u32,
         /// The child's stored bricks (one thread per voxel).
         list_offset: u32, list_count: u32, grid_stride: u32,
-        ex_width: u32, ex_height: u32, border: u32,
-        /// For the cached voxel value (child level).
-        channels: u32, pixel_words: u32, pixels0: u32, pixels1: u32, pixels2: u32,
         _r0: u32, _r1: u32,
     }
 }
@@ -93,6 +127,7 @@ gpu_struct! {
     /// Uniforms of `wgsl/correct.wgsl`: one sub-pass over the voxels of one parity class in a
     /// list of bricks.
     CorrectParams size 208 {
+        ex: ExemplarFields,
         /// The level's brick grid (origin and size in bricks) and the word offset of its table.
         grid_lo_x: i32, grid_lo_y: i32, grid_lo_z: i32,
         grid_x: u32, grid_y: u32, grid_z: u32,
@@ -101,14 +136,12 @@ gpu_struct! {
         list_offset: u32, list_count: u32,
         /// The parity class (x, y, z mod 2) of the voxels updated.
         class_x: u32, class_y: u32, class_z: u32,
-        ex_width: u32, ex_height: u32, channels: u32, pixel_words: u32,
         pca_in: u32, pca_out: u32, shift: u32, proj_words: u32,
-        k2d: u32, k3d_used: u32, k3d_stride: u32, border: u32,
+        k2d: u32, k3d_used: u32, k3d_stride: u32,
         /// 0: 3D candidates (two-step search); 1: 2D candidates only (ablation).
         mode: u32,
         /// 1: one exemplar for all axes; sets 1 and 2 are rotations of set 0.
         shared_sets: u32,
-        pixels0: u32, pixels1: u32, pixels2: u32,
         proj0: u32, proj1: u32, proj2: u32,
         mean0: u32, mean1: u32, mean2: u32,
         weights0: u32, weights1: u32, weights2: u32,
@@ -128,7 +161,8 @@ gpu_struct! {
 
 gpu_struct! {
     /// Uniforms of `wgsl/colorize.wgsl`: voxel colours of a list of bricks.
-    ColorizeParams size 80 {
+    ColorizeParams size 96 {
+        ex: ExemplarFields,
         /// The finest level's brick grid and table (as in CorrectParams).
         grid_lo_x: i32, grid_lo_y: i32, grid_lo_z: i32,
         grid_x: u32, grid_y: u32, grid_z: u32,
@@ -136,12 +170,12 @@ gpu_struct! {
         /// The output bricks (one thread per voxel; colours in list order, 64 per brick).
         list_offset: u32, list_count: u32, grid_stride: u32,
         /// Word offset of the `--color matched` table in the level data (`lazy::color_match`).
-        match_table: u32, _r1: u32,
-        color_channels: u32, pixel_words: u32,
-        /// 0: the voxel's cached value (mean of its three pixels); a + 1: exemplar a's pixel;
-        /// 4: the cached value mapped through the match table.
-        source: u32, ex_width: u32,
-        pixels0: u32, pixels1: u32, pixels2: u32, _pad: u32,
+        match_table: u32,
+        color_channels: u32,
+        /// Per channel c, 4 bits at 4c: 0 the voxel's cached value (mean of its three pixels);
+        /// a + 1 exemplar a's pixel; 4 the cached value mapped through the match table.
+        source: u32,
+        _r0: u32, _r1: u32, _r2: u32,
     }
 }
 
@@ -226,6 +260,12 @@ pub fn all_layouts() -> Vec<(
 )> {
     use std::mem::size_of;
     vec![
+        (
+            "init",
+            "ExemplarFields",
+            ExemplarFields::layout(),
+            size_of::<ExemplarFields>(),
+        ),
         (
             "project",
             "ProjectParams",

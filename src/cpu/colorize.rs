@@ -13,7 +13,7 @@ use rayon::prelude::*;
 pub fn colorize(p: &ColorizeParams, level: &[u32], state: &[u32], bricks: &[u32]) -> Vec<u32> {
     let lo = [p.grid_lo_x, p.grid_lo_y, p.grid_lo_z];
     let dims = [p.grid_x, p.grid_y, p.grid_z];
-    let stride = 3 + p.pixel_words as usize;
+    let stride = 3 + p.ex.pixel_words as usize;
     let mask = if p.color_channels < 4 {
         (1u32 << (p.color_channels * 8)) - 1
     } else {
@@ -32,8 +32,8 @@ pub fn colorize(p: &ColorizeParams, level: &[u32], state: &[u32], bricks: &[u32]
             let value = state[i + 3];
             let pixel = |a: usize| {
                 let (x, y) = crate::contract::triple::unpack(state[i + a]);
-                let pixels = [p.pixels0, p.pixels1, p.pixels2][a];
-                level[(pixels + (y * p.ex_width + x) * p.pixel_words) as usize]
+                let pixels = [p.ex.pixels0, p.ex.pixels1, p.ex.pixels2][a];
+                level[(pixels + (y * p.ex.width + x) * p.ex.pixel_words) as usize]
             };
             let value = (0..4).fold(0, |out, c| {
                 let from = match (p.source >> (4 * c)) & 0xF {

@@ -23,8 +23,8 @@ pub fn init(
         p.cache_period == 0 || cache.len() >= (p.cache_period as usize).pow(3) * 3,
         "a coarse-level cache of the period's size"
     );
-    let stride = 3 + p.pixel_words as usize;
-    let pixels = [p.pixels0, p.pixels1, p.pixels2];
+    let stride = 3 + p.ex.pixel_words as usize;
+    let pixels = [p.ex.pixels0, p.ex.pixels1, p.ex.pixels2];
     let mut out = vec![0u32; p.list_count as usize * 64 * stride];
     out.par_chunks_mut(64 * stride)
         .enumerate()
@@ -52,9 +52,9 @@ pub fn init(
                     level,
                     t,
                     pixels,
-                    p.ex_width,
-                    p.pixel_words,
-                    p.channels,
+                    p.ex.width,
+                    p.ex.pixel_words,
+                    p.ex.channels,
                 );
             }
         });
@@ -87,7 +87,7 @@ fn init_voxel(p: &InitParams, level: &[u32], pos: [i32; 3], warp: [i32; 3]) -> [
     if p.period != 0 {
         q = q.map(|v| v.rem_euclid(p.period as i32));
     }
-    let (w, h) = (p.ex_width, p.ex_height);
+    let (w, h) = (p.ex.width, p.ex.height);
     // Each 5-voxel layer of slabs along x is shifted by its own hashed (y, z) offset, so the
     // tiling does not extrude exemplar 0 along x (a state the correction cannot leave: it
     // satisfies every x plane exactly).
@@ -102,7 +102,7 @@ fn init_voxel(p: &InitParams, level: &[u32], pos: [i32; 3], warp: [i32; 3]) -> [
     let (x2, y2) = coord(level[s + 2]);
     [
         pack(u, v),
-        pack_resolved(x1, y1 + depth, w, h, p.border),
-        pack_resolved(x2 + depth, y2, w, h, p.border),
+        pack_resolved(x1, y1 + depth, w, h, p.ex.border),
+        pack_resolved(x2 + depth, y2, w, h, p.ex.border),
     ]
 }

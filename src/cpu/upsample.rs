@@ -12,8 +12,8 @@ use rayon::prelude::*;
 /// The child state (64 voxels per brick, list order) of the bricks of the list in `p`, from
 /// the parent state; `bricks` is the child's brick index (holding a copy of the parent's table).
 pub fn upsample(p: &UpsampleParams, level: &[u32], parent: &[u32], bricks: &[u32]) -> Vec<u32> {
-    let stride = 3 + p.pixel_words as usize;
-    let pixels = [p.pixels0, p.pixels1, p.pixels2];
+    let stride = 3 + p.ex.pixel_words as usize;
+    let pixels = [p.ex.pixels0, p.ex.pixels1, p.ex.pixels2];
     let mut out = vec![0u32; p.list_count as usize * 64 * stride];
     let plo = [p.parent_grid_lo_x, p.parent_grid_lo_y, p.parent_grid_lo_z];
     let pdims = [p.parent_grid_x, p.parent_grid_y, p.parent_grid_z];
@@ -33,9 +33,9 @@ pub fn upsample(p: &UpsampleParams, level: &[u32], parent: &[u32], bricks: &[u32
                     pack_resolved(
                         2 * px + offsets[a].0,
                         2 * py + offsets[a].1,
-                        p.ex_width,
-                        p.ex_height,
-                        p.border,
+                        p.ex.width,
+                        p.ex.height,
+                        p.ex.border,
                     )
                 });
                 let voxel = &mut dst[x * stride..(x + 1) * stride];
@@ -44,9 +44,9 @@ pub fn upsample(p: &UpsampleParams, level: &[u32], parent: &[u32], bricks: &[u32
                     level,
                     t,
                     pixels,
-                    p.ex_width,
-                    p.pixel_words,
-                    p.channels,
+                    p.ex.width,
+                    p.ex.pixel_words,
+                    p.ex.channels,
                 );
             }
         });

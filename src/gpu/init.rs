@@ -33,7 +33,7 @@ impl GpuSynth {
             index,
             Some(cache.unwrap_or(&self.table)),
             p.list_count,
-            p.pixel_words,
+            p.ex.pixel_words,
             &[],
         )
     }

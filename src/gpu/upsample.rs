@@ -27,7 +27,7 @@ impl GpuSynth {
             index,
             None,
             p.list_count,
-            p.pixel_words,
+            p.ex.pixel_words,
             &[],
         )
     }

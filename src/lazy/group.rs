@@ -193,6 +193,7 @@ impl Synthesizer {
         let pack = self.packs.last().unwrap();
         let c = kernel_params::colorize_params(
             pack,
+            self.border,
             &finest.grid,
             (layout.output_list, group.len() as u32),
             self.params.color.kernel_code(),

@@ -1,12 +1,15 @@
 //! The synthesis kernels' uniforms, built from a level's pack and the request's plan: one
-//! function per kernel. `grid_stride` (the dispatch grid's row stride) is left 0 here: the GPU
+//! function per kernel, each starting from the level's [`ExemplarFields`], built once by
+//! `ExemplarFields::of`. `grid_stride` (the dispatch grid's row stride) is left 0 here: the GPU
 //! dispatch sets it from the grid it chooses, and the CPU references do not read it.
 
 use super::bricks::BrickGrid;
 use super::params::CandidateMode;
 use crate::contract::jitter;
 use crate::contract::level::LevelPack;
-use crate::contract::uniforms::{ColorizeParams, CorrectParams, InitParams, UpsampleParams};
+use crate::contract::uniforms::{
+    ColorizeParams, CorrectParams, ExemplarFields, InitParams, UpsampleParams,
+};
 use crate::util::hash::hash32;
 
 /// The uniforms of one `correct` sub-pass: the class voxels of the bricks of the list at word
@@ -22,6 +25,7 @@ pub fn correct_params(
 ) -> CorrectParams {
     let o = &pack.offsets;
     CorrectParams {
+        ex: ExemplarFields::of(pack, border),
         grid_lo_x: grid.lo[0],
         grid_lo_y: grid.lo[1],
         grid_lo_z: grid.lo[2],
@@ -34,10 +38,6 @@ pub fn correct_params(
         class_x: (class & 1) as u32,
         class_y: ((class >> 1) & 1) as u32,
         class_z: ((class >> 2) & 1) as u32,
-        ex_width: pack.width,
-        ex_height: pack.height,
-        channels: pack.channels,
-        pixel_words: pack.pixel_words,
         pca_in: pack.pca_in,
         pca_out: pack.pca_out,
         shift: pack.shift,
@@ -45,12 +45,8 @@ pub fn correct_params(
         k2d: pack.k2d,
         k3d_used,
         k3d_stride: pack.k3d_stride,
-        border,
         mode: (mode == CandidateMode::TwoD) as u32,
         shared_sets: pack.shared as u32,
-        pixels0: o.pixels[0],
-        pixels1: o.pixels[1],
-        pixels2: o.pixels[2],
         proj0: o.projected[0],
         proj1: o.projected[1],
         proj2: o.projected[2],
@@ -96,15 +92,12 @@ pub fn init_params(
     let amps = jitter::amplitudes(jitter);
     let sig = jitter::sigma2_fixed();
     InitParams {
+        ex: ExemplarFields::of(pack, border),
         list_offset: list.0,
         list_count: list.1,
         grid_stride: 0,
         period,
         cache_period: 0,
-        _r2: 0,
-        ex_width: pack.width,
-        ex_height: pack.height,
-        border,
         seed_lo,
         seed_hi,
         jitter_on: (jitter > 0.0) as u32,
@@ -120,14 +113,6 @@ pub fn init_params(
         sig1: sig[1],
         sig2: sig[2],
         sig3: sig[3],
-        channels: pack.channels,
-        pixel_words: pack.pixel_words,
-        pixels0: pack.offsets.pixels[0],
-        pixels1: pack.offsets.pixels[1],
-        pixels2: pack.offsets.pixels[2],
-        _pad0: 0,
-        _pad1: 0,
-        _pad2: 0,
     }
 }
 
@@ -141,6 +126,7 @@ pub fn upsample_params(
     list: (u32, u32),
 ) -> UpsampleParams {
     UpsampleParams {
+        ex: ExemplarFields::of(pack, border),
         parent_grid_lo_x: parent.lo[0],
         parent_grid_lo_y: parent.lo[1],
         parent_grid_lo_z: parent.lo[2],
@@ -151,14 +137,6 @@ pub fn upsample_params(
         list_offset: list.0,
         list_count: list.1,
         grid_stride: 0,
-        ex_width: pack.width,
-        ex_height: pack.height,
-        border,
-        channels: pack.channels,
-        pixel_words: pack.pixel_words,
-        pixels0: pack.offsets.pixels[0],
-        pixels1: pack.offsets.pixels[1],
-        pixels2: pack.offsets.pixels[2],
         _r0: 0,
         _r1: 0,
     }
@@ -169,11 +147,13 @@ pub fn upsample_params(
 /// ([`super::ColorSource::kernel_code`]).
 pub fn colorize_params(
     pack: &LevelPack,
+    border: u32,
     grid: &BrickGrid,
     list: (u32, u32),
     source: u32,
 ) -> ColorizeParams {
     ColorizeParams {
+        ex: ExemplarFields::of(pack, border),
         grid_lo_x: grid.lo[0],
         grid_lo_y: grid.lo[1],
         grid_lo_z: grid.lo[2],
@@ -185,14 +165,10 @@ pub fn colorize_params(
         list_count: list.1,
         grid_stride: 0,
         match_table: pack.offsets.color_match,
-        _r1: 0,
         color_channels: pack.color_channels,
-        pixel_words: pack.pixel_words,
         source,
-        ex_width: pack.width,
-        pixels0: pack.offsets.pixels[0],
-        pixels1: pack.offsets.pixels[1],
-        pixels2: pack.offsets.pixels[2],
-        _pad: 0,
+        _r0: 0,
+        _r1: 0,
+        _r2: 0,
     }
 }

@@ -6,7 +6,16 @@
 // its value, the mean of its three exemplar pixels (pixel_words words): stride 3 + pixel_words.
 
 @group(0) @binding(1) var<storage, read> level: array<u32>;
-// The level's brick index (src/lazy/bricks.rs): brick tables (one word per brick of a grid's
+
+// The level's exemplar fields, the first member of every synthesis kernel's uniforms
+// (`ExemplarFields` in src/contract/uniforms.rs, built once per level by `ExemplarFields::of`):
+// exemplar size, border (0 wrap, 1 mirror), working channels, words per pixel, and each
+// exemplar's pixels' word offset in the level data.
+struct ExemplarFields {
+    width: u32, height: u32, border: u32, channels: u32,
+    pixel_words: u32, pixels0: u32, pixels1: u32, pixels2: u32,
+}
+// The level's brick index (src/contract/bricks.rs, planned by src/lazy/bricks.rs): brick tables (one word per brick of a grid's
 // bounding box: its slot, or ABSENT) and brick lists (three i32 words per brick).
 @group(0) @binding(4) var<storage, read> bricks: array<u32>;
 

@@ -89,7 +89,7 @@ impl Neighbours for Ctx<'_> {
 
 impl Ctx<'_> {
     fn stride(&self) -> usize {
-        3 + self.p.pixel_words as usize
+        3 + self.p.ex.pixel_words as usize
     }
 
     #[inline(always)]
@@ -149,7 +149,7 @@ impl Ctx<'_> {
         // weights are zero, so the result is the same; the loop is just shorter. With the
         // channel count a constant too, the compiler unrolls the channels and vectorizes the K
         // multiply-adds (integer sums: same result in any order).
-        match (self.p.pca_out, self.p.channels) {
+        match (self.p.pca_out, self.p.ex.channels) {
             (0..=8, 3) => self.project_plane_k::<8, 3>(r, pos, a),
             (0..=8, 4) => self.project_plane_k::<8, 4>(r, pos, a),
             (9..=12, 3) => self.project_plane_k::<12, 3>(r, pos, a),
@@ -194,7 +194,7 @@ impl Ctx<'_> {
                 let mut n = pos;
                 n[ua] += du;
                 n[va] += dv;
-                for ch in 0..p.channels {
+                for ch in 0..p.ex.channels {
                     let byte = (r.word(n, ch as usize / 4) >> ((ch % 4) * 8)) & 0xFF;
                     let centred = byte as i32 - mean[i];
                     let row = &wt[i * MAX_PCA_OUT..(i + 1) * MAX_PCA_OUT];
@@ -226,7 +226,7 @@ impl Ctx<'_> {
         let p = self.p;
         let (x, y) = coord(c);
         let base = ([p.proj0, p.proj1, p.proj2][a]
-            + (y as u32 * p.ex_width + x as u32) * p.proj_words) as usize
+            + (y as u32 * p.ex.width + x as u32) * p.proj_words) as usize
             * 4;
         let stored = &self.level_bytes[base..base + p.pca_out as usize];
         // Fixed lengths for the usual kept dimensions, so the loop vectorizes.
@@ -259,12 +259,12 @@ impl Ctx<'_> {
             for du in -1..=1 {
                 let (cx, cy) = coord(coords[(3 * (dv + 1) + du + 1) as usize]);
                 let (sx, sy) = (cx - du, cy - dv);
-                if p.border != 0
-                    && (sx < 0 || sy < 0 || sx >= p.ex_width as i32 || sy >= p.ex_height as i32)
+                if p.ex.border != 0
+                    && (sx < 0 || sy < 0 || sx >= p.ex.width as i32 || sy >= p.ex.height as i32)
                 {
                     continue;
                 }
-                let src = pack_resolved(sx, sy, p.ex_width, p.ex_height, p.border);
+                let src = pack_resolved(sx, sy, p.ex.width, p.ex.height, p.ex.border);
                 if seen[..seen_count].contains(&src) {
                     continue;
                 }
@@ -272,7 +272,7 @@ impl Ctx<'_> {
                 seen_count += 1;
                 if let Some(table) = self.prepared.candidates_2d_of[a] {
                     let (px, py) = coord(src);
-                    let at = (py as u32 * p.ex_width + px as u32) as usize * p.k2d as usize;
+                    let at = (py as u32 * p.ex.width + px as u32) as usize * p.k2d as usize;
                     match &self.prepared.candidates_2d {
                         Tables2d::Short(t) => prefetch_lines(&t[table][at..], 1),
                         Tables2d::Long(t) => prefetch_lines(&t[table][at..], 1),
@@ -282,7 +282,7 @@ impl Ctx<'_> {
         }
         for &src in &seen[..seen_count] {
             let (px, py) = coord(src);
-            let pixel = py as u32 * p.ex_width + px as u32;
+            let pixel = py as u32 * p.ex.width + px as u32;
             if let Some(table) = self.prepared.candidates_2d_of[a] {
                 let k = p.k2d as usize;
                 let range = pixel as usize * k..(pixel as usize + 1) * k;
@@ -316,7 +316,7 @@ impl Ctx<'_> {
         let p = self.p;
         let set = if p.shared_sets != 0 { 0 } else { a };
         let (x, y) = coord(c);
-        let at = (y as u32 * p.ex_width + x as u32) as usize * p.k3d_used as usize;
+        let at = (y as u32 * p.ex.width + x as u32) as usize * p.k3d_used as usize;
         match &self.prepared.candidates_3d {
             Tables3d::Short(t) if set < t.len() => prefetch_lines(&t[set][at..], 2),
             Tables3d::Long(t) if set < t.len() => prefetch_lines(&t[set][at..], 2),
@@ -382,7 +382,7 @@ impl Ctx<'_> {
             let own = self.distance(&q[a], a, best2d[a]);
             let (b, c) = ((a + 1) % 3, (a + 2) % 3);
             let (x, y) = coord(best2d[a]);
-            let pixel = y as u32 * p.ex_width + x as u32;
+            let pixel = y as u32 * p.ex.width + x as u32;
             let count = self.level[([p.counts0, p.counts1, p.counts2][set] + pixel) as usize]
                 .min(p.k3d_used);
             if self.prepared.candidates_3d.has(set) {
@@ -440,7 +440,7 @@ impl Ctx<'_> {
         // A window costs ~100 index lookups and a few KiB copied per brick; a voxel read through
         // the index ~100 lookups. (The same values either way.)
         let windowed =
-            p.pixel_words == 1 && p.period % 4 == 0 && (n > 1 || self.mask(i).count_ones() >= 3);
+            p.ex.pixel_words == 1 && p.period % 4 == 0 && (n > 1 || self.mask(i).count_ones() >= 3);
         let class = [p.class_x as i32, p.class_y as i32, p.class_z as i32];
         if windowed {
             window.fill(self, first, n as i32, class);
@@ -553,9 +553,9 @@ impl Updates {
 #[inline(always)]
 fn penalty(p: &CorrectParams, level: &[u32], a: usize, c: u32) -> u32 {
     let (x, y) = coord(c);
-    let pixels = [p.pixels0, p.pixels1, p.pixels2][a];
-    let table = pixels + p.ex_width * p.ex_height * p.pixel_words;
-    level[(table + y as u32 * p.ex_width + x as u32) as usize]
+    let pixels = [p.ex.pixels0, p.ex.pixels1, p.ex.pixels2][a];
+    let table = pixels + p.ex.width * p.ex.height * p.ex.pixel_words;
+    level[(table + y as u32 * p.ex.width + x as u32) as usize]
 }
 
 /// Run one sub-pass: returns (state index, new triple) for every voxel of the class in the
@@ -594,7 +594,7 @@ pub fn correct_prepared(
         "pass-start state of another size"
     );
     assert!(
-        state.len() / (3 + p.pixel_words as usize) <= u32::MAX as usize,
+        state.len() / (3 + p.ex.pixel_words as usize) <= u32::MAX as usize,
         "state indices fit 32 bits"
     );
     let ctx = Ctx {
@@ -615,17 +615,17 @@ pub fn correct_prepared(
 
 /// Apply a sub-pass's results to the state: each voxel's new triple and its value.
 pub fn apply(p: &CorrectParams, level: &[u32], state: &mut [u32], updates: &Updates) {
-    let stride = 3 + p.pixel_words as usize;
-    let pixels = [p.pixels0, p.pixels1, p.pixels2];
+    let stride = 3 + p.ex.pixel_words as usize;
+    let pixels = [p.ex.pixels0, p.ex.pixels1, p.ex.pixels2];
     for (i, t) in updates.iter() {
         write_voxel(
             &mut state[i * stride..(i + 1) * stride],
             level,
             t,
             pixels,
-            p.ex_width,
-            p.pixel_words,
-            p.channels,
+            p.ex.width,
+            p.ex.pixel_words,
+            p.ex.channels,
         );
     }
 }

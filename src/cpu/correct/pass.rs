@@ -197,7 +197,7 @@ pub(super) fn whole_brick_pass(ps: &[CorrectParams], bricks: &[u32]) -> bool {
     };
     classes.count_ones() as usize == ps.len()
         && ps.iter().all(|p| {
-            p.pixel_words == 1
+            p.ex.pixel_words == 1
                 && p.period % 4 == 0
                 && p.list_count == p0.list_count
                 && (0..p.list_count).all(|i| {
@@ -251,7 +251,7 @@ pub(super) fn fused_run<const MADD: bool>(
     let p0 = first_ctx.p;
     let first = brick_at(first_ctx.bricks, p0.list_offset, i);
     window.fill_all(first_ctx, first, n as i32);
-    let pixels = [p0.pixels0, p0.pixels1, p0.pixels2];
+    let pixels = [p0.ex.pixels0, p0.ex.pixels1, p0.ex.pixels2];
     let mut saved = BrickCopy::new();
     for m in 0..n as i32 {
         let b = [first[0] + m, first[1], first[2]];
@@ -282,7 +282,7 @@ pub(super) fn fused_run<const MADD: bool>(
             for (l, t) in found {
                 let s = Window::brick_slot(m, l);
                 let mut record = [0u32; 4];
-                write_voxel(&mut record, ctx.level, t, pixels, p.ex_width, 1, p.channels);
+                write_voxel(&mut record, ctx.level, t, pixels, p.ex.width, 1, p.ex.channels);
                 window.triples[s] = t;
                 window.values[s] = record[3];
             }

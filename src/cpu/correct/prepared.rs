@@ -71,9 +71,9 @@ impl PairWeights {
     /// For one state word per voxel (3 or 4 channels), 25-pixel neighbourhoods, at most 16
     /// outputs, and weights that fit 16 bits (every analysis since revision 2); else None.
     pub(super) fn new(p: &CorrectParams, level: &[u32]) -> Option<PairWeights> {
-        let channels = p.channels as usize;
+        let channels = p.ex.channels as usize;
         let (d, k) = (p.pca_in as usize, p.pca_out as usize);
-        if !(3..=4).contains(&channels) || d != 25 * channels || k > 16 || p.pixel_words != 1 {
+        if !(3..=4).contains(&channels) || d != 25 * channels || k > 16 || p.ex.pixel_words != 1 {
             return None;
         }
         let layout = |a: usize| -> Option<(Vec<i16>, Vec<i16>)> {
@@ -149,8 +149,8 @@ impl Prepared {
             p.pca_in,
             p.pca_out,
             p.k2d,
-            p.ex_width,
-            p.ex_height,
+            p.ex.width,
+            p.ex.height,
             p.proj_words,
             p.counts0,
             p.counts1,
@@ -160,10 +160,10 @@ impl Prepared {
             p.cand3d2,
             p.k3d_used ^ (p.k3d_stride << 8) ^ (p.shared_sets << 16),
             // The penalties follow the pixels (the candidate tables hold them).
-            p.pixels0,
-            p.pixels1,
-            p.pixels2,
-            p.pixel_words,
+            p.ex.pixels0,
+            p.ex.pixels1,
+            p.ex.pixels2,
+            p.ex.pixel_words,
         ]
     }
 
@@ -176,7 +176,7 @@ impl Prepared {
         let proj = [p.proj0, p.proj1, p.proj2];
         let sets = if p.shared_sets != 0 { 1 } else { 3 };
         let bytes = sets
-            * (p.ex_width * p.ex_height * p.k3d_used) as usize
+            * (p.ex.width * p.ex.height * p.k3d_used) as usize
             * std::mem::size_of::<Candidate3d<P>>();
         if k != P
             || bytes > MAX_TABLE_BYTES
@@ -187,7 +187,7 @@ impl Prepared {
         let level_bytes: &[u8] = bytemuck::cast_slice(level);
         let projection = |e: usize, c: u32| {
             let (x, y) = coord(c);
-            let base = (proj[e] + (y as u32 * p.ex_width + x as u32) * p.proj_words) as usize * 4;
+            let base = (proj[e] + (y as u32 * p.ex.width + x as u32) * p.proj_words) as usize * 4;
             let mut out = [0u8; P];
             out[..k].copy_from_slice(&level_bytes[base..base + k]);
             out
@@ -198,7 +198,7 @@ impl Prepared {
                 let counts = [p.counts0, p.counts1, p.counts2][set] as usize;
                 let list = [p.cand3d0, p.cand3d1, p.cand3d2][set] as usize;
                 let (next, last) = ((set + 1) % 3, (set + 2) % 3);
-                (0..(p.ex_width * p.ex_height) as usize)
+                (0..(p.ex.width * p.ex.height) as usize)
                     .into_par_iter()
                     .flat_map_iter(|pixel| {
                         let count = (level[counts + pixel] as usize).min(used);
@@ -240,25 +240,25 @@ impl Prepared {
         let mut built: Vec<(u32, u32, u32)> = Vec::new();
         let k = p.pca_out as usize;
         let table_bytes =
-            (p.ex_width * p.ex_height * p.k2d) as usize * std::mem::size_of::<Candidate2d<P>>();
+            (p.ex.width * p.ex.height * p.k2d) as usize * std::mem::size_of::<Candidate2d<P>>();
         if k == P && 3 * table_bytes <= MAX_TABLE_BYTES {
             for a in 0..3 {
                 let (list, proj) = (
                     [p.cand2d0, p.cand2d1, p.cand2d2][a],
                     [p.proj0, p.proj1, p.proj2][a],
                 );
-                let pixels = [p.pixels0, p.pixels1, p.pixels2][a];
+                let pixels = [p.ex.pixels0, p.ex.pixels1, p.ex.pixels2][a];
                 if let Some(i) = built.iter().position(|&b| b == (list, proj, pixels)) {
                     candidates_2d_of[a] = Some(i);
                     continue;
                 }
-                let n = (p.ex_width * p.ex_height * p.k2d) as usize;
+                let n = (p.ex.width * p.ex.height * p.k2d) as usize;
                 let table = level[list as usize..list as usize + n]
                     .par_iter()
                     .map(|&c| {
                         let (x, y) = coord(c);
                         let base =
-                            (proj + (y as u32 * p.ex_width + x as u32) * p.proj_words) as usize * 4;
+                            (proj + (y as u32 * p.ex.width + x as u32) * p.proj_words) as usize * 4;
                         let mut projection = [0u8; P];
                         projection[..k].copy_from_slice(&level_bytes[base..base + k]);
                         Candidate2d {

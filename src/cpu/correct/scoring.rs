@@ -123,6 +123,7 @@ pub(super) fn squared_distance<const K: usize>(q: &Projection, stored: &[u8]) ->
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::contract::uniforms::ExemplarFields;
 
     /// The 16-bit multiply-add projection equals the scalar i32 sums, extreme values included.
     #[test]
@@ -163,8 +164,11 @@ mod tests {
                 level.extend(weights.iter().map(|&w| w as u32));
                 level.extend(means.iter().map(|&m| m as u32));
                 let p = CorrectParams {
-                    channels: channels as u32,
-                    pixel_words: 1,
+                    ex: ExemplarFields {
+                        channels: channels as u32,
+                        pixel_words: 1,
+                        ..Default::default()
+                    },
                     pca_in: d as u32,
                     pca_out: outputs as u32,
                     weights0: 0,
