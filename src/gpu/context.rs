@@ -1,5 +1,8 @@
 //! `GpuContext`: one wgpu device chosen by name filter, with bounded waits and helpers to split
 //! work that exceeds the adapter's storage-binding limit.
+//!
+//! Length: about 800 lines because the device, its limits, buffers, bounded waits, reads and
+//! pipeline cache are one object's (`GpuContext`) methods.
 
 use crate::error::{Error, Result};
 use std::collections::HashMap;

@@ -12,6 +12,9 @@
 //!
 //! Kernels compute every voxel of their class in an active brick; voxels the plan does not need
 //! may read absent neighbours (which read as zero), but nothing needed ever reads them.
+//!
+//! Length: about 670 lines of code (brick storage and the sparse, box, voxel-box and periodic
+//! plans, which share the dilation) and 250 of tests.
 
 use super::plan::{plan, Box3};
 use rayon::prelude::*;

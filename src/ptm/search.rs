@@ -26,6 +26,9 @@
 //! threshold is nondecreasing in the best distance), so no candidate within the final threshold
 //! is ever rejected. Both searches keep exactly the candidates with distance <= threshold(best):
 //! the same set, in index order, so the same seeded choice. Ties go to the smallest index.
+//!
+//! Length: about 660 lines because both searches (brute force and the projection-kernel scheme) and
+//! the threshold rule they share stay together: their equality is this module's contract.
 
 use super::{legendre, Ptm, COEFFS};
 use rayon::prelude::*;

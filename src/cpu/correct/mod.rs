@@ -28,6 +28,15 @@
 //! sub-passes ([`correct_prepared`], what the kernels-tests compare sub-pass by sub-pass) return
 //! their results, read against a pass-start copy. Candidates are scored from per-level tables
 //! ([`Prepared`]) that hold their projections contiguously ([`scoring`]).
+//!
+//! Optimized paths and their oracles: the whole-brick in-place pass is held to the sub-pass by
+//! sub-pass order (`correct_pass(.., false)`) by `kernels-tests/correct.rs` and
+//! `tests/synthesis.rs`; the AVX2 runs (16-bit multiply-adds, [`scoring`], [`pass`]) to the scalar
+//! i32 sums by `scoring`'s tests.
+//!
+//! Length: over 600 lines because the per-voxel correction (gather, 2D search, 3D search, write) is
+//! kept in one place that reads top to bottom as `wgsl/correct.wgsl` does; its reads, tables,
+//! scoring and passes are already submodules.
 
 mod neighbours;
 mod pass;

@@ -15,6 +15,9 @@
 //! channels plain ones), from which each voxel keeps its two dominant clusters': the same
 //! integers as the kernel's CPU reference, without the kernel's sample list. On the GPU
 //! the tiles' samples are listed in parallel and a batch of tiles dispatched at once.
+//!
+//! Length: about 750 lines because the tiled bucket update on both backends (CPU streaming, GPU
+//! batches) and the control-point refit share their tile geometry.
 
 use super::matching::{Match, MatchContext, UNMATCHED};
 use super::refine::Targets;

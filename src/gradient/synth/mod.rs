@@ -40,6 +40,9 @@
 //! cubes (the split points' fits use the voxels of their sign within their 9^3 neighbourhood,
 //! as the vectorizer does); the final fit is eq. 2 on voxels (and eq. 3 with `--optimize`)
 //! rather than on the raw samples.
+//!
+//! Length: about 660 lines of code: the synthesis driver (levels, iterations, reports) and its
+//! parameters' validation; the steps themselves are submodules.
 
 pub mod buckets;
 pub mod clusters;
