@@ -48,6 +48,7 @@ use options::RequestKind;
 use pack::LevelPack;
 use params::periods_below;
 use request::{Job, Periodic};
+pub use request::{Delivery, Region, Request};
 pub use slabs::Slab;
 use slabs::SlabsJoined;
 pub use params::{
@@ -279,8 +280,12 @@ impl Synthesizer {
         want_triples: bool,
         sink: impl FnMut(Slab) -> Result<()>,
     ) -> Result<()> {
-        let job = self.job(RequestKind::Volume, want_triples, progress);
-        self.synthesize_slabs_of(out, job, sink)
+        let request = Request {
+            region: Region::Box(out),
+            want_triples,
+            progress,
+        };
+        self.run(request, slabs_only(sink))
     }
 
     /// Synthesize every voxel of the finest-level bricks `requested` (4^3 voxels each, see
@@ -292,8 +297,37 @@ impl Synthesizer {
         progress: Progress,
         want_triples: bool,
     ) -> Result<BrickColors> {
-        let job = self.job(RequestKind::Bricks, want_triples, progress);
-        self.synthesize_bricks_of(requested, job)
+        let mut all = requested.to_vec();
+        bricks::normalize(&mut all);
+        let grid = BrickColors::lookup(&all);
+        let mut colors = vec![0u32; all.len() * 64];
+        let mut triples = vec![0u32; if want_triples { all.len() * 64 * 3 } else { 0 }];
+        let request = Request {
+            region: Region::Bricks(&all),
+            want_triples,
+            progress,
+        };
+        self.run(request, |delivery| {
+            let Delivery::Bricks(group) = delivery else {
+                unreachable!("bricks are delivered in groups")
+            };
+            for (j, b) in group.bricks.iter().enumerate() {
+                let slot = BrickColors::slot_in(&all, grid.as_ref(), *b).expect("requested brick");
+                colors[slot * 64..(slot + 1) * 64]
+                    .copy_from_slice(&group.colors[j * 64..(j + 1) * 64]);
+                if want_triples {
+                    triples[slot * 192..(slot + 1) * 192]
+                        .copy_from_slice(&group.triples[j * 192..(j + 1) * 192]);
+                }
+            }
+            Ok(())
+        })?;
+        Ok(BrickColors {
+            bricks: all,
+            grid,
+            colors,
+            triples,
+        })
     }
 
     /// [`Self::synthesize_bricks`] group by group: `sink` gets each group's requested bricks and
@@ -305,26 +339,38 @@ impl Synthesizer {
         progress: Progress,
         mut sink: impl FnMut(BrickColors) -> Result<()>,
     ) -> Result<()> {
-        let mut all = requested.to_vec();
-        bricks::normalize(&mut all);
-        let job = self.job(RequestKind::Bricks, false, progress);
-        self.for_each_group(&all, job, |group, c, _| {
-            // (Groups keep the request's order: BrickColors' lookups need it.)
-            debug_assert!(group
-                .windows(2)
-                .all(|w| (w[0][2], w[0][1], w[0][0]) < (w[1][2], w[1][1], w[1][0])));
-            sink(BrickColors {
-                bricks: group.to_vec(),
-                grid: BrickColors::lookup(group),
-                colors: c.to_vec(),
-                triples: Vec::new(),
-            })
+        let request = Request {
+            region: Region::Bricks(requested),
+            want_triples: false,
+            progress,
+        };
+        self.run(request, |delivery| match delivery {
+            Delivery::Bricks(group) => sink(group),
+            _ => unreachable!("bricks are delivered in groups"),
         })
     }
 
     /// The packed colours of arbitrary voxels (any order, repeats allowed): only the bricks
     /// holding them are synthesized.
     pub fn sample(&mut self, voxels: &[[i32; 3]], progress: Progress) -> Result<Vec<u32>> {
+        let mut colors = Vec::new();
+        let request = Request {
+            region: Region::Voxels(voxels),
+            want_triples: false,
+            progress,
+        };
+        self.run(request, |delivery| match delivery {
+            Delivery::Colors(c) => {
+                colors = c;
+                Ok(())
+            }
+            _ => unreachable!("voxels are delivered as one list"),
+        })?;
+        Ok(colors)
+    }
+
+    /// [`Self::sample`]'s work ([`Region::Voxels`]).
+    fn sample_voxels(&mut self, voxels: &[[i32; 3]], progress: Progress) -> Result<Vec<u32>> {
         let timer = std::time::Instant::now();
         // An axis-aligned cut at unit spacing asks for a box of voxels (one voxel thick):
         // planned voxel-exactly, its dependency padding surrounds one layer, not four. Its
@@ -525,3 +571,12 @@ pub struct SynthStats {
     pub groups: usize,
 }
 
+/// A sink of [`Delivery`] pieces that takes slabs only (boxes, tileable solids).
+fn slabs_only<'s>(
+    mut sink: impl FnMut(Slab) -> Result<()> + 's,
+) -> impl FnMut(Delivery) -> Result<()> + 's {
+    move |delivery| match delivery {
+        Delivery::Slab(slab) => sink(slab),
+        _ => unreachable!("volumes are delivered in slabs"),
+    }
+}

@@ -1,11 +1,61 @@
-//! The one path of a request: a [`Job`] (what the request asks of each of its groups) taken
+//! The one path of a request: a [`Request`] (a region of the solid, whether triples come back,
+//! where progress goes) becomes a [`Job`] (what the request asks of each of its groups), taken
 //! group by group, with shared coarse levels where they pay, the next groups' plans made ahead,
-//! and each group's colours handed to the caller's sink, on a GPU of its own memory while the
-//! next group runs.
+//! and each group's colours handed to the caller's sink (on a GPU of its own memory while the
+//! next group runs) as [`Delivery`] pieces.
 
 use super::group::FirstLevel;
 use super::group_plans::{group_part, parent_level, parents_of_groups, plan_group};
 use super::*;
+
+/// What a request asks for.
+#[derive(Clone, Copy, Debug)]
+pub enum Region<'a> {
+    /// The voxels of a box of the infinite solid (finest-level coordinates, half-open),
+    /// delivered in slabs along z ([`Delivery::Slab`]).
+    Box(Box3),
+    /// The n^3 volume of the solid periodic with period n (a multiple of 32, its own solid:
+    /// [`Synthesizer::synthesize_tileable`]), delivered in slabs along z.
+    Tileable(u32),
+    /// Whole finest-level bricks of the infinite solid (a surface's shell), delivered group by
+    /// group ([`Delivery::Bricks`]).
+    Bricks(&'a [Brick]),
+    /// Voxels in any order, repeats allowed (a cut's pixels), delivered as their colours in
+    /// that order ([`Delivery::Colors`]).
+    Voxels(&'a [[i32; 3]]),
+}
+
+/// One request of a [`Synthesizer`]: its region, whether the finest level's triples come back
+/// (boxes, tileable solids, bricks), and where progress goes.
+#[derive(Clone, Copy)]
+pub struct Request<'a> {
+    pub region: Region<'a>,
+    pub want_triples: bool,
+    pub progress: Progress<'a>,
+}
+
+fn no_progress(_: &str, _: f32) {}
+
+impl<'a> Request<'a> {
+    /// The colours of `region`, no triples, no progress reports.
+    pub fn new(region: Region<'a>) -> Request<'a> {
+        Request {
+            region,
+            want_triples: false,
+            progress: &no_progress,
+        }
+    }
+}
+
+/// A piece of a request's result, in order.
+pub enum Delivery<'a> {
+    /// Consecutive z slices of a box or a tileable solid.
+    Slab(Slab<'a>),
+    /// A group of requested bricks with their colours (and triples when asked), sorted.
+    Bricks(BrickColors),
+    /// The colours of requested voxels, in their order.
+    Colors(Vec<u32>),
+}
 
 /// One request as its groups see it: the same for every group of the request.
 #[derive(Clone, Copy)]
@@ -74,6 +124,52 @@ impl Periodic<'_> {
 }
 
 impl Synthesizer {
+    /// Synthesize what `request` asks for, handing the result to `sink` piece by piece: the
+    /// one path of every request (the other request methods are this with a sink of their
+    /// own). Only the voxels a request depends on are computed; a voxel's value does not depend
+    /// on the request it came in (except a tileable solid's, which is its own solid).
+    pub fn run(
+        &mut self,
+        request: Request,
+        mut sink: impl FnMut(Delivery) -> Result<()>,
+    ) -> Result<()> {
+        let Request {
+            region,
+            want_triples,
+            progress,
+        } = request;
+        match region {
+            Region::Box(out) => {
+                let job = self.job(RequestKind::Volume, want_triples, progress);
+                self.synthesize_slabs_of(out, job, |slab| sink(Delivery::Slab(slab)))
+            }
+            Region::Tileable(n) => {
+                self.tileable_slabs(n, progress, want_triples, |slab| sink(Delivery::Slab(slab)))
+            }
+            Region::Bricks(requested) => {
+                let mut all = requested.to_vec();
+                bricks::normalize(&mut all);
+                let job = self.job(RequestKind::Bricks, want_triples, progress);
+                self.for_each_group(&all, job, |group, colors, triples| {
+                    // (Groups keep the request's order: BrickColors' lookups need it.)
+                    debug_assert!(group
+                        .windows(2)
+                        .all(|w| (w[0][2], w[0][1], w[0][0]) < (w[1][2], w[1][1], w[1][0])));
+                    sink(Delivery::Bricks(BrickColors {
+                        bricks: group.to_vec(),
+                        grid: BrickColors::lookup(group),
+                        colors: colors.to_vec(),
+                        triples: triples.to_vec(),
+                    }))
+                })
+            }
+            Region::Voxels(voxels) => {
+                let colors = self.sample_voxels(voxels, progress)?;
+                sink(Delivery::Colors(colors))
+            }
+        }
+    }
+
     /// Synthesize the sorted bricks `all` group by group, handing each group's bricks, their
     /// colours (64 per brick, x fastest) and, when asked, their triples to `sink`.
     ///

@@ -36,6 +36,22 @@ impl Synthesizer {
         n: u32,
         progress: Progress,
         want_triples: bool,
+        sink: impl FnMut(Slab) -> Result<()>,
+    ) -> Result<()> {
+        let request = Request {
+            region: Region::Tileable(n),
+            want_triples,
+            progress,
+        };
+        self.run(request, slabs_only(sink))
+    }
+
+    /// [`Region::Tileable`]'s work.
+    pub(super) fn tileable_slabs(
+        &mut self,
+        n: u32,
+        progress: Progress,
+        want_triples: bool,
         mut sink: impl FnMut(Slab) -> Result<()>,
     ) -> Result<()> {
         check_tileable_size(n)?;
