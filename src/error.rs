@@ -31,6 +31,10 @@ pub enum Error {
     /// A numerical step failed where valid input should never make it fail (a bug).
     #[error("internal error: {0}")]
     Internal(String),
+
+    /// The caller cancelled the work (`util::cancel::CancelToken`); nothing was written.
+    #[error("cancelled")]
+    Cancelled,
 }
 
 impl Error {
@@ -87,7 +91,7 @@ impl Error {
                     | std::io::ErrorKind::UnexpectedEof
                     | std::io::ErrorKind::ReadOnlyFilesystem
             ),
-            Error::Gpu(_) | Error::Internal(_) => false,
+            Error::Gpu(_) | Error::Internal(_) | Error::Cancelled => false,
         }
     }
 }

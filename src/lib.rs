@@ -18,8 +18,12 @@ pub mod lazy;
 pub mod mesh;
 pub mod metrics;
 pub mod ptm;
+#[cfg(feature = "serve")]
 pub mod serve;
+pub mod solid;
 pub mod util;
 pub mod volume;
 
 pub use error::{Error, Result};
+pub use lazy::Box3;
+pub use solid::{Solid, SolidBuilder};

@@ -27,7 +27,8 @@
 //! Ey ([`to_crate_frame`]): the same geometry, with the machinery above unchanged.
 
 /// How exemplar images lie in the three planes, as users give them (`--frame`).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum InputFrame {
     /// The paper's coordinate inheritance (the formula): Ex columns along y, rows along
     /// z; Ey columns along x, rows along z; Ez columns along x, rows along y. The planes

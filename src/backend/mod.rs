@@ -24,7 +24,8 @@ pub mod buckets {
 }
 
 /// The user's choice.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum BackendChoice {
     /// A GPU adapter (any Vulkan device, lavapipe included); an error when there is none.
     Gpu,

@@ -1,13 +1,15 @@
 //! `solidsynth analyze`, and the input handling shared with the commands that synthesize.
 
 use clap::Args;
-use solidsynth::analysis::frame::{self, InputFrame};
-use solidsynth::analysis::{self, Analysis, AnalysisInput, AnalysisParams};
+use solidsynth::analysis::frame::InputFrame;
+use solidsynth::analysis::{self, Analysis};
 use solidsynth::backend::Compute;
-use solidsynth::exemplar::{self, Border, Image};
+use solidsynth::exemplar;
 use solidsynth::io::{atomic, ssa};
-use solidsynth::Error;
+use solidsynth::solid::{AnalysisCache, ExemplarInput, FeatureMasks};
+use solidsynth::{Error, Solid, SolidBuilder};
 use std::path::PathBuf;
+use std::sync::Arc;
 use std::time::Instant;
 
 /// Exemplar inputs: an image (analysed), an .ssa file (loaded), or nothing (built-in exemplar).
@@ -87,18 +89,6 @@ fn parse_feature_mask(s: &str) -> Result<FeatureMask, String> {
 }
 
 impl InputArgs {
-    /// The frame `exemplars` are given in (`frame::resolve_frame`), saying so in the log when a
-    /// non-square image defaults to the cyclic one.
-    fn frame_of(&self, exemplars: &[Image]) -> solidsynth::Result<InputFrame> {
-        let frame = frame::resolve_frame(exemplars, self.frame)?;
-        if self.frame.is_none() && frame == InputFrame::Cyclic {
-            tracing::info!(
-                "non-square exemplar: --frame cyclic (the paper's frame transposes the y exemplar)"
-            );
-        }
-        Ok(frame)
-    }
-
     /// Whether a feature-mask option other than the default was given.
     pub fn feature_mask_given(&self) -> bool {
         self.feature_mask != FeatureMask::Auto
@@ -113,42 +103,25 @@ impl InputArgs {
             .is_some_and(|p| p.extension().is_some_and(|e| e == "ssa"))
     }
 
-    /// Load the images and masks the arguments name.
-    pub fn analysis_input(&self) -> solidsynth::Result<(AnalysisInput, AnalysisParams)> {
-        let mut exemplars = Vec::new();
+    /// The exemplar-side settings the arguments name, images and masks loaded.
+    pub fn exemplar_input(&self) -> solidsynth::Result<ExemplarInput> {
+        let mut images = Vec::new();
         let mut names = Vec::new();
-        let mut border = if self.periodic {
-            Border::Wrap
-        } else {
-            Border::Mirror
-        };
         match &self.input {
             Some(p) => {
-                exemplars.push(exemplar::load_image(p, "exemplar")?);
+                images.push(exemplar::load_image(p, "exemplar")?);
                 names.push(format!("exemplar {}", p.display()));
             }
-            None => {
-                if self.ey.is_some() {
-                    return Err(Error::invalid("--ey", "needs the x exemplar INPUT too"));
-                }
-                exemplars.push(exemplar::default_exemplar());
-                names.push("built-in exemplar".into());
-                border = Border::Wrap;
+            None if self.ey.is_some() => {
+                return Err(Error::invalid("--ey", "needs the x exemplar INPUT too"));
             }
+            None => {}
         }
         if let (Some(ey), Some(ez)) = (&self.ey, &self.ez) {
-            exemplars.push(exemplar::load_image(ey, "--ey")?);
+            images.push(exemplar::load_image(ey, "--ey")?);
             names.push(format!("--ey {}", ey.display()));
-            exemplars.push(exemplar::load_image(ez, "--ez")?);
+            images.push(exemplar::load_image(ez, "--ez")?);
             names.push(format!("--ez {}", ez.display()));
-        }
-        if self.feature_mask == FeatureMask::None
-            && self.feature_weight != solidsynth::analysis::DEFAULT_FEATURE_WEIGHT
-        {
-            return Err(Error::invalid(
-                "--feature-weight",
-                "has no effect with --feature-mask none (there is no feature channel)",
-            ));
         }
         let file = match &self.feature_mask {
             FeatureMask::File(p) => Some(p.clone()),
@@ -160,141 +133,85 @@ impl InputArgs {
             ("--ez-feature-mask", &self.ez_feature_mask),
         ];
         let given = flags.iter().filter(|(_, p)| p.is_some()).count();
-        let mut masks = Vec::new();
-        if given > 0 {
-            if given != exemplars.len() || flags[0].1.is_none() {
+        let feature_masks = if given > 0 {
+            let exemplars = images.len().max(1);
+            if given != exemplars || flags[0].1.is_none() {
                 return Err(Error::invalid(
                     "feature masks",
-                    if exemplars.len() == 3 {
+                    if exemplars == 3 {
                         "give --feature-mask, --ey-feature-mask and --ez-feature-mask images together"
                     } else {
                         "give --feature-mask only (one exemplar)"
                     },
                 ));
             }
-            for (flag, path) in flags.iter().take(exemplars.len()) {
+            let mut masks = Vec::new();
+            for (flag, path) in flags.iter().take(exemplars) {
                 masks.push(exemplar::load_image(path.as_ref().unwrap(), flag)?);
             }
-        } else if self.feature_mask == FeatureMask::Auto {
-            masks = exemplar::feature::auto_masks(&exemplars);
-        } else if self.feature_mask == FeatureMask::Edges {
-            masks = exemplar::feature::edge_masks(&exemplars, border);
-        }
-        // In the crate's frame: with the paper's, one image (and its mask) becomes three
-        // exemplars, Ey transposed.
-        let frame = self.frame_of(&exemplars)?;
-        if frame == InputFrame::Paper {
-            if names.len() == 1 {
-                names = vec![names[0].clone(), names[0].clone(), names[0].clone()];
-            }
-            names[1] = format!("{} (transposed: --frame paper)", names[1]);
-        }
-        let exemplars = frame::to_crate_frame(exemplars, frame);
-        let masks = if masks.is_empty() {
-            masks
+            FeatureMasks::Images(masks)
         } else {
-            frame::to_crate_frame(masks, frame)
+            match self.feature_mask {
+                FeatureMask::Edges => FeatureMasks::Edges,
+                FeatureMask::None => FeatureMasks::None,
+                _ => FeatureMasks::Auto,
+            }
         };
-        let params = AnalysisParams {
+        Ok(ExemplarInput {
+            images,
+            names,
+            frame: self.frame,
+            feature_masks,
             feature_weight: self.feature_weight,
+            periodic: self.periodic,
             balance_rounds: self.balance_rounds,
             balance_strength: self.balance_strength,
-            ..Default::default()
-        };
-        Ok((
-            AnalysisInput {
-                exemplars,
-                masks,
-                border,
-                names,
-            },
-            params,
-        ))
+        })
+    }
+
+    /// The analysis side of a solid's builder: an .ssa file loaded, or the exemplars with the
+    /// user's analysis cache.
+    pub fn builder(&self) -> solidsynth::Result<SolidBuilder> {
+        let builder = Solid::builder().backend(self.backend.backend, self.backend.gpu_options());
+        if self.is_ssa() {
+            if self.ey.is_some() || self.feature_mask_given() || self.frame.is_some() {
+                return Err(Error::invalid(
+                    "--ey/--frame/--feature-mask/--feature-weight",
+                    "are analysis inputs; an .ssa file already holds them",
+                ));
+            }
+            if self.balance_rounds != analysis::balance::DEFAULT_ROUNDS
+                || self.balance_strength != 1.0
+            {
+                return Err(Error::invalid(
+                    "--balance-rounds/--balance-strength",
+                    "are analysis parameters; an .ssa file already holds them",
+                ));
+            }
+            return Ok(builder.analysis(ssa::load(self.input.as_ref().unwrap())?));
+        }
+        Ok(builder
+            .exemplar_input(self.exemplar_input()?)
+            .cache(AnalysisCache::user_default()))
     }
 }
 
-/// The analysis of the inputs: loaded from an .ssa, taken from the cache, or computed (and
-/// cached). The cache key hashes the decoded pixels, masks, border and parameters.
+/// The analysis of the inputs, on `compute`: loaded from an .ssa, taken from the cache, or
+/// computed (and cached) with a progress bar.
 pub fn load_or_analyze(
     args: &InputArgs,
     compute: &Compute,
     quiet: bool,
-) -> solidsynth::Result<Analysis> {
-    if args.is_ssa() {
-        if args.ey.is_some() || args.feature_mask_given() || args.frame.is_some() {
-            return Err(Error::invalid(
-                "--ey/--frame/--feature-mask/--feature-weight",
-                "are analysis inputs; an .ssa file already holds them",
-            ));
-        }
-        if args.balance_rounds != analysis::balance::DEFAULT_ROUNDS || args.balance_strength != 1.0
-        {
-            return Err(Error::invalid(
-                "--balance-rounds/--balance-strength",
-                "are analysis parameters; an .ssa file already holds them",
-            ));
-        }
-        return ssa::load(args.input.as_ref().unwrap());
-    }
-    let (input, params) = args.analysis_input()?;
-    let key = cache_key(&input, &params);
-    let cache = cache_dir().map(|d| d.join(format!("{key:016x}.ssa")));
-    if let Some(path) = &cache {
-        if let Ok(a) = ssa::load(path) {
-            tracing::info!("analysis from cache {}", path.display());
-            return Ok(a);
-        }
-    }
+) -> solidsynth::Result<Arc<Analysis>> {
     let bar = super::progress_bar(quiet);
-    let report = |stage: &str, f: f32| {
-        bar.set_position((f * 1000.0) as u64);
-        bar.set_message(format!("analysis {stage}"));
-    };
-    let a = solidsynth::lazy::analyze(&input, &params, compute, &report)?;
+    let shown = bar.clone();
+    let builder = args.builder()?.progress(move |stage: &str, f: f32| {
+        shown.set_position((f * 1000.0) as u64);
+        shown.set_message(stage.to_string());
+    });
+    let a = builder.analyze_on(compute)?;
     bar.finish_and_clear();
-    if let Some(path) = &cache {
-        let saved = path
-            .parent()
-            .map(std::fs::create_dir_all)
-            .transpose()
-            .ok()
-            .and_then(|_| ssa::save(&a, path).ok());
-        if saved.is_none() {
-            tracing::warn!("could not cache the analysis at {}", path.display());
-        }
-    }
     Ok(a)
-}
-
-fn cache_dir() -> Option<PathBuf> {
-    if let Some(d) = std::env::var_os("SOLIDSYNTH_CACHE_DIR") {
-        return Some(PathBuf::from(d));
-    }
-    let base = std::env::var_os("XDG_CACHE_HOME")
-        .map(PathBuf::from)
-        .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".cache")))?;
-    Some(base.join("solidsynth"))
-}
-
-fn cache_key(input: &AnalysisInput, params: &AnalysisParams) -> u64 {
-    let mut h = crc32fast::Hasher::new();
-    let mut h2 = crc32fast::Hasher::new_with_initial(0x5EED);
-    let mut feed = |b: &[u8]| {
-        h.update(b);
-        h2.update(b);
-    };
-    feed(&ssa::FORMAT_VERSION.to_le_bytes());
-    feed(&analysis::ALGORITHM_REVISION.to_le_bytes());
-    feed(format!("{params:?}{:?}", input.border).as_bytes());
-    for img in input.exemplars.iter().chain(&input.masks) {
-        feed(
-            &[img.width, img.height, img.channels]
-                .map(u32::to_le_bytes)
-                .concat(),
-        );
-        feed(&img.pixels);
-    }
-    ((h.finalize() as u64) << 32) | h2.finalize() as u64
 }
 
 #[derive(Args, Debug)]
@@ -318,14 +235,18 @@ pub fn run(args: AnalyzeArgs, quiet: bool) -> anyhow::Result<()> {
         ));
     }
     let start = Instant::now();
-    let (input, params) = args.input.analysis_input()?;
-    let compute = args.input.backend.open()?;
+    // Analysed afresh (not from the cache): `analyze` is how a user makes the file.
     let bar = super::progress_bar(quiet || args.json);
-    let report = |stage: &str, f: f32| {
-        bar.set_position((f * 1000.0) as u64);
-        bar.set_message(stage.to_string());
-    };
-    let result = solidsynth::lazy::analyze(&input, &params, &compute, &report)?;
+    let shown = bar.clone();
+    let builder = Solid::builder()
+        .backend(args.input.backend.backend, args.input.backend.gpu_options())
+        .exemplar_input(args.input.exemplar_input()?)
+        .progress(move |stage: &str, f: f32| {
+            shown.set_position((f * 1000.0) as u64);
+            shown.set_message(stage.to_string());
+        });
+    let compute = builder.open_compute()?;
+    let result = builder.analyze_on(&compute)?;
     bar.finish_and_clear();
     let bytes = ssa::to_bytes(&result);
     atomic::write_file(&args.output, &bytes)?;

@@ -5,7 +5,7 @@ use super::analyze::load_or_analyze;
 use super::synth::SolidParams;
 use clap::Args;
 use solidsynth::io::atomic;
-use solidsynth::lazy::cut::{CutSession, CutSpec};
+use solidsynth::lazy::cut::CutSpec;
 use solidsynth::Error;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -92,7 +92,10 @@ pub fn run(args: CutArgs, quiet: bool) -> anyhow::Result<()> {
     )?;
     let compute = args.solid.input.backend.open()?;
     let analysis = load_or_analyze(&args.solid.input, &compute, quiet || args.json)?;
-    let mut session = CutSession::new(args.solid.synthesizer(&analysis, &compute, args.profile)?);
+    let mut session = args
+        .solid
+        .solid(&analysis, &compute, args.profile, None)?
+        .into_cut_session();
     // The session keeps what it reads: the analysis is not held through the cuts.
     drop(analysis);
     let mut latencies = Vec::new();

@@ -266,7 +266,7 @@ fn check_render_memory(n: [u32; 3], solid: &AnySolid) -> solidsynth::Result<()> 
         AnySolid::Regions(_) => channels + 4 * (1 + 3 * channels),
     };
     let estimate = points * per_voxel;
-    let available = super::synth::available_memory();
+    let available = solidsynth::util::memory::available_memory();
     if estimate > available {
         return Err(Error::invalid(
             what(),

@@ -80,12 +80,17 @@ pub struct BackendArgs {
 }
 
 impl BackendArgs {
-    pub fn open(&self) -> solidsynth::Result<Compute> {
+    /// The GPU options of these arguments (`--adapter` over the environment's).
+    pub fn gpu_options(&self) -> GpuOptions {
         let mut opts = GpuOptions::from_env();
         if self.adapter.is_some() {
             opts.adapter_filter = self.adapter.clone();
         }
-        let compute = Compute::open(self.backend, &opts)?;
+        opts
+    }
+
+    pub fn open(&self) -> solidsynth::Result<Compute> {
+        let compute = Compute::open(self.backend, &self.gpu_options())?;
         tracing::info!("backend: {}", compute.describe());
         Ok(compute)
     }

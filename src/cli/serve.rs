@@ -8,7 +8,6 @@ use solidsynth::serve::jobs::{self, Source};
 use solidsynth::serve::{client, ServeConfig, Server};
 use solidsynth::Error;
 use std::net::IpAddr;
-use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 #[derive(Args, Debug)]
@@ -77,7 +76,7 @@ pub fn run(args: ServeArgs, quiet: bool) -> anyhow::Result<()> {
             name: p
                 .file_name()
                 .map_or("input".into(), |n| n.to_string_lossy().to_string()),
-            analysis: Arc::new(load_or_analyze(&args.solid.input, &compute, quiet)?),
+            analysis: load_or_analyze(&args.solid.input, &compute, quiet)?,
         },
         None => {
             if args.solid.input.ey.is_some() || args.solid.input.feature_mask_given() {

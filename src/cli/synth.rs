@@ -4,7 +4,7 @@ use super::analyze::{load_or_analyze, InputArgs};
 use clap::Args;
 use solidsynth::io::{atomic, nrrd};
 use solidsynth::lazy::{
-    memory, Box3, CandidateMode, ColorSource, SynthOptions, SynthParams, Synthesizer,
+    memory, Box3, CandidateMode, ColorSource, SynthOptions, SynthParams,
 };
 use solidsynth::metrics::sheet::contact_sheet;
 use solidsynth::volume::Volume;
@@ -82,20 +82,21 @@ pub struct SolidParams {
 }
 
 impl SolidParams {
-    /// A synthesizer for these parameters, grouped as asked (the library's defaults
-    /// otherwise: [`SynthOptions`]).
-    pub fn synthesizer(
+    /// The solid of `analysis` with these parameters on `compute` (the library's defaults
+    /// otherwise: [`SynthOptions`]), reporting to `progress`.
+    pub fn solid(
         &self,
         analysis: &solidsynth::analysis::Analysis,
         compute: &solidsynth::backend::Compute,
         profile: bool,
-    ) -> solidsynth::Result<Synthesizer> {
+        progress: Option<solidsynth::solid::ProgressFn>,
+    ) -> solidsynth::Result<solidsynth::Solid> {
         let options = SynthOptions {
             max_group: self.max_group,
             profile,
             ..Default::default()
         };
-        Synthesizer::with_options(analysis, self.synth_params(), compute, options)
+        solidsynth::Solid::new(analysis, self.synth_params(), options, compute.clone(), progress)
     }
 
     /// The group edge the memory checks of boxes and surfaces assume, before the backend is
@@ -190,26 +191,6 @@ impl TriplesWriter {
 /// Largest --size accepted before the memory estimate is even computed.
 pub const MAX_SIZE: u32 = 2048;
 
-/// The memory a request may plan to use: MemAvailable from /proc/meminfo (u64::MAX when
-/// unknown), capped by `SOLIDSYNTH_MEMORY_BUDGET_MIB` when that is set.
-pub fn available_memory() -> u64 {
-    let available = std::fs::read_to_string("/proc/meminfo")
-        .ok()
-        .and_then(|s| {
-            let line = s
-                .lines()
-                .find(|l| l.starts_with("MemAvailable:"))?
-                .to_string();
-            line.split_whitespace().nth(1)?.parse::<u64>().ok()
-        })
-        .map_or(u64::MAX, |kib| kib * 1024);
-    let budget = std::env::var("SOLIDSYNTH_MEMORY_BUDGET_MIB")
-        .ok()
-        .and_then(|v| v.trim().parse::<u64>().ok())
-        .map_or(u64::MAX, |mib| mib.saturating_mul(1 << 20));
-    available.min(budget)
-}
-
 /// Refuse a size outside what `synth` supports.
 pub fn check_size(size: u32) -> solidsynth::Result<()> {
     if !(8..=MAX_SIZE).contains(&size) {
@@ -238,7 +219,7 @@ pub fn check_memory(what: &str, b: Box3, args: &SolidArgs) -> solidsynth::Result
     let whole = if keeps_volume { b.voxels() * 4 } else { 0 };
     let cache = memory::coarse_cache_bytes(args.solid.coarse_cache);
     let estimate = memory::box_working_bytes(size, group, args.solid.coarse_cache) + slab + whole;
-    let available = available_memory();
+    let available = solidsynth::util::memory::available_memory();
     if estimate > available {
         let gib = |b: u64| b as f64 / (1u64 << 30) as f64;
         let cache_note = match args.solid.coarse_cache {
@@ -275,7 +256,7 @@ pub fn check_sparse_memory(
 ) -> solidsynth::Result<u64> {
     let estimate =
         memory::sparse_working_bytes(bricks, extent, group_side, params.coarse_cache) + extra;
-    let available = available_memory();
+    let available = solidsynth::util::memory::available_memory();
     if estimate > available {
         return Err(Error::invalid(
             what,
@@ -402,7 +383,8 @@ fn run_box(args: &SolidArgs, region: Box3, tileable: bool, quiet: bool) -> anyho
         bar.set_message(m.to_string());
     };
     let synth_start = Instant::now();
-    let mut synth = args.solid.synthesizer(&analysis, &compute, args.profile)?;
+    let mut solid = args.solid.solid(&analysis, &compute, args.profile, None)?;
+    let synth = solid.synthesizer();
     tracing::debug!(
         "synthesizer built in {:.1} ms",
         synth_start.elapsed().as_secs_f64() * 1e3

@@ -2,7 +2,8 @@
 //! (built, fitted and synthesized by `ptm`) and the light it is rendered under.
 
 /// How a PTM stores colour.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum PtmFormat {
     /// One biquadratic polynomial per colour channel (18 coefficients a pixel).
     Rgb,

@@ -89,8 +89,10 @@ pub struct GpuContext {
     uncaptured: Arc<Mutex<Option<String>>>,
 }
 
+/// A Vulkan instance. The driver settings this crate prefers (llvmpipe's vector width) are the
+/// binary's to set, before its first thread ([`prepare_driver_environment_for`]): a library sets
+/// no process-wide state.
 fn new_instance() -> wgpu::Instance {
-    prepare_driver_environment();
     let mut desc = wgpu::InstanceDescriptor::new_without_display_handle();
     desc.backends = wgpu::Backends::VULKAN;
     wgpu::Instance::new(desc)
@@ -308,6 +310,39 @@ impl GpuContext {
             max_storage_binding = adapter_max,
             "GPU adapter"
         );
+        Ok(Self::with_device(device, queue, info, limits, max_binding_bytes, opts))
+    }
+
+    /// A context over an application's own device and queue (a game engine's, a viewer's):
+    /// the kernels run there, sharing its memory and queue. `info` is its adapter's. Refused,
+    /// naming the limit, when the device's limits are below what the kernels need
+    /// ([`required_limits`]); nothing process-wide is changed.
+    pub fn from_device(
+        device: wgpu::Device,
+        queue: wgpu::Queue,
+        info: wgpu::AdapterInfo,
+        opts: &GpuOptions,
+    ) -> Result<Self> {
+        let limits = device.limits();
+        if let Some(problem) = missing_limit(&limits) {
+            return Err(Error::invalid("device", problem));
+        }
+        let adapter_max = limits.max_storage_buffer_binding_size as u64;
+        let max_binding_bytes = opts
+            .max_binding_bytes
+            .map_or(adapter_max, |m| m.min(adapter_max));
+        tracing::info!(adapter = %info.name, "GPU device given by the application");
+        Ok(Self::with_device(device, queue, info, limits, max_binding_bytes, opts))
+    }
+
+    fn with_device(
+        device: wgpu::Device,
+        queue: wgpu::Queue,
+        info: wgpu::AdapterInfo,
+        limits: wgpu::Limits,
+        max_binding_bytes: u64,
+        opts: &GpuOptions,
+    ) -> Self {
         let uncaptured = Arc::new(Mutex::new(None));
         let sink = uncaptured.clone();
         device.on_uncaptured_error(Arc::new(move |e: wgpu::Error| {
@@ -316,7 +351,7 @@ impl GpuContext {
                 *slot = Some(e.to_string());
             }
         }));
-        Ok(GpuContext {
+        GpuContext {
             uncaptured,
             device,
             queue,
@@ -327,7 +362,7 @@ impl GpuContext {
             byte_weights: opts.byte_weights,
             pipelines: Mutex::new(HashMap::new()),
             readback: Mutex::new(None),
-        })
+        }
     }
 
     /// A one-line description of the adapter, for logs and benchmark tables.
@@ -786,6 +821,41 @@ pub fn chunk_ranges(total: usize, bytes_per_item: u64, max_bytes: u64) -> Vec<Ra
     (0..total.div_ceil(per))
         .map(|i| i * per..((i + 1) * per).min(total))
         .collect()
+}
+
+/// The least the kernels need of a device: 64-thread workgroups, 65535 workgroups per grid
+/// row, five storage and two uniform buffers per kernel, the `correct` kernel's projection
+/// weights in one uniform binding, and storage bindings of at least 16 MiB (larger work is split
+/// to the device's own limit).
+pub fn required_limits() -> wgpu::Limits {
+    wgpu::Limits {
+        max_compute_workgroup_size_x: WORKGROUP_SIZE,
+        max_compute_invocations_per_workgroup: WORKGROUP_SIZE,
+        max_compute_workgroups_per_dimension: 65535,
+        max_storage_buffers_per_shader_stage: 5,
+        max_uniform_buffers_per_shader_stage: 2,
+        max_uniform_buffer_binding_size: (super::projection_weights::PROJECTION_VECTORS * 16) as u64,
+        max_storage_buffer_binding_size: 16 << 20,
+        ..wgpu::Limits::downlevel_webgl2_defaults()
+    }
+}
+
+/// The first limit of `limits` below [`required_limits`], named, with both values.
+pub fn missing_limit(limits: &wgpu::Limits) -> Option<String> {
+    let need = required_limits();
+    let checks: [(&str, u64, u64); 7] = [
+        ("max_compute_workgroup_size_x", limits.max_compute_workgroup_size_x.into(), need.max_compute_workgroup_size_x.into()),
+        ("max_compute_invocations_per_workgroup", limits.max_compute_invocations_per_workgroup.into(), need.max_compute_invocations_per_workgroup.into()),
+        ("max_compute_workgroups_per_dimension", limits.max_compute_workgroups_per_dimension.into(), need.max_compute_workgroups_per_dimension.into()),
+        ("max_storage_buffers_per_shader_stage", limits.max_storage_buffers_per_shader_stage.into(), need.max_storage_buffers_per_shader_stage.into()),
+        ("max_uniform_buffers_per_shader_stage", limits.max_uniform_buffers_per_shader_stage.into(), need.max_uniform_buffers_per_shader_stage.into()),
+        ("max_uniform_buffer_binding_size", limits.max_uniform_buffer_binding_size.into(), need.max_uniform_buffer_binding_size.into()),
+        ("max_storage_buffer_binding_size", limits.max_storage_buffer_binding_size.into(), need.max_storage_buffer_binding_size.into()),
+    ];
+    checks
+        .iter()
+        .find(|(_, have, want)| have < want)
+        .map(|(name, have, want)| format!("its limit {name} is {have}; the kernels need {want}"))
 }
 
 /// Workgroup counts (x, y) and the thread stride of a row for `threads` threads of a 1D kernel,

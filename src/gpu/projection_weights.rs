@@ -5,7 +5,7 @@ use crate::contract::level::LevelPack;
 
 /// Vectors (`vec4<i32>`) of `ProjectionWeights` in wgsl/correct.wgsl, and where its weights
 /// start (after 4 bias vectors per plane).
-pub(super) const PROJECTION_VECTORS: usize = 4096;
+pub const PROJECTION_VECTORS: usize = 4096;
 const PROJECTION_BASE: usize = 12;
 
 /// Neighbours of a plane's neighbourhood (5 x 5), each contributing `channels` inputs in a row

@@ -17,7 +17,8 @@ const MAGIC: &[u8; 8] = b"GSOLID\0\0";
 const VERSION: u32 = 1;
 const HEADER: usize = 52;
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum Encoding {
     F32,
     /// 8 bits per value with a per-(channel, component) range.

@@ -261,30 +261,7 @@ impl CutSession {
 
     /// The cut image (colour channels of the solid).
     pub fn cut(&mut self, spec: &CutSpec) -> Result<Image> {
-        if let Some(axis_cut) = spec.axis_cut()? {
-            let region = self.synth.synthesize_cut_box(axis_cut.region)?;
-            let timer = std::time::Instant::now();
-            let img = axis_cut.image(region);
-            tracing::debug!("cut: image of a box in {:.1} ms", ms(timer));
-            return Ok(img);
-        }
-        let timer = std::time::Instant::now();
-        let voxels = spec.voxels()?;
-        tracing::debug!("cut: points in {:.1} ms", ms(timer));
-        let samples = self.synth.sample(&voxels, &|_, _| {})?;
-        let timer = std::time::Instant::now();
-        let channels = self.synth.color_channels() as usize;
-        let mut img = Image::new(spec.size, spec.size, channels as u32);
-        img.pixels
-            .par_chunks_mut(channels * super::PARALLEL_PIECE)
-            .zip(samples.par_chunks(super::PARALLEL_PIECE))
-            .for_each(|(pixels, words)| {
-                for (pixel, word) in pixels.chunks_exact_mut(channels).zip(words) {
-                    pixel.copy_from_slice(&word.to_le_bytes()[..channels]);
-                }
-            });
-        tracing::debug!("cut: image in {:.1} ms", ms(timer));
-        Ok(img)
+        cut(&mut self.synth, spec)
     }
 
     /// The synthesizer (e.g. for its statistics).
@@ -296,7 +273,42 @@ impl CutSession {
     pub fn synthesizer_mut(&mut self) -> &mut Synthesizer {
         &mut self.synth
     }
+
+    /// The warm synthesizer back.
+    pub fn into_synthesizer(self) -> Synthesizer {
+        self.synth
+    }
 }
+
+/// The cut `spec` of `synth`'s solid as an image (its colour channels): a warm session's cut
+/// ([`CutSession`]), or a one-off.
+pub fn cut(synth: &mut Synthesizer, spec: &CutSpec) -> Result<Image> {
+    if let Some(axis_cut) = spec.axis_cut()? {
+        let region = synth.synthesize_cut_box(axis_cut.region)?;
+        let timer = std::time::Instant::now();
+        let img = axis_cut.image(region);
+        tracing::debug!("cut: image of a box in {:.1} ms", ms(timer));
+        return Ok(img);
+    }
+    let timer = std::time::Instant::now();
+    let voxels = spec.voxels()?;
+    tracing::debug!("cut: points in {:.1} ms", ms(timer));
+    let samples = synth.sample(&voxels, &|_, _| {})?;
+    let timer = std::time::Instant::now();
+    let channels = synth.color_channels() as usize;
+    let mut img = Image::new(spec.size, spec.size, channels as u32);
+    img.pixels
+        .par_chunks_mut(channels * super::PARALLEL_PIECE)
+        .zip(samples.par_chunks(super::PARALLEL_PIECE))
+        .for_each(|(pixels, words)| {
+            for (pixel, word) in pixels.chunks_exact_mut(channels).zip(words) {
+                pixel.copy_from_slice(&word.to_le_bytes()[..channels]);
+            }
+        });
+    tracing::debug!("cut: image in {:.1} ms", ms(timer));
+    Ok(img)
+}
+
 
 #[cfg(test)]
 mod tests {

@@ -163,6 +163,7 @@ impl Synthesizer {
                 }
                 if (s + 1) % SUBPASS_ORDER.len() == 0 || s + 1 == lv.subpasses.len() {
                     if !pass.is_empty() {
+                        self.check_cancelled()?;
                         exec::timed(&mut self.exec, &mut self.times, "correct", |e| {
                             e.correct_pass(pack_index, &pass, &mut state, &index)
                         })?;

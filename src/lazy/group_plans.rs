@@ -172,6 +172,7 @@ impl Synthesizer {
         let mut out = LevelTriples::new(wanted, self.packs[top].width, self.packs[top].height);
         let stride = 3 + self.packs[top].pixel_words as usize;
         for (g, group) in groups.iter().enumerate() {
+            self.check_cancelled()?;
             let f = g as f32 / groups.len() as f32;
             let group_progress = |m: &str, _: f32| progress(m, 0.15 + 0.85 * f);
             // From l_start, or from the shared parent level.

@@ -445,6 +445,11 @@ impl Synthesizer {
         self.exec.set_parameter_arena_bytes(bytes)
     }
 
+    /// `Err(Error::Cancelled)` once the options' token is cancelled.
+    fn check_cancelled(&self) -> Result<()> {
+        self.options.cancel.as_ref().map_or(Ok(()), |t| t.check())
+    }
+
     /// The options it runs with.
     pub fn options(&self) -> &SynthOptions {
         &self.options

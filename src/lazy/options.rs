@@ -2,10 +2,11 @@
 //! compare every setting's bytes), with the library's defaults.
 
 use crate::error::{Error, Result};
+use crate::util::cancel::CancelToken;
 
 /// How a [`super::Synthesizer`] runs. `Default` is the library's choice for the backend, the
 /// same the command-line tool and the server use.
-#[derive(Clone, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Debug, Default)]
 pub struct SynthOptions {
     /// The largest group edge in voxels (0 counts as 1), rounded down to whole bricks
     /// (`--max-group`): groups
@@ -33,6 +34,9 @@ pub struct SynthOptions {
     /// Time every kernel (waiting for the device after each, so totals grow slightly); read
     /// with [`super::Synthesizer::kernel_times`].
     pub profile: bool,
+    /// Checked before every group and every correction pass: once cancelled, a request stops
+    /// there with [`Error::Cancelled`] and delivers nothing more.
+    pub cancel: Option<CancelToken>,
     /// Tests: hold each level's state of a group within this many bytes (or the backend's
     /// buffer limit, when lower), which is what sizes the groups.
     #[doc(hidden)]

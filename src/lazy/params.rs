@@ -55,13 +55,14 @@ impl std::fmt::Display for PassSchedule {
 }
 
 /// Which candidates the correction searches.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum CandidateMode {
     /// Precomputed 3D candidates, two-step search (the paper's method).
-    #[value(name = "3d")]
+    #[cfg_attr(feature = "cli", value(name = "3d"))]
     ThreeD,
     /// Standard k-coherent 2D candidates, each direction searched independently (ablation).
-    #[value(name = "2d")]
+    #[cfg_attr(feature = "cli", value(name = "2d"))]
     TwoD,
 }
 

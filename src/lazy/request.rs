@@ -230,6 +230,7 @@ impl Synthesizer {
                 let levels = ahead.pop_front().expect("planned ahead");
                 self.next_plan = Some((group.clone(), exact, levels));
             }
+            self.check_cancelled()?;
             let timer = std::time::Instant::now();
             let scaled = |m: &str, f| progress(m, base + scale * f);
             let group_job = Job {
@@ -296,6 +297,7 @@ impl Synthesizer {
         self.deferring = self.overlaps_reads(groups.len(), want_triples);
         let mut behind = None;
         for (g, group) in groups.iter().enumerate() {
+            self.check_cancelled()?;
             let base = coarse_share + (1.0 - coarse_share) * g as f32 / groups.len() as f32;
             let scale = (1.0 - coarse_share) / groups.len() as f32;
             if ahead.is_empty() {

@@ -17,7 +17,8 @@ use crate::util::hash::{mix64, SeededRng};
 use rayon::prelude::*;
 
 /// How a block joins its neighbours in the overlap.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum Boundary {
     /// Minimum-error boundary cut (dynamic programming through the overlap).
     Cut,
@@ -27,7 +28,8 @@ pub enum Boundary {
 }
 
 /// Which search finds the candidate blocks (same result, different cost).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum SearchMethod {
     /// The exact projection-kernel rejection scheme.
     ExactProjection,

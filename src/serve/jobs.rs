@@ -3,10 +3,10 @@
 //! synthesis work.
 
 use super::ServeConfig;
-use crate::analysis::{Analysis, AnalysisInput, AnalysisParams};
+use crate::analysis::Analysis;
 use crate::backend::Compute;
 use crate::error::{Error, Result};
-use crate::exemplar::{self, procedural, Border, Image};
+use crate::exemplar::{self, procedural, Image};
 use crate::lazy::cut::CutSession;
 use crate::lazy::{Box3, SynthParams, Synthesizer};
 use crate::volume::Volume;
@@ -166,7 +166,7 @@ pub struct State {
     solids: Mutex<VecDeque<Arc<Solid>>>,
     jobs: Mutex<VecDeque<Arc<Job>>>,
     /// Analyses by input hash, so a new seed of the same exemplar skips the analysis.
-    analyses: Mutex<VecDeque<(u64, Arc<Analysis>)>>,
+    analyses: Mutex<VecDeque<(u128, Arc<Analysis>)>>,
     next_id: AtomicU64,
 }
 
@@ -319,12 +319,16 @@ impl State {
                 image,
                 periodic,
             } => {
-                let border = if periodic {
-                    Border::Wrap
-                } else {
-                    Border::Mirror
+                // The library's defaults, the command line's too (the feature channel, the
+                // paper's frame for a square image), and the analysis cache's key.
+                let exemplar = crate::solid::ExemplarInput {
+                    images: vec![image],
+                    names: vec![name.clone()],
+                    periodic,
+                    ..Default::default()
                 };
-                let key = input_key(&image, border);
+                let (input, params) = exemplar.analysis_input()?;
+                let key = crate::solid::cache::cache_key(&input, &params);
                 let cached = lock(&self.analyses)
                     .iter()
                     .find(|(k, _)| *k == key)
@@ -332,25 +336,10 @@ impl State {
                 let analysis = match cached {
                     Some(a) => a,
                     None => {
-                        // As the CLI's defaults: the feature channel (`--feature-mask auto`)
-                        // and the frame (the paper's, three exemplars, for a square image).
-                        use crate::analysis::frame::{default_frame, to_crate_frame};
-                        let frame = default_frame(std::slice::from_ref(&image));
-                        let masks = to_crate_frame(
-                            crate::exemplar::feature::auto_masks(&[image.clone()]),
-                            frame,
-                        );
-                        let exemplars = to_crate_frame(vec![image], frame);
-                        let input = AnalysisInput {
-                            names: vec![name.clone(); exemplars.len()],
-                            exemplars,
-                            masks,
-                            border,
-                        };
                         let _work = lock(&self.work);
                         let a = Arc::new(crate::lazy::analyze(
                             &input,
-                            &AnalysisParams::default(),
+                            &params,
                             &self.compute,
                             &|stage, f| job.progress(format!("analysis: {stage}"), 0.7 * f),
                         )?);
@@ -435,22 +424,6 @@ impl State {
         *lock(&solid.extra) = Some(v.clone());
         Ok(v)
     }
-}
-
-/// Hash of an exemplar and its border rule (the in-memory analysis cache key).
-fn input_key(img: &Image, border: Border) -> u64 {
-    let mut h = crc32fast::Hasher::new();
-    let mut h2 = crc32fast::Hasher::new_with_initial(0x5EED);
-    for bytes in [
-        &[img.width, img.height, img.channels, border.code()]
-            .map(u32::to_le_bytes)
-            .concat()[..],
-        &img.pixels[..],
-    ] {
-        h.update(bytes);
-        h2.update(bytes);
-    }
-    ((h.finalize() as u64) << 32) | h2.finalize() as u64
 }
 
 /// Decode an uploaded exemplar, refusing absurd dimensions before allocating for them.

@@ -47,3 +47,23 @@ pub fn limit_heap_arenas() {
         libc::mallopt(libc::M_ARENA_MAX, 2);
     }
 }
+
+/// The memory a request may plan to use: MemAvailable from /proc/meminfo (u64::MAX when
+/// unknown), capped by `SOLIDSYNTH_MEMORY_BUDGET_MIB` when that is set.
+pub fn available_memory() -> u64 {
+    let available = std::fs::read_to_string("/proc/meminfo")
+        .ok()
+        .and_then(|s| {
+            let line = s
+                .lines()
+                .find(|l| l.starts_with("MemAvailable:"))?
+                .to_string();
+            line.split_whitespace().nth(1)?.parse::<u64>().ok()
+        })
+        .map_or(u64::MAX, |kib| kib * 1024);
+    let budget = std::env::var("SOLIDSYNTH_MEMORY_BUDGET_MIB")
+        .ok()
+        .and_then(|v| v.trim().parse::<u64>().ok())
+        .map_or(u64::MAX, |mib| mib.saturating_mul(1 << 20));
+    available.min(budget)
+}

@@ -1,4 +1,5 @@
 //! Small shared helpers.
 
+pub mod cancel;
 pub mod hash;
 pub mod memory;
