@@ -89,6 +89,21 @@ impl ExemplarInput {
                 ))
             }
         }
+        // Checked before anything is computed from them (masks, frame).
+        for (img, name) in exemplars.iter().zip(&names) {
+            exemplar::check_exemplar_size(img, name)?;
+        }
+        for (img, name) in exemplars.iter().zip(&names).skip(1) {
+            if (img.width, img.height) != (exemplars[0].width, exemplars[0].height) {
+                return Err(Error::invalid(
+                    name,
+                    format!(
+                        "is {}x{} but the x exemplar is {}x{}; Ex, Ey and Ez must have the same size",
+                        img.width, img.height, exemplars[0].width, exemplars[0].height
+                    ),
+                ));
+            }
+        }
         if self.feature_masks == FeatureMasks::None
             && self.feature_weight != DEFAULT_FEATURE_WEIGHT
         {

@@ -306,6 +306,16 @@ pub struct Solid {
     progress: Option<ProgressFn>,
 }
 
+impl std::fmt::Debug for Solid {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Solid")
+            .field("params", &self.synth.params)
+            .field("backend", &self.compute.describe())
+            .field("color_channels", &self.color_channels())
+            .finish()
+    }
+}
+
 fn silent(_: &str, _: f32) {}
 
 /// The progress callback as the synthesizer takes it.
@@ -395,9 +405,28 @@ impl Solid {
         Ok(estimate)
     }
 
+    /// Refuse an empty box, or one beyond the coordinates the engine addresses (+-2^28).
+    fn check_box(b: Box3) -> Result<()> {
+        if b.is_empty() {
+            return Err(Error::invalid(
+                box_flag(b),
+                "each side must be at least one voxel (X1 > X0, Y1 > Y0, Z1 > Z0)",
+            ));
+        }
+        const LIMIT: i32 = 1 << 28;
+        if b.lo.iter().chain(&b.hi).any(|c| c.abs() > LIMIT) {
+            return Err(Error::invalid(
+                box_flag(b),
+                format!("coordinates must lie within +-{LIMIT}"),
+            ));
+        }
+        Ok(())
+    }
+
     /// The voxels of box `b` of the infinite solid (half-open, any coordinates), refused before
     /// allocating when they cannot fit in memory.
     pub fn region(&mut self, b: Box3) -> Result<Volume> {
+        Self::check_box(b)?;
         self.check_box_memory(&box_flag(b), b.size().map(u64::from))?;
         let report = reporter(&self.progress);
         self.synth.synthesize(b, report)
@@ -405,6 +434,7 @@ impl Solid {
 
     /// [`Self::region`] with the finest level's triples: 3 packed exemplar coordinates per voxel.
     pub fn region_with_triples(&mut self, b: Box3) -> Result<(Volume, Vec<u32>)> {
+        Self::check_box(b)?;
         self.check_box_memory(&box_flag(b), b.size().map(u64::from))?;
         let report = reporter(&self.progress);
         self.synth.synthesize_with_triples(b, report)
@@ -413,6 +443,7 @@ impl Solid {
     /// [`Self::region`] into the caller's buffer: `color_channels` bytes per voxel, x fastest,
     /// then y, then z. The buffer must hold exactly the box.
     pub fn region_into(&mut self, b: Box3, out: &mut [u8]) -> Result<()> {
+        Self::check_box(b)?;
         let size = b.size();
         let channels = self.color_channels() as usize;
         let want = size.iter().map(|&d| d as usize).product::<usize>() * channels;
@@ -438,6 +469,7 @@ impl Solid {
         want_triples: bool,
         sink: impl FnMut(Slab) -> Result<()>,
     ) -> Result<()> {
+        Self::check_box(b)?;
         let report = reporter(&self.progress);
         self.synth.synthesize_slabs(b, report, want_triples, sink)
     }
