@@ -165,5 +165,39 @@ fn tricubic(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, project_kernel, whole_analysis, synthesis, tricubic);
+/// A warm 128^2 oblique cut through the facade (`Solid::into_cut_session`) against the engine's
+/// own path (`CutSession` over a `Synthesizer`), on the CPU backend, the same analysis and
+/// parameters: the facade must add nothing measurable.
+fn facade_cut(c: &mut Criterion) {
+    use solidsynth::lazy::cut::{CutSession, CutSpec};
+    use solidsynth::lazy::{SynthParams, Synthesizer};
+    let a = solidsynth::Solid::builder().cpu().analyze().unwrap();
+    let params = SynthParams {
+        coarse_cache: Some(64),
+        ..Default::default()
+    };
+    let spec = CutSpec {
+        origin: [3.0, -4.0, 11.0],
+        normal: [1.0, 2.0, 3.0],
+        up: None,
+        size: 128,
+        spacing: 1.0,
+    };
+    let mut engine = CutSession::new(Synthesizer::new(&a, params.clone(), &Compute::Cpu).unwrap());
+    let mut facade = solidsynth::Solid::builder()
+        .shared_analysis(a)
+        .params(params)
+        .cpu()
+        .build()
+        .unwrap()
+        .into_cut_session();
+    assert_eq!(engine.cut(&spec).unwrap(), facade.cut(&spec).unwrap());
+    let mut group = c.benchmark_group("warm cut 128^2 oblique, coarse cache 64, cpu");
+    group.sample_size(20);
+    group.bench_function("engine CutSession", |b| b.iter(|| engine.cut(&spec).unwrap()));
+    group.bench_function("facade Solid", |b| b.iter(|| facade.cut(&spec).unwrap()));
+    group.finish();
+}
+
+criterion_group!(benches, project_kernel, whole_analysis, synthesis, tricubic, facade_cut);
 criterion_main!(benches);

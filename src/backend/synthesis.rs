@@ -156,7 +156,7 @@ impl Executor {
         }
     }
 
-    /// See [`GpuSynth::set_block_bricks`] (nothing on the CPU backend).
+    /// See `GpuSynth::set_block_bricks` (nothing on the CPU backend).
     pub fn set_block_bricks(&mut self, n: u32) {
         if let Executor::Gpu(g) = self {
             g.set_block_bricks(n);

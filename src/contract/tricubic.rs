@@ -41,8 +41,8 @@ pub fn hermite_g(c: u32, s: f32) -> f32 {
 /// Where to evaluate.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Query {
-    /// origin + i a + j b + k c for i < n[0], j < n[1], k < n[2] (i fastest): a volume with unit
-    /// axes, or a slice of any orientation with n[2] = 1.
+    /// origin + i a + j b + k c for i < n\[0\], j < n\[1\], k < n\[2\] (i fastest): a volume with unit
+    /// axes, or a slice of any orientation with n\[2\] = 1.
     Grid {
         origin: [f32; 3],
         a: [f32; 3],

@@ -24,7 +24,7 @@ pub fn next(a: usize) -> usize {
 }
 
 /// Rotate a triple stored for exemplar 0 of a shared analysis into the triple of the same
-/// 3-neighbourhood seen from exemplar `a` (see the `analysis::frame` module comment): set_a[p] = rot^a(set_0[p]).
+/// 3-neighbourhood seen from exemplar `a` (see the `analysis::frame` module comment): `set_a[p] = rot^a(set_0[p])`.
 #[inline]
 pub fn rotate_from_shared(t: [u32; 3], a: usize) -> [u32; 3] {
     match a {

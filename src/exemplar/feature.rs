@@ -230,12 +230,12 @@ fn masks_of(exemplars: &[Image], mask_of: impl Fn(&Image) -> Option<Image>) -> V
         .unwrap_or_default()
 }
 
-/// [`auto_mask`] of each exemplar (or none, see [`masks_of`]).
+/// [`auto_mask`] of each exemplar (or none, see `masks_of`).
 pub fn auto_masks(exemplars: &[Image]) -> Vec<Image> {
     masks_of(exemplars, auto_mask)
 }
 
-/// [`edge_mask`] of each exemplar (or none, see [`masks_of`]).
+/// [`edge_mask`] of each exemplar (or none, see `masks_of`).
 pub fn edge_masks(exemplars: &[Image], border: Border) -> Vec<Image> {
     masks_of(exemplars, |e| edge_mask(e, border))
 }

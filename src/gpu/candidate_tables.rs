@@ -9,14 +9,14 @@
 //! (`Prepared` in src/cpu/correct/prepared.rs). These tables do the same for the GPU: every value is the
 //! one the kernel read before (the CPU reference still reads the level data, so the
 //! kernels-tests compare the two paths), only its place changes; the one derived value is each
-//! candidate's p.p, summed into its scale word ([`scale_word`]).
+//! candidate's p.p, summed into its scale word (`scale_word`).
 //!
 //! Layout (u32 words): a header of [`HEADER_WORDS`], then the tables.
 //! - header: the word offsets of plane a's 2D table (words 0..3) and of 3D candidate set s's table
 //!   (words 3..6; one set when the analysis is shared, its offset repeated), then the 3D slots per
 //!   pixel (word 6).
 //! - 2D table of plane a: per exemplar pixel, its `k2d` candidates, each [`entry_2d`] words: the
-//!   candidate's coordinate, its scale word, its projection. The scale word ([`scale_word`])
+//!   candidate's coordinate, its scale word, its projection. The scale word (`scale_word`)
 //!   holds 16 + its usage penalty (the distance's scale) and its projection's sum of squares.
 //! - 3D table of set s: per exemplar pixel, `slots` candidates (unused ones zero), each
 //!   [`entry_3d`] words: the triple, its scale word (16 + the usage penalties of its three

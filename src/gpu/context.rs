@@ -98,7 +98,7 @@ fn new_instance() -> wgpu::Instance {
     wgpu::Instance::new(desc)
 }
 
-/// Set the drivers' environment variables this process relies on ([`prefer_full_width_cpu_vectors`]),
+/// Set the drivers' environment variables this process relies on (`prefer_full_width_cpu_vectors`),
 /// once. Every wgpu instance is made after it; a program should call it before starting threads
 /// that may read the environment from C (the binary does so first thing in `main`; otherwise the
 /// first GPU context calls it, while other threads may be running).
@@ -168,7 +168,7 @@ fn prefer_full_width_cpu_vectors() {
     WIDTH_SET_HERE.store(true, std::sync::atomic::Ordering::Relaxed);
 }
 
-/// Whether this process set `LP_NATIVE_VECTOR_WIDTH` itself ([`prefer_full_width_cpu_vectors`]).
+/// Whether this process set `LP_NATIVE_VECTOR_WIDTH` itself (`prefer_full_width_cpu_vectors`).
 static WIDTH_SET_HERE: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
 
 /// A child process gets the user's driver environment, not what this process set for itself:

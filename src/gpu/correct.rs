@@ -28,7 +28,7 @@ pub(super) fn correct_constants(
     ]
 }
 
-/// Environment variable choosing `correct`'s block of bricks ([`block_bricks`]), for timing
+/// Environment variable choosing `correct`'s block of bricks (`block_bricks`), for timing
 /// layouts on a device without rebuilding (32, an NVIDIA warp, timed the same as 8 on an H100).
 pub const BLOCK_BRICKS_ENV: &str = "SOLIDSYNTH_BLOCK_BRICKS";
 

@@ -42,7 +42,7 @@ pub fn planned_state_bytes(extent: [u64; 3], passes: &[usize], stride_bytes: &[u
 /// are tried by halving `cap`: a thin request (a cut, a flat box) fills little of a cube, and
 /// each group's bounding box is what must fit. Fewer groups recompute less padding and make
 /// fewer round trips (a 256^2 cut on lavapipe's 128 MiB buffers: one group instead of four).
-/// Where the cap does not fit, the cubes are then evened out over the request ([`even_sides`]);
+/// Where the cap does not fit, the cubes are then evened out over the request (`even_sides`);
 /// a sparse request's only where the even boxes still fit and are no more groups. Where it
 /// fits, cubes of the cap, as asked; with `even_at_cap` evened too where that makes no more
 /// groups (a shared coarse level: 512^3's parents in groups of 132, not 160 and 104, whose

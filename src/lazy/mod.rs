@@ -70,7 +70,7 @@ pub type Progress<'a> = &'a (dyn Fn(&str, f32) + Sync);
 
 /// A synthesis session: packed exemplar data and kernels ready, any number of requests (boxes,
 /// tileable solids, brick sets, sampled voxels), each taken through one path
-/// (`request::for_each_group`) as a [`request::Job`].
+/// (`request::for_each_group`) as a `request::Job`.
 pub struct Synthesizer {
     pub params: SynthParams,
     /// How it runs (never what it computes).

@@ -28,7 +28,7 @@ impl Synthesizer {
     /// [`Self::synthesize_slabs`]. When the periodic state fits one buffer of the backend (and
     /// the group size, [`SynthOptions::max_group`]) it is synthesized in one piece, its reads
     /// wrapping around the period; otherwise as boxes of the periodic solid, group by group,
-    /// each with its dependency padding (see [`Periodic::Unwrapped`]): the same voxels either
+    /// each with its dependency padding (see `Periodic::Unwrapped`): the same voxels either
     /// way (tested), so 256^3 and larger tileable solids work within lavapipe's 128 MiB
     /// buffers. The coarse-level cache does not apply (it belongs to the infinite solid).
     pub fn synthesize_tileable_slabs(

@@ -5,7 +5,7 @@
 //!
 //! - [`capture`]: a synthetic capture (procedural height field + albedo, Lambertian, cast shadows).
 //! - [`fit`]: least-squares PTM fit of a capture (LRGB or RGB), rank-deficient light sets refused.
-//! - [`format`]: the HP `.ptm` file format (PTM_1.2, PTM_FORMAT_RGB / PTM_FORMAT_LRGB).
+//! - `format`: the HP `.ptm` file format (PTM_1.2, PTM_FORMAT_RGB / PTM_FORMAT_LRGB).
 //! - [`legendre`]: the orthonormal Legendre basis of section VI (distances = function distances).
 //! - [`search`]: block neighbourhood search, brute force and the exact projection-kernel scheme.
 //! - [`quilt`]: block-based synthesis (section IV) with minimum-error cuts or alpha blending.

@@ -1,7 +1,7 @@
 //! `solidsynth serve`: a local web viewer for the solid, and the HTTP API behind it.
 //!
 //! A small synchronous HTTP/1.1 server ([`http`]) with a fixed pool of worker threads. Everything that
-//! synthesizes (cuts, volumes, analyses) takes one lock, [`jobs::State::work`], so GPU (or CPU)
+//! synthesizes (cuts, volumes, analyses) takes one lock, `jobs::State::work`, so GPU (or CPU)
 //! work is serialized and concurrent requests queue behind it instead of competing for the device;
 //! the number of requests allowed to queue is bounded ([`ServeConfig::max_queued`]) and the
 //! surplus gets HTTP 503 at once, so neither threads nor memory pile up. Analyses of new

@@ -23,15 +23,15 @@
 //! the sub-passes inside a brick keep their Gauss-Seidel convergence.
 //!
 //! Same results as the shader, organised for a CPU: a pass of whole bricks (what the planner
-//! makes) runs brick by brick, a brick's eight sub-passes on a [`Window`] copied out of the
-//! state, blocks of z layers at a time so that no copy of the state is needed ([`pass`]); other
+//! makes) runs brick by brick, a brick's eight sub-passes on a `Window` copied out of the
+//! state, blocks of z layers at a time so that no copy of the state is needed (`pass`); other
 //! sub-passes ([`correct_prepared`], what the kernels-tests compare sub-pass by sub-pass) return
 //! their results, read against a pass-start copy. Candidates are scored from per-level tables
-//! ([`Prepared`]) that hold their projections contiguously ([`scoring`]).
+//! ([`Prepared`]) that hold their projections contiguously (`scoring`).
 //!
 //! Optimized paths and their oracles: the whole-brick in-place pass is held to the sub-pass by
 //! sub-pass order (`correct_pass(.., false)`) by `kernels-tests/correct.rs` and
-//! `tests/synthesis.rs`; the AVX2 runs (16-bit multiply-adds, [`scoring`], [`pass`]) to the scalar
+//! `tests/synthesis.rs`; the AVX2 runs (16-bit multiply-adds, `scoring`, `pass`) to the scalar
 //! i32 sums by `scoring`'s tests.
 //!
 //! Length: over 600 lines because the per-voxel correction (gather, 2D search, 3D search, write) is

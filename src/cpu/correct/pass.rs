@@ -63,7 +63,7 @@ pub(super) fn over_runs<T: Send>(
 /// from the pass-start state, with the brick's own voxels updated in it as they go (the same
 /// results: a brick's sub-passes see only its own voxels' updates), so a pass copies each
 /// window once instead of once per sub-pass. That path needs no pass-start copy either
-/// ([`whole_brick_pass_in_place`]); `pass_start` is then left empty. `by_bricks`: whether that
+/// (`whole_brick_pass_in_place`); `pass_start` is then left empty. `by_bricks`: whether that
 /// path may be taken (tests compare it with the sub-pass-by-sub-pass reference).
 pub fn correct_pass(
     prepared: &Prepared,

@@ -642,8 +642,8 @@ fn accumulate_on_gpu(gpu: &Compute, tiles: &[Tile]) -> Result<Vec<Buckets>> {
 /// One representation update: the new solid and the fraction of points refitted. With
 /// `targets`, also every bucket's average (the samples of eq. 3).
 ///
-/// Both backends work tile by tile (cubes of control points, [`tile_bands`]), in parallel;
-/// the GPU accumulates a batch of tiles per dispatch ([`accumulate_on_gpu`]). A bucket's
+/// Both backends work tile by tile (cubes of control points, `tile_bands`), in parallel;
+/// the GPU accumulates a batch of tiles per dispatch (`accumulate_on_gpu`). A bucket's
 /// samples are the same whichever tile holds it, so both give the same integers.
 pub fn update(
     solid: &PeriodicSolid,

@@ -10,7 +10,7 @@
 //! [`super::matching::match_check_point`]).
 //!
 //! The sets are found approximately: the `to` lines are PCA-projected and indexed like the
-//! patches ([`IvfIndex`]); each `from` line takes the [`PRESELECT`] x K nearest there, which are
+//! patches ([`IvfIndex`]); each `from` line takes the `PRESELECT` x K nearest there, which are
 //! then ranked by their exact line distance. Deterministic like everything else here.
 
 use super::ivf::IvfIndex;

@@ -443,7 +443,7 @@ fn colour_exemplar(img: &Image) -> Image {
 /// fourth channel.
 ///
 /// The distance is the crate's feature channel ([`crate::exemplar::feature::feature_channel`],
-/// as in [29] / Lefebvre-Hoppe): 128 + k d with k = 127 / 12 (10.6 levels per pixel, saturating
+/// as in \[29\] / Lefebvre-Hoppe): 128 + k d with k = 127 / 12 (10.6 levels per pixel, saturating
 /// 12 pixels from the boundary), positive where the mask is set; the boundary pixels encode to
 /// 133 (set) and 123 (clear), so the sign survives 8 bits. With that k the channel spans the
 /// same 0..255 range as a colour channel over the 24 pixels around a boundary, and in a patch
