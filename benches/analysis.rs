@@ -3,7 +3,7 @@
 //! Wall-clock tables per exemplar size with peak memory come from `solidsynth bench analyze`.
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use solidsynth::analysis::{self, neighbourhood::gather, pca, AnalysisInput, AnalysisParams};
+use solidsynth::analysis::{neighbourhood::gather, pca, AnalysisInput, AnalysisParams};
 use solidsynth::backend::Compute;
 use solidsynth::exemplar::{procedural, Border};
 use solidsynth::gpu::{GpuContext, GpuOptions};

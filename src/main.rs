@@ -16,6 +16,12 @@ fn main() {
         std::env::set_var("NODEVICE_SELECT", "1");
     }
     let args = cli::Cli::parse();
+    // The command's own arguments, for the check that no output is also an input
+    // (`io::atomic::check_output_path`): a subcommand's name is not a path (`ptm capture -o
+    // capture` writes ./capture).
+    solidsynth::io::atomic::set_command_arguments(cli::command_arguments(
+        std::env::args_os().skip(1).collect(),
+    ));
     // llvmpipe's vector width (LP_NATIVE_VECTOR_WIDTH=512 on AVX-512 hosts unless set; 256
     // for the render, which crashes llvmpipe at 512), here for the same reason (parsing starts
     // no thread).

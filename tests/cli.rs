@@ -1829,3 +1829,23 @@ fn lavapipe_runs_at_the_host_vector_width_unless_the_user_chose_one() {
     let chosen = adapters(Some("256"));
     assert!(chosen.contains("256 bits"), "{chosen}");
 }
+
+/// A subcommand's name is not a path: `ptm capture -o capture` writes ./capture (the check that
+/// no output is also an input reads the command's arguments only). An output that is an input
+/// is still refused.
+#[test]
+fn an_output_named_like_its_subcommand_is_written() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = bin()
+        .current_dir(dir.path())
+        .args(["ptm", "capture", "--size", "40", "--lights", "12", "-o", "capture"])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(dir.path().join("capture").is_dir());
+    let image = dir.path().join("e.png");
+    std::fs::copy(fixture_path("cells32.png"), &image).unwrap();
+    let p = image.to_str().unwrap();
+    let o = run(&["analyze", p, "--backend", "cpu", "-o", p]);
+    assert_user_error(&o, "is also given as an input", dir.path(), &["capture", "e.png"]);
+}

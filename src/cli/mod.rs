@@ -96,6 +96,33 @@ impl BackendArgs {
     }
 }
 
+/// `args` (the process's, without the program) without the leading subcommand names
+/// (`ptm capture`), found by walking clap's command tree: what is left are the flags and values.
+pub fn command_arguments(args: Vec<std::ffi::OsString>) -> Vec<std::ffi::OsString> {
+    use clap::CommandFactory;
+    let mut command = Cli::command();
+    let mut names = Vec::new();
+    for (i, arg) in args.iter().enumerate() {
+        let Some(word) = arg.to_str() else { break };
+        if word.starts_with('-') {
+            // A global flag before the subcommand (`-q`).
+            continue;
+        }
+        match command.find_subcommand(word) {
+            Some(sub) => {
+                command = sub.clone();
+                names.push(i);
+            }
+            None => break,
+        }
+    }
+    args.into_iter()
+        .enumerate()
+        .filter(|(i, _)| !names.contains(i))
+        .map(|(_, a)| a)
+        .collect()
+}
+
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Analyze(a) => analyze::run(a, cli.quiet),

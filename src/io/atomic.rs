@@ -39,15 +39,30 @@ fn check_file_output(path: &Path, flag: &str, own_mentions: usize) -> Result<()>
     check_parent(path, flag)
 }
 
+/// The arguments of the command being run (after its program and subcommand names), set by a
+/// command-line program with [`set_command_arguments`]; a library caller's process is not
+/// read.
+static COMMAND_ARGUMENTS: std::sync::OnceLock<Vec<std::ffi::OsString>> = std::sync::OnceLock::new();
+
+/// Register the command's arguments (flags and values, not the program or subcommand names),
+/// so that [`check_output_path`] refuses an output the command also names as an input or as
+/// another output. Without it that check is skipped.
+pub fn set_command_arguments(args: Vec<std::ffi::OsString>) {
+    let _ = COMMAND_ARGUMENTS.set(args);
+}
+
 /// Refuse an output that the command line names more often than as that output itself: the
 /// same file given as an input (`synth ex.png -o ex.png` would replace the exemplar) or as two
 /// outputs. Files are compared by their canonical paths (a new file by its directory's).
 fn check_not_reused(path: &Path, flag: &str, own_mentions: usize) -> Result<()> {
+    let Some(arguments) = COMMAND_ARGUMENTS.get() else {
+        return Ok(());
+    };
     let Some(key) = file_key(path) else {
         return Ok(());
     };
-    let mentions = std::env::args_os()
-        .skip(1)
+    let mentions = arguments
+        .iter()
         .filter(|arg| {
             // `--flag=PATH` names PATH.
             let text = arg.to_string_lossy();
