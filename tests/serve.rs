@@ -520,3 +520,99 @@ fn a_gpu_server_cuts_the_same_bytes_as_the_cpu_one() {
     assert_eq!(a.body, b.body, "GPU and CPU cuts differ");
     server.shutdown();
 }
+
+/// Raw request `text` (CRLF line ends added), its status line's code and its whole answer.
+fn raw(addr: SocketAddr, text: &str) -> (u16, String) {
+    let bytes = text.replace('\n', "\r\n");
+    use std::io::{Read, Write};
+    let mut s = std::net::TcpStream::connect(addr).unwrap();
+    s.set_read_timeout(Some(Duration::from_secs(60))).unwrap();
+    s.write_all(bytes.as_bytes()).unwrap();
+    let _ = s.shutdown(std::net::Shutdown::Write);
+    let mut out = Vec::new();
+    let _ = s.read_to_end(&mut out);
+    let text = String::from_utf8_lossy(&out).to_string();
+    let code = text.split_whitespace().nth(1).and_then(|c| c.parse().ok()).unwrap_or(0);
+    (code, text)
+}
+
+/// DNS rebinding and cross-site requests: only the bound address (and localhost) as Host, no
+/// state change from another origin, uploads only as images; HEAD answers like GET.
+#[test]
+fn requests_from_elsewhere_are_refused() {
+    let (addr, _) = server();
+    let port = addr.port();
+    let (code, text) = raw(addr, "GET /api/health HTTP/1.1\nHost: evil.example\n\n");
+    assert_eq!(code, 421, "{text}");
+    assert!(text.contains("evil.example") && text.contains("\"error\""), "{text}");
+    assert_eq!(raw(addr, &format!("GET /api/health HTTP/1.1\nHost: evil.example:{port}\n\n")).0, 421);
+    assert_eq!(raw(addr, "GET /api/health HTTP/1.1\n\n").0, 400);
+    for host in [format!("127.0.0.1:{port}"), format!("localhost:{port}"), format!("LOCALHOST:{port}")] {
+        assert_eq!(raw(addr, &format!("GET /api/health HTTP/1.1\nHost: {host}\n\n")).0, 200, "{host}");
+    }
+    // A page elsewhere posting a "simple" (no preflight) request with an image body.
+    let png = std::fs::read(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/fixtures/marble32.png")).unwrap();
+    let post = |origin: &str, content_type: &str| {
+        use std::io::{Read, Write};
+        let mut s = std::net::TcpStream::connect(addr).unwrap();
+        s.set_read_timeout(Some(Duration::from_secs(60))).unwrap();
+        let head = format!(
+            "POST /api/solids?seed=1 HTTP/1.1\r\nHost: {addr}\r\n{origin}Content-Type: {content_type}\r\nContent-Length: {}\r\n\r\n",
+            png.len()
+        );
+        s.write_all(head.as_bytes()).unwrap();
+        let _ = s.write_all(&png);
+        let mut out = Vec::new();
+        let _ = s.read_to_end(&mut out);
+        String::from_utf8_lossy(&out).split_whitespace().nth(1).and_then(|c| c.parse::<u16>().ok()).unwrap()
+    };
+    assert_eq!(post("Origin: http://evil.example\r\n", "text/plain"), 403);
+    assert_eq!(post("Origin: http://evil.example\r\n", "image/png"), 403);
+    assert_eq!(post(&format!("Origin: http://{addr}x\r\n"), "image/png"), 403);
+    assert_eq!(post("", "text/plain"), 415);
+    assert_eq!(post("", "application/octet-stream"), 415);
+    // HEAD: GET's status and length, no body.
+    let (code, text) = raw(addr, &format!("HEAD / HTTP/1.1\nHost: {addr}\n\n"));
+    assert_eq!(code, 200, "{text}");
+    let page = get(addr, "/");
+    assert!(text.contains(&format!("Content-Length: {}", page.body.len())), "{text}");
+    assert!(text.ends_with("\r\n\r\n"), "a HEAD answer has no body: {text}");
+    assert_eq!(raw(addr, &format!("HEAD /api/health HTTP/1.1\nHost: {addr}\n\n")).0, 200);
+}
+
+/// The server keeps its analyses in the command line's disk cache: a second server (a restart)
+/// reads them instead of analysing again.
+#[test]
+fn a_restarted_server_reads_its_analyses_from_the_disk_cache() {
+    let dir = tempfile::tempdir().unwrap();
+    let start = || {
+        let config = ServeConfig {
+            port: 0,
+            preview_size: 16,
+            cache: Some(solidsynth::solid::AnalysisCache::at(dir.path())),
+            ..ServeConfig::default()
+        };
+        Server::start(config, Compute::Cpu).unwrap()
+    };
+    let source = || Source::Image {
+        name: "marble32".into(),
+        image: common::fixture("marble32.png"),
+        periodic: false,
+    };
+    let first = start();
+    let job = first.state().start_job(source(), 1).unwrap();
+    wait_job(first.addr(), job.id);
+    first.shutdown();
+    let cached: Vec<_> = std::fs::read_dir(dir.path()).unwrap().map(|e| e.unwrap().path()).collect();
+    assert_eq!(cached.len(), 1, "one analysis cached");
+    let written = std::fs::metadata(&cached[0]).unwrap().modified().unwrap();
+    let bytes = std::fs::read(&cached[0]).unwrap();
+    // A damaged copy would be analysed again and replaced; this one is read as it is.
+    let second = start();
+    let job = second.state().start_job(source(), 1).unwrap();
+    wait_job(second.addr(), job.id);
+    second.shutdown();
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+    assert_eq!(std::fs::metadata(&cached[0]).unwrap().modified().unwrap(), written, "not rewritten");
+    assert_eq!(std::fs::read(&cached[0]).unwrap(), bytes);
+}

@@ -19,6 +19,12 @@ pub struct ServeArgs {
     /// viewer (and its CPU/GPU time) to the network.
     #[arg(long, default_value = "127.0.0.1")]
     pub bind: IpAddr,
+    /// A host name (optionally NAME:PORT) requests may name in their Host header besides the
+    /// bound address (and `localhost` on a loopback address); repeatable. Requests naming any
+    /// other host are refused (421): a web page cannot reach the server through a name it
+    /// controls (DNS rebinding).
+    #[arg(long = "allow-host", value_name = "NAME")]
+    pub allow_hosts: Vec<String>,
     /// Edge of the volume synthesized with every solid (the page's 3D texture), a multiple of 4.
     #[arg(long, default_value_t = 64)]
     pub preview_size: u32,
@@ -51,6 +57,8 @@ fn config(args: &ServeArgs) -> ServeConfig {
         preview_size: args.preview_size,
         max_cut_size: args.max_cut_size,
         params,
+        allow_hosts: args.allow_hosts.clone(),
+        cache: solidsynth::solid::AnalysisCache::user_default(),
         ..ServeConfig::default()
     }
 }

@@ -288,7 +288,33 @@ impl PendingFile {
         forget_pending(tmp.path());
         tmp.persist(&self.path)
             .map_err(|e| Error::io(&self.path, e.error))?;
-        Ok(())
+        sync_parent(&self.path)
+    }
+}
+
+/// Directory syncs made (tests: every commit syncs its target's directory).
+pub static DIRECTORY_SYNCS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+
+/// Flush the directory holding `path` to disk, so the rename that put `path` there survives a
+/// crash (a file's own sync does not cover its directory entry). File systems that cannot sync
+/// a directory (some network and FUSE ones) are skipped.
+fn sync_parent(path: &Path) -> Result<()> {
+    let parent = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => std::path::PathBuf::from("."),
+    };
+    DIRECTORY_SYNCS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    match std::fs::File::open(&parent).and_then(|d| d.sync_all()) {
+        Ok(()) => Ok(()),
+        Err(e)
+            if matches!(
+                e.kind(),
+                std::io::ErrorKind::InvalidInput | std::io::ErrorKind::Unsupported
+            ) =>
+        {
+            Ok(())
+        }
+        Err(e) => Err(Error::io(&parent, e)),
     }
 }
 
@@ -340,7 +366,8 @@ impl PendingDir {
         std::fs::rename(&staged, &self.path).map_err(|e| {
             let _ = std::fs::remove_dir_all(&staged);
             Error::io(&self.path, e)
-        })
+        })?;
+        sync_parent(&self.path)
     }
 }
 
@@ -443,6 +470,23 @@ where
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Every commit syncs its target's directory after the rename (files, and directories of
+    /// outputs), so the new entry survives a crash.
+    #[test]
+    fn a_commit_syncs_the_directory_it_renamed_into() {
+        use std::sync::atomic::Ordering;
+        let dir = tempfile::tempdir().unwrap();
+        let before = DIRECTORY_SYNCS.load(Ordering::Relaxed);
+        write_file(&dir.path().join("a.bin"), b"abc").unwrap();
+        assert!(DIRECTORY_SYNCS.load(Ordering::Relaxed) > before);
+        let before = DIRECTORY_SYNCS.load(Ordering::Relaxed);
+        let mut outputs = Outputs::new();
+        outputs.write_file(&dir.path().join("b.bin"), b"b").unwrap();
+        outputs.commit().unwrap();
+        assert!(DIRECTORY_SYNCS.load(Ordering::Relaxed) > before);
+        assert_eq!(std::fs::read(dir.path().join("b.bin")).unwrap(), b"b");
+    }
 
     /// A named pipe (like /dev/null, not a regular file) is written in place and stays a pipe:
     /// renaming a staged file over it would replace it. (`synth -o /dev/null` run as root did.)

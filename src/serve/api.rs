@@ -51,8 +51,11 @@ impl Reply {
 /// Answer one request (called by a worker thread with the request read whole).
 pub fn handle(state: &Arc<State>, request: Request) -> Response {
     let start = Instant::now();
-    let reply = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| route(state, &request)))
-        .unwrap_or_else(|_| Reply::error(500, "internal error (a bug); the server goes on"));
+    let reply = match check_sender(&state.config, &request) {
+        Err(refused) => refused,
+        Ok(()) => std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| route(state, &request)))
+            .unwrap_or_else(|_| Reply::error(500, "internal error (a bug); the server goes on")),
+    };
     tracing::debug!(
         "{} {} -> {} in {:.1} ms",
         request.method,
@@ -68,6 +71,77 @@ pub fn handle(state: &Arc<State>, request: Request) -> Response {
     }
 }
 
+/// The hosts a request may name in its `Host` header: the bound address with its port, and on a
+/// loopback address `localhost` and the other loopback spellings; plus `--allow-host` names
+/// (with the port, or without it for any port).
+fn host_allowed(config: &super::ServeConfig, host: &str) -> bool {
+    let host = host.to_ascii_lowercase();
+    let port = config.port;
+    let bound = match config.bind {
+        std::net::IpAddr::V4(ip) => format!("{ip}:{port}"),
+        std::net::IpAddr::V6(ip) => format!("[{ip}]:{port}"),
+    };
+    if host == bound {
+        return true;
+    }
+    if config.bind.is_loopback()
+        && [
+            format!("localhost:{port}"),
+            format!("127.0.0.1:{port}"),
+            format!("[::1]:{port}"),
+        ]
+        .contains(&host)
+    {
+        return true;
+    }
+    config.allow_hosts.iter().any(|allowed| {
+        let allowed = allowed.to_ascii_lowercase();
+        host == allowed || host == format!("{allowed}:{port}")
+    })
+}
+
+/// Refuse a request from where the server is not meant to be reached: a `Host` it does not
+/// answer to (421: DNS rebinding, a page on another name reading the API), a state-changing
+/// request whose `Origin` is another site's (403: cross-site requests), an upload that is not
+/// an image (415).
+fn check_sender(config: &super::ServeConfig, request: &Request) -> Result<(), Reply> {
+    let Some(host) = request.header("host") else {
+        return Err(Reply::error(400, "the request has no Host header"));
+    };
+    if !host_allowed(config, host) {
+        return Err(Reply::error(
+            421,
+            format!("this server does not answer to host {host} (see --allow-host)"),
+        ));
+    }
+    let changes_state = !matches!(request.method.as_str(), "GET" | "HEAD" | "OPTIONS");
+    if changes_state {
+        if let Some(origin) = request.header("origin") {
+            let own = origin
+                .strip_prefix("http://")
+                .is_some_and(|o| o.eq_ignore_ascii_case(host));
+            if !own {
+                return Err(Reply::error(
+                    403,
+                    format!("requests from origin {origin} may not change this server's state"),
+                ));
+            }
+        }
+        if !request.body.is_empty() {
+            let image = request
+                .header("content-type")
+                .is_some_and(|t| t.trim().to_ascii_lowercase().starts_with("image/"));
+            if !image {
+                return Err(Reply::error(
+                    415,
+                    "an upload must be an image (Content-Type: image/png, image/jpeg, ...)",
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
 fn route(state: &Arc<State>, request: &Request) -> Reply {
     let (path, query) = request
         .target
@@ -75,7 +149,7 @@ fn route(state: &Arc<State>, request: &Request) -> Reply {
         .unwrap_or((&request.target, ""));
     let method = request.method.as_str();
     let segments: Vec<&str> = path.trim_start_matches('/').split('/').collect();
-    let get = method == "GET";
+    let get = method == "GET" || method == "HEAD";
     let query = match Query::parse(query) {
         Ok(q) => q,
         Err(e) => return Reply::error(400, e),

@@ -26,7 +26,19 @@ pub struct Request {
     pub method: String,
     /// Path and query, as sent.
     pub target: String,
+    /// The headers the server reads (`host`, `origin`, `content-type`), names lowercased.
+    pub headers: Vec<(String, String)>,
     pub body: Vec<u8>,
+}
+
+impl Request {
+    /// The value of header `name` (lowercase), if sent.
+    pub fn header(&self, name: &str) -> Option<&str> {
+        self.headers
+            .iter()
+            .find(|(n, _)| n == name)
+            .map(|(_, v)| v.as_str())
+    }
 }
 
 /// What the handler answers.
@@ -57,10 +69,13 @@ pub fn reason(status: u16) -> &'static str {
         202 => "Accepted",
         400 => "Bad Request",
         404 => "Not Found",
+        403 => "Forbidden",
         405 => "Method Not Allowed",
         408 => "Request Timeout",
         411 => "Length Required",
         413 => "Payload Too Large",
+        415 => "Unsupported Media Type",
+        421 => "Misdirected Request",
         431 => "Request Header Fields Too Large",
         500 => "Internal Server Error",
         503 => "Service Unavailable",
@@ -86,6 +101,7 @@ pub fn accept_loop(listener: TcpListener, queue: SyncSender<TcpStream>, stop: Ar
                 write_response(
                     &mut s,
                     &Response::error(503, "the server is busy: too many connections waiting"),
+                    false,
                 );
                 close(s);
             }
@@ -106,11 +122,15 @@ pub fn serve_connection(
     max_body: usize,
     handler: impl FnOnce(Request) -> Response,
 ) {
-    let response = match read_request(&mut stream, max_body) {
-        Ok(request) => handler(request),
-        Err(response) => response,
+    let (response, head_only) = match read_request(&mut stream, max_body) {
+        // HEAD is answered like GET, without the body (RFC 9110 9.3.2).
+        Ok(request) => {
+            let head = request.method == "HEAD";
+            (handler(request), head)
+        }
+        Err(response) => (response, false),
     };
-    write_response(&mut stream, &response);
+    write_response(&mut stream, &response, head_only);
     close(stream);
 }
 
@@ -143,6 +163,7 @@ fn read_request(stream: &mut TcpStream, max_body: usize) -> Result<Request, Resp
     }
     let mut length = 0usize;
     let mut expect_continue = false;
+    let mut headers = Vec::new();
     for line in lines {
         let Some((name, value)) = line.split_once(':') else {
             return Err(Response::error(400, "malformed header line"));
@@ -161,6 +182,12 @@ fn read_request(stream: &mut TcpStream, max_body: usize) -> Result<Request, Resp
                 ));
             }
             "expect" => expect_continue = value.eq_ignore_ascii_case("100-continue"),
+            "host" | "origin" | "content-type" => {
+                if headers.iter().any(|(n, _)| *n == name) {
+                    return Err(Response::error(400, &format!("header {name} given twice")));
+                }
+                headers.push((name, value.to_string()));
+            }
             _ => {}
         }
     }
@@ -188,11 +215,12 @@ fn read_request(stream: &mut TcpStream, max_body: usize) -> Result<Request, Resp
     Ok(Request {
         method: method.to_string(),
         target: target.to_string(),
+        headers,
         body,
     })
 }
 
-fn write_response(stream: &mut TcpStream, r: &Response) {
+fn write_response(stream: &mut TcpStream, r: &Response, head_only: bool) {
     let mut head = format!(
         "HTTP/1.1 {} {}\r\nContent-Type: {}\r\nContent-Length: {}\r\nConnection: close\r\n\
          Cache-Control: no-store\r\nX-Content-Type-Options: nosniff\r\n",
@@ -208,9 +236,10 @@ fn write_response(stream: &mut TcpStream, r: &Response) {
         }
     }
     head.push_str("\r\n");
+    let body: &[u8] = if head_only { &[] } else { &r.body };
     let _ = stream
         .write_all(head.as_bytes())
-        .and_then(|_| stream.write_all(&r.body))
+        .and_then(|_| stream.write_all(body))
         .and_then(|_| stream.flush());
 }
 

@@ -337,12 +337,17 @@ impl State {
                     Some(a) => a,
                     None => {
                         let _work = lock(&self.work);
-                        let a = Arc::new(crate::lazy::analyze(
-                            &input,
-                            &params,
-                            &self.compute,
-                            &|stage, f| job.progress(format!("analysis: {stage}"), 0.7 * f),
-                        )?);
+                        let analyze = || {
+                            crate::lazy::analyze(&input, &params, &self.compute, &|stage, f| {
+                                job.progress(format!("analysis: {stage}"), 0.7 * f)
+                            })
+                        };
+                        // The disk cache the command line uses (same key): a restarted server
+                        // reads its exemplars' analyses instead of computing them again.
+                        let a = Arc::new(match &self.config.cache {
+                            Some(cache) => cache.get_or_analyze(key, analyze)?,
+                            None => analyze()?,
+                        });
                         let mut cache = lock(&self.analyses);
                         cache.push_back((key, a.clone()));
                         if cache.len() > self.config.max_solids {

@@ -53,6 +53,11 @@ pub struct ServeConfig {
     pub max_jobs: usize,
     /// Solid parameters (seed is per request; the rest apply to every solid).
     pub params: SynthParams,
+    /// Host names (with or without `:port`) accepted in requests' `Host` header besides the
+    /// bound address (and, on a loopback address, `localhost`): `--allow-host`.
+    pub allow_hosts: Vec<String>,
+    /// Where analyses are kept between runs (the command line's cache; None: in memory only).
+    pub cache: Option<crate::solid::AnalysisCache>,
 }
 
 impl Default for ServeConfig {
@@ -70,6 +75,8 @@ impl Default for ServeConfig {
             max_solids: 4,
             max_jobs: 2,
             params: SynthParams::default(),
+            allow_hosts: Vec::new(),
+            cache: None,
         }
     }
 }
@@ -113,6 +120,11 @@ impl Server {
                 format!("cannot listen: {e}"),
             )
         })?;
+        // The port actually bound (0 picks one): requests must name it in their Host header.
+        let config = ServeConfig {
+            port: addr.port(),
+            ..config
+        };
         let state = Arc::new(jobs::State::new(config, compute));
         let (tx, rx) = http::queue();
         let stop = Arc::new(Mutex::new(false));

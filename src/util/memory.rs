@@ -48,22 +48,123 @@ pub fn limit_heap_arenas() {
     }
 }
 
-/// The memory a request may plan to use: MemAvailable from /proc/meminfo (u64::MAX when
-/// unknown), capped by `SOLIDSYNTH_MEMORY_BUDGET_MIB` when that is set.
+/// The memory a request may plan to use: the least of the machine's available memory
+/// (`MemAvailable` of /proc/meminfo), the room left under this process's cgroup memory limits
+/// (v2 `memory.max - memory.current`, v1 `memory.limit_in_bytes - memory.usage_in_bytes`, this
+/// cgroup's and its ancestors': a container's or a CI runner's limit, which the kernel enforces
+/// by killing the process), and `SOLIDSYNTH_MEMORY_BUDGET_MIB` when that is set. u64::MAX when
+/// none is known.
 pub fn available_memory() -> u64 {
-    let available = std::fs::read_to_string("/proc/meminfo")
-        .ok()
-        .and_then(|s| {
-            let line = s
-                .lines()
-                .find(|l| l.starts_with("MemAvailable:"))?
-                .to_string();
-            line.split_whitespace().nth(1)?.parse::<u64>().ok()
-        })
-        .map_or(u64::MAX, |kib| kib * 1024);
     let budget = std::env::var("SOLIDSYNTH_MEMORY_BUDGET_MIB")
         .ok()
         .and_then(|v| v.trim().parse::<u64>().ok())
         .map_or(u64::MAX, |mib| mib.saturating_mul(1 << 20));
-    available.min(budget)
+    available_memory_under(std::path::Path::new("/")).min(budget)
+}
+
+/// [`available_memory`] without the override, reading `/proc` and `/sys/fs/cgroup` under `root`
+/// (a fake tree in tests).
+pub fn available_memory_under(root: &std::path::Path) -> u64 {
+    let read = |p: &str| std::fs::read_to_string(root.join(p)).ok();
+    let machine = read("proc/meminfo")
+        .and_then(|s| {
+            let line = s.lines().find(|l| l.starts_with("MemAvailable:"))?.to_string();
+            line.split_whitespace().nth(1)?.parse::<u64>().ok()
+        })
+        .map_or(u64::MAX, |kib| kib.saturating_mul(1024));
+    let cgroups = read("proc/self/cgroup").unwrap_or_default();
+    machine.min(cgroup_room(root, &cgroups))
+}
+
+/// The least room under the memory limits of the cgroups named in `/proc/self/cgroup`'s text,
+/// up their hierarchy to the root; u64::MAX where none is set.
+fn cgroup_room(root: &std::path::Path, proc_cgroup: &str) -> u64 {
+    let number = |path: std::path::PathBuf| -> Option<u64> {
+        std::fs::read_to_string(path).ok()?.trim().parse::<u64>().ok()
+    };
+    let mut room = u64::MAX;
+    for line in proc_cgroup.lines() {
+        let mut fields = line.splitn(3, ':');
+        let (Some(_), Some(controllers), Some(path)) = (fields.next(), fields.next(), fields.next())
+        else {
+            continue;
+        };
+        let (base, limit_file, usage_file) = if controllers.is_empty() {
+            // cgroup v2: one unified hierarchy.
+            ("sys/fs/cgroup", "memory.max", "memory.current")
+        } else if controllers.split(',').any(|c| c == "memory") {
+            ("sys/fs/cgroup/memory", "memory.limit_in_bytes", "memory.usage_in_bytes")
+        } else {
+            continue;
+        };
+        // This cgroup and its ancestors (a limit anywhere above applies too).
+        let mut dir = std::path::PathBuf::from(path.trim_start_matches('/'));
+        loop {
+            let at = root.join(base).join(&dir);
+            // "max" (v2) or a huge number (v1: no limit) parse as none / stay above the room.
+            if let (Some(limit), Some(usage)) =
+                (number(at.join(limit_file)), number(at.join(usage_file)))
+            {
+                room = room.min(limit.saturating_sub(usage));
+            }
+            if !dir.pop() {
+                break;
+            }
+        }
+    }
+    room
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn tree(files: &[(&str, &str)]) -> tempfile::TempDir {
+        let dir = tempfile::tempdir().unwrap();
+        for (path, text) in files {
+            let p = dir.path().join(path);
+            std::fs::create_dir_all(p.parent().unwrap()).unwrap();
+            std::fs::write(p, text).unwrap();
+        }
+        dir
+    }
+
+    const MEMINFO: &str = "MemTotal: 16000000 kB\nMemAvailable: 8000000 kB\n";
+
+    /// A container's cgroup limit is the budget when it is tighter than the machine's memory:
+    /// v2 (the cgroup's own and an ancestor's), v1, and none.
+    #[test]
+    fn the_budget_reads_cgroup_limits() {
+        let machine = 8_000_000 * 1024;
+        let none = tree(&[("proc/meminfo", MEMINFO), ("proc/self/cgroup", "0::/\n")]);
+        assert_eq!(available_memory_under(none.path()), machine);
+        let v2 = tree(&[
+            ("proc/meminfo", MEMINFO),
+            ("proc/self/cgroup", "0::/ci/job\n"),
+            ("sys/fs/cgroup/ci/job/memory.max", "max\n"),
+            ("sys/fs/cgroup/ci/job/memory.current", "100\n"),
+            ("sys/fs/cgroup/ci/memory.max", "1073741824\n"),
+            ("sys/fs/cgroup/ci/memory.current", "73741824\n"),
+        ]);
+        assert_eq!(available_memory_under(v2.path()), 1_000_000_000);
+        let v1 = tree(&[
+            ("proc/meminfo", MEMINFO),
+            ("proc/self/cgroup", "12:cpu,cpuacct:/x\n4:memory:/docker/abc\n"),
+            ("sys/fs/cgroup/memory/docker/abc/memory.limit_in_bytes", "536870912\n"),
+            ("sys/fs/cgroup/memory/docker/abc/memory.usage_in_bytes", "36870912\n"),
+            ("sys/fs/cgroup/memory/memory.limit_in_bytes", "9223372036854771712\n"),
+            ("sys/fs/cgroup/memory/memory.usage_in_bytes", "5000000000\n"),
+        ]);
+        assert_eq!(available_memory_under(v1.path()), 500_000_000);
+        // Over its limit already: no room.
+        let full = tree(&[
+            ("proc/meminfo", MEMINFO),
+            ("proc/self/cgroup", "0::/\n"),
+            ("sys/fs/cgroup/memory.max", "1000\n"),
+            ("sys/fs/cgroup/memory.current", "2000\n"),
+        ]);
+        assert_eq!(available_memory_under(full.path()), 0);
+        let nothing = tempfile::tempdir().unwrap();
+        assert_eq!(available_memory_under(nothing.path()), u64::MAX);
+    }
 }
