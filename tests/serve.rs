@@ -616,3 +616,46 @@ fn a_restarted_server_reads_its_analyses_from_the_disk_cache() {
     assert_eq!(std::fs::metadata(&cached[0]).unwrap().modified().unwrap(), written, "not rewritten");
     assert_eq!(std::fs::read(&cached[0]).unwrap(), bytes);
 }
+
+/// The request reader and the query parser under the fuzz tests' structured mutations
+/// (`common::mutate`) of valid requests: every answer is a status line the server means, and
+/// it goes on answering. `SOLIDSYNTH_FUZZ_CASES` cases (default 300: each is a connection).
+#[test]
+fn mutated_requests_get_clean_answers() {
+    let (addr, solid) = server();
+    let cases: usize = std::env::var("SOLIDSYNTH_FUZZ_CASES")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(1500)
+        / 5;
+    let valid = [
+        format!(
+            "GET /api/solids/{solid}/cut.png?origin=1,2,3&normal=0,1,1&size=32&spacing=1 HTTP/1.1\r\nHost: {addr}\r\n\r\n"
+        ),
+        format!("GET /api/volume/{solid}.nrrd?size=16 HTTP/1.1\r\nHost: {addr}\r\n\r\n"),
+        format!(
+            "POST /api/solids?seed=3&periodic=1 HTTP/1.1\r\nHost: {addr}\r\nOrigin: http://{addr}\r\nContent-Type: image/png\r\nContent-Length: 4\r\n\r\nXPNG"
+        ),
+    ];
+    let meant = [200, 202, 400, 403, 404, 405, 408, 411, 413, 415, 421, 431, 503];
+    let mut rng = solidsynth::util::hash::SeededRng::new(0x4771);
+    for case in 0..cases {
+        let request = common::mutate(valid[case % valid.len()].as_bytes(), &mut rng);
+        use std::io::{Read, Write};
+        let mut s = std::net::TcpStream::connect(addr).unwrap();
+        s.set_read_timeout(Some(Duration::from_secs(60))).unwrap();
+        let _ = s.write_all(&request);
+        let _ = s.shutdown(std::net::Shutdown::Write);
+        let mut out = Vec::new();
+        let _ = s.read_to_end(&mut out);
+        let text = String::from_utf8_lossy(&out);
+        let code: u16 = text.split_whitespace().nth(1).and_then(|c| c.parse().ok()).unwrap_or(0);
+        assert!(
+            text.starts_with("HTTP/1.1 ") && meant.contains(&code),
+            "case {case}: {:?} -> {:?}",
+            String::from_utf8_lossy(&request),
+            &text[..text.len().min(200)]
+        );
+    }
+    assert_eq!(get(addr, "/api/health").json()["ok"], true);
+}

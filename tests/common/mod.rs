@@ -38,3 +38,50 @@ pub fn crop(img: &Image, w: u32, h: u32) -> Image {
     }
     out
 }
+
+/// One structured mutation of `valid` (the fuzz tests' shared helper, `tests/fuzz.rs`):
+/// truncated, bits flipped, a little-endian word set huge, a section duplicated, or a decimal
+/// number made huge.
+pub fn mutate(valid: &[u8], rng: &mut solidsynth::util::hash::SeededRng) -> Vec<u8> {
+    let mut b = valid.to_vec();
+    let at = |rng: &mut solidsynth::util::hash::SeededRng, len: usize| rng.below(len.max(1) as u64) as usize;
+    match rng.below(5) {
+        // Truncated anywhere.
+        0 => b.truncate(at(rng, valid.len())),
+        // A few bits flipped.
+        1 => {
+            for _ in 0..1 + rng.below(8) {
+                let i = at(rng, b.len());
+                if i < b.len() {
+                    b[i] ^= 1 << rng.below(8);
+                }
+            }
+        }
+        // A little-endian word (a length or count, often) set huge, in the head or anywhere.
+        2 => {
+            let span = if rng.below(2) == 0 { 256.min(b.len()) } else { b.len() };
+            let i = at(rng, span.saturating_sub(4));
+            let huge = [u32::MAX, 0x7FFF_FFFF, 0x4000_0000, 1 << 24][rng.below(4) as usize];
+            if i + 4 <= b.len() {
+                b[i..i + 4].copy_from_slice(&huge.to_le_bytes());
+            }
+        }
+        // A section duplicated in place.
+        3 => {
+            let i = at(rng, b.len());
+            let n = at(rng, (b.len() - i.min(b.len())).min(4096) + 1);
+            let section: Vec<u8> = b[i.min(b.len())..(i + n).min(b.len())].to_vec();
+            b.splice(i.min(b.len())..i.min(b.len()), section);
+        }
+        // A decimal number in a text format made huge.
+        _ => {
+            let digits: Vec<usize> = (0..b.len()).filter(|&i| b[i].is_ascii_digit()).collect();
+            if !digits.is_empty() {
+                let i = digits[at(rng, digits.len())];
+                b.splice(i..i + 1, b"99999999999".iter().copied());
+            }
+        }
+    }
+    b
+}
+
