@@ -418,6 +418,7 @@ fn bad_serve_flags_exit_2_naming_the_flag() {
         (&["serve", "--max-cut-size", "5000"][..], "--max-cut-size"),
         (&["serve", "--jitter", "99"][..], "--jitter"),
         (&["bench", "serve", "--clients", "0"][..], "--clients"),
+        (&["bench", "serve", "--mixed", "0"][..], "--mixed"),
         (
             &["bench", "serve", "--exemplar", "granite"][..],
             "--exemplar granite",
@@ -658,4 +659,23 @@ fn mutated_requests_get_clean_answers() {
         );
     }
     assert_eq!(get(addr, "/api/health").json()["ok"], true);
+}
+
+/// `bench serve --mixed`: a short run of mixed and hostile traffic in which every answer is the
+/// one its request should get (the command exits 1 otherwise).
+#[test]
+fn the_mixed_load_test_runs_and_every_answer_is_as_expected() {
+    let o = bin()
+        .args([
+            "bench", "serve", "--mixed", "2", "--idle", "1", "--clients", "1", "--size", "16",
+            "--backend", "cpu", "--json",
+        ])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let report: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let kinds = report["kinds"].as_array().unwrap();
+    assert!(kinds.iter().any(|k| k["kind"] == "cut" && k["as_expected"].as_u64().unwrap() > 0), "{report}");
+    assert!(kinds.iter().any(|k| k["kind"] == "hostile: bad Host"), "{report}");
+    assert!(kinds.iter().all(|k| k["unexpected"].as_array().unwrap().is_empty()), "{report}");
 }
