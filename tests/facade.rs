@@ -175,3 +175,33 @@ fn the_cache_uses_only_what_belongs_to_the_input() {
     std::fs::write(&path, &flipped).unwrap();
     assert!(matches!(cache.load(key), Cached::Invalid(_)));
 }
+
+/// Two writers of the same analysis at once (two processes analysing one image) leave one
+/// whole file: each write is a temporary renamed into place.
+#[test]
+fn concurrent_cache_writers_leave_one_whole_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let cache = AnalysisCache::at(dir.path());
+    let input = ExemplarInput {
+        images: vec![common::fixture("cells32.png")],
+        periodic: true,
+        balance_rounds: 0,
+        ..Default::default()
+    };
+    let (analysis_input, params) = input.analysis_input().unwrap();
+    let key = cache_key(&analysis_input, &params);
+    let analysis = Solid::builder().exemplar_input(input).cpu().analyze().unwrap();
+    std::thread::scope(|s| {
+        for _ in 0..4 {
+            s.spawn(|| {
+                for _ in 0..10 {
+                    cache.store(key, &analysis).unwrap();
+                    assert!(matches!(cache.load(key), Cached::Hit(_)), "a reader saw a partial file");
+                }
+            });
+        }
+    });
+    let files: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
+    assert_eq!(files.len(), 1, "one file, no temporaries left");
+    assert!(matches!(cache.load(key), Cached::Hit(_)));
+}
