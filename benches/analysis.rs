@@ -100,8 +100,7 @@ fn synthesis(c: &mut Criterion) {
         &GpuOptions::from_env(),
     ) {
         let mut g =
-            Synthesizer::with_options(&a, SynthParams::default(), &gpu, profiled.clone())
-                .unwrap();
+            Synthesizer::with_options(&a, SynthParams::default(), &gpu, profiled.clone()).unwrap();
         group.bench_function("gpu", |bench| {
             bench.iter(|| g.synthesize(b, &|_, _| {}).unwrap())
         });
@@ -194,10 +193,19 @@ fn facade_cut(c: &mut Criterion) {
     assert_eq!(engine.cut(&spec).unwrap(), facade.cut(&spec).unwrap());
     let mut group = c.benchmark_group("warm cut 128^2 oblique, coarse cache 64, cpu");
     group.sample_size(20);
-    group.bench_function("engine CutSession", |b| b.iter(|| engine.cut(&spec).unwrap()));
+    group.bench_function("engine CutSession", |b| {
+        b.iter(|| engine.cut(&spec).unwrap())
+    });
     group.bench_function("facade Solid", |b| b.iter(|| facade.cut(&spec).unwrap()));
     group.finish();
 }
 
-criterion_group!(benches, project_kernel, whole_analysis, synthesis, tricubic, facade_cut);
+criterion_group!(
+    benches,
+    project_kernel,
+    whole_analysis,
+    synthesis,
+    tricubic,
+    facade_cut
+);
 criterion_main!(benches);

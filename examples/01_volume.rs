@@ -30,6 +30,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         image::Rgba([c(0), c(1), c(2), 255])
     });
     slice.save(out.join("slice.png"))?;
-    println!("wrote {} and {}", out.join("volume.nrrd").display(), out.join("slice.png").display());
+    println!(
+        "wrote {} and {}",
+        out.join("volume.nrrd").display(),
+        out.join("slice.png").display()
+    );
     Ok(())
 }

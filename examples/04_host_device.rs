@@ -24,12 +24,21 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         required_limits: adapter.limits(),
         ..Default::default()
     }))?;
-    let context = GpuContext::from_device(device.clone(), queue.clone(), adapter.get_info(), &GpuOptions::default())?;
+    let context = GpuContext::from_device(
+        device.clone(),
+        queue.clone(),
+        adapter.get_info(),
+        &GpuOptions::default(),
+    )?;
     let on_device = Compute::Gpu(Arc::new(context));
 
     let b = Box3::new([-8, 0, 4], [24, 16, 20]);
     let analysis = Solid::builder().cpu().analyze()?;
-    let mut solid = Solid::builder().seed(9).shared_analysis(analysis.clone()).compute(on_device).build()?;
+    let mut solid = Solid::builder()
+        .seed(9)
+        .shared_analysis(analysis.clone())
+        .compute(on_device)
+        .build()?;
     let volume = solid.region(b)?;
 
     // Into a buffer the application owns, and back (as a renderer would upload a 3D texture).
@@ -53,12 +62,28 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     queue.submit([encoder.finish()]);
     readback.map_async(wgpu::MapMode::Read, .., |r| r.expect("mapped"));
     let wait = Some(std::time::Duration::from_secs(60));
-    device.poll(wgpu::PollType::Wait { submission_index: None, timeout: wait })?;
+    device.poll(wgpu::PollType::Wait {
+        submission_index: None,
+        timeout: wait,
+    })?;
     let read = readback.get_mapped_range(..)?.to_vec();
 
-    let mut on_cpu = Solid::builder().seed(9).shared_analysis(analysis).cpu().build()?;
+    let mut on_cpu = Solid::builder()
+        .seed(9)
+        .shared_analysis(analysis)
+        .cpu()
+        .build()?;
     let reference = on_cpu.region(b)?;
-    assert_eq!(&read[..volume.data.len()], &reference.data[..], "device and CPU differ");
-    println!("{:?}: {} voxels on {}, equal to the CPU backend's", b.size(), b.voxels(), adapter.get_info().name);
+    assert_eq!(
+        &read[..volume.data.len()],
+        &reference.data[..],
+        "device and CPU differ"
+    );
+    println!(
+        "{:?}: {} voxels on {}, equal to the CPU backend's",
+        b.size(),
+        b.voxels(),
+        adapter.get_info().name
+    );
     Ok(())
 }

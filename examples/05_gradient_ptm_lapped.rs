@@ -11,21 +11,42 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let compute = Compute::Cpu;
     // Gradient solid textures: a 24^3 periodic tricubic solid from the built-in exemplar.
     let exemplar = solidsynth::exemplar::default_exemplar();
-    let params = GradientSynthParams { size: 24, iterations: 1, seed: 4, ..Default::default() };
+    let params = GradientSynthParams {
+        size: 24,
+        iterations: 1,
+        seed: 4,
+        ..Default::default()
+    };
     let (solid, _) = synthesize(&exemplar, &params, &compute, &|_, _| {})?;
     let solid = solid.to_gradient_solid()?;
-    println!("gradient solid: {:?} control points, {} channels", solid.dims, solid.channels);
+    println!(
+        "gradient solid: {:?} control points, {} channels",
+        solid.dims, solid.channels
+    );
 
     // Relightable textures: photographs under 12 lights, a fitted PTM, relit from the side.
     let photos = capture::synthetic(40, 12, 1);
     let ptm = fit::fit(&photos, PtmFormat::Rgb, "synthetic capture")?;
-    let light = Lighting { lu: 0.7, lv: 0.0, specular: 0.2 };
+    let light = Lighting {
+        lu: 0.7,
+        lv: 0.0,
+        specular: 0.2,
+    };
     let rgb = relight::relight(&compute, &ptm, &light)?;
-    println!("PTM {}x{} relit: {} values", ptm.width, ptm.height, rgb.len());
+    println!(
+        "PTM {}x{} relit: {} values",
+        ptm.width,
+        ptm.height,
+        rgb.len()
+    );
 
     // Lapped solid textures: a sphere filled with patches of a small solid exemplar, cut.
     let sphere = lapped::shapes::sphere(24, 12);
-    let cube = solidsynth::Solid::builder().seed(2).cpu().build()?.tileable(32)?;
+    let cube = solidsynth::Solid::builder()
+        .seed(2)
+        .cpu()
+        .build()?
+        .tileable(32)?;
     let exemplar = lapped::exemplar::SolidExemplar::from_volume(&cube, "tileable 32^3")?;
     let constraints = Constraints::isotropic();
     let inputs = FillInputs {
@@ -36,7 +57,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         constraints: &constraints,
         constraints_name: "isotropic",
     };
-    let opts = FillOptions { resolution: 6, ..Default::default() };
+    let opts = FillOptions {
+        resolution: 6,
+        ..Default::default()
+    };
     let (model, _) = lapped::build(inputs, &opts, &|_, _| {})?;
     let spec = solidsynth::lazy::cut::CutSpec {
         origin: [0.0; 3],
@@ -46,6 +70,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         spacing: 2.5 / 64.0,
     };
     let cut = lapped::cut::cut(&model, &spec)?;
-    println!("lapped model: {} tets, cut {}x{}", model.mesh.tets.len(), cut.width(), cut.height());
+    println!(
+        "lapped model: {} tets, cut {}x{}",
+        model.mesh.tets.len(),
+        cut.width(),
+        cut.height()
+    );
     Ok(())
 }

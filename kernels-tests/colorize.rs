@@ -18,7 +18,9 @@ fn colorize_matches_its_reference_and_its_comparison_can_fail() {
     for (i, w) in pack.words[at..at + 256].iter_mut().enumerate() {
         *w = (255 - i as u32) * 0x0001_0101;
     }
-    let Some(mut g) = gpu_synth(&pack) else { return };
+    let Some(mut g) = gpu_synth(&pack) else {
+        return;
+    };
     let bricks = BoxBricks::of(Box3::new([-6, -3, -9], [10, 9, 3]));
     let (state, _) = initial_state(&pack, Border::Mirror, &bricks);
     let index = g.upload_index(&bricks.index);
@@ -27,7 +29,13 @@ fn colorize_matches_its_reference_and_its_comparison_can_fail() {
     let mut outputs = Vec::new();
     for source in [0x000, 0x123, 0x321, 0x444, 0x041] {
         let what = format!("colorize, sources {source:#05x}");
-        let p = kernel_params::colorize_params(&pack, Border::Mirror.code(), &bricks.grid, (bricks.list, bricks.count()), source);
+        let p = kernel_params::colorize_params(
+            &pack,
+            Border::Mirror.code(),
+            &bricks.grid,
+            (bricks.list, bricks.count()),
+            source,
+        );
         let reference = solidsynth::cpu::colorize::colorize(&p, &pack.words, &state, &bricks.index);
         let read = g.colorize(0, &p, &s, &index).unwrap();
         let on_gpu = g.finish_read(read).unwrap();

@@ -50,18 +50,37 @@ fn correct_matches_its_reference_and_its_comparison_can_fail() {
         (false, Border::Mirror, CandidateMode::TwoD, 0),
     ];
     for (three, border, mode, level) in cases {
-        let what = format!("correct ({mode:?}, three exemplars {three}, {border:?}, level {level})");
+        let what =
+            format!("correct ({mode:?}, three exemplars {three}, {border:?}, level {level})");
         let a = analysis(three, border);
         let pack = LevelPack::new(&a, level);
-        let Some(mut g) = gpu_synth(&pack) else { return };
+        let Some(mut g) = gpu_synth(&pack) else {
+            return;
+        };
         let mut bricks = BoxBricks::of(Box3::new([-9, -6, 3], [7, 6, 15]));
         let (state, _) = initial_state(&pack, border, &bricks);
         let ps = full_pass(&pack, border, mode, &mut bricks);
         let prepared = Prepared::new(&ps[0], &pack.words);
         let mut reference = state.clone();
-        correct_pass(&prepared, &ps, &pack.words, &mut reference, &mut Vec::new(), &bricks.index, false);
+        correct_pass(
+            &prepared,
+            &ps,
+            &pack.words,
+            &mut reference,
+            &mut Vec::new(),
+            &bricks.index,
+            false,
+        );
         let mut in_place = state.clone();
-        correct_pass(&prepared, &ps, &pack.words, &mut in_place, &mut Vec::new(), &bricks.index, true);
+        correct_pass(
+            &prepared,
+            &ps,
+            &pack.words,
+            &mut in_place,
+            &mut Vec::new(),
+            &bricks.index,
+            true,
+        );
         words_equal(&format!("{what}: CPU in place"), &reference, &in_place).unwrap();
         assert!(
             words_equal(&what, &state, &reference).is_err(),
@@ -80,7 +99,8 @@ fn correct_matches_its_reference_and_its_comparison_can_fail() {
         assert!(words_equal(&what, &reference, &perturbed).is_err());
         // ... and on a kernel run that skips a class: the pass without its last sub-pass.
         let mut short = g.upload_state(&state);
-        g.correct_pass(0, &ps[..ps.len() - 1], &mut short, &index).unwrap();
+        g.correct_pass(0, &ps[..ps.len() - 1], &mut short, &index)
+            .unwrap();
         let short = g.read_state(&short).unwrap();
         assert!(
             words_equal(&what, &reference, &short).is_err(),

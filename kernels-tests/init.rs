@@ -13,7 +13,9 @@ fn init_matches_its_reference() {
     let _serial = crate::serial();
     let a = analysis(false, Border::Wrap);
     let pack = LevelPack::new(&a, 3);
-    let Some(mut g) = gpu_synth(&pack) else { return };
+    let Some(mut g) = gpu_synth(&pack) else {
+        return;
+    };
     let table = solidsynth::contract::jitter::table();
     // A box straddling zero, its bricks listed in a shuffled order.
     let bricks = BoxBricks::of(Box3::new([-9, -2, 5], [2, 4, 12]));
@@ -49,7 +51,8 @@ fn init_matches_its_reference() {
         tile_z: 7,
         ..init
     };
-    let cpu_cached = solidsynth::cpu::init::init(&cached, &table, &pack.words, &bricks.index, &cache);
+    let cpu_cached =
+        solidsynth::cpu::init::init(&cached, &table, &pack.words, &bricks.index, &cache);
     let gpu_cache = g.upload_index(&cache);
     let gpu_cached = g.init(0, &cached, &index, Some(&gpu_cache)).unwrap();
     words_equal(

@@ -17,7 +17,10 @@ fn missing_files(root: &Path, name: &str) -> Vec<String> {
     if !cpu {
         missing.push(format!("src/cpu/{name}.rs"));
     }
-    for file in [format!("src/gpu/{name}.rs"), format!("kernels-tests/{name}.rs")] {
+    for file in [
+        format!("src/gpu/{name}.rs"),
+        format!("kernels-tests/{name}.rs"),
+    ] {
         if !root.join(&file).exists() {
             missing.push(file);
         }
@@ -41,11 +44,11 @@ fn every_wgsl_kernel_has_its_reference_dispatch_and_test() {
     let root = root();
     let names = kernels(&root);
     assert!(names.len() >= 9, "kernels found: {names:?}");
-    let missing: Vec<String> = names
-        .iter()
-        .flat_map(|k| missing_files(&root, k))
-        .collect();
-    assert!(missing.is_empty(), "kernels without their files: {missing:?}");
+    let missing: Vec<String> = names.iter().flat_map(|k| missing_files(&root, k)).collect();
+    assert!(
+        missing.is_empty(),
+        "kernels without their files: {missing:?}"
+    );
 }
 
 #[test]
@@ -86,7 +89,9 @@ fn imports_of(dir: &Path, rooms: &[&str]) -> Vec<String> {
 #[test]
 fn the_kernel_layer_imports_no_domain() {
     let root = root();
-    let domains = ["lazy", "gradient", "ptm", "lapped", "analysis", "mesh", "serve", "cli"];
+    let domains = [
+        "lazy", "gradient", "ptm", "lapped", "analysis", "mesh", "serve", "cli",
+    ];
     for layer in ["src/cpu", "src/gpu", "src/contract"] {
         let up = imports_of(&root.join(layer), &domains);
         assert!(up.is_empty(), "{layer} reaches up: {up:#?}");
@@ -94,16 +99,29 @@ fn the_kernel_layer_imports_no_domain() {
     let up = imports_of(&root.join("src/analysis"), &["lazy"]);
     assert!(up.is_empty(), "analysis imports synthesis: {up:#?}");
     // The domains reach the kernels through the backend's door only.
-    for domain in ["src/lazy", "src/gradient", "src/ptm", "src/lapped", "src/mesh"] {
+    for domain in [
+        "src/lazy",
+        "src/gradient",
+        "src/ptm",
+        "src/lapped",
+        "src/mesh",
+    ] {
         let direct = imports_of(&root.join(domain), &["cpu::", "gpu::"]);
-        assert!(direct.is_empty(), "{domain} calls kernels directly: {direct:#?}");
+        assert!(
+            direct.is_empty(),
+            "{domain} calls kernels directly: {direct:#?}"
+        );
     }
 }
 
 #[test]
 fn the_import_check_sees_an_upward_import() {
     let dir = tempfile::tempdir().unwrap();
-    std::fs::write(dir.path().join("k.rs"), "use crate::lazy::Box3;\n// crate::ptm in a comment\n").unwrap();
+    std::fs::write(
+        dir.path().join("k.rs"),
+        "use crate::lazy::Box3;\n// crate::ptm in a comment\n",
+    )
+    .unwrap();
     let found = imports_of(dir.path(), &["lazy", "ptm"]);
     assert_eq!(found.len(), 1, "{found:?}");
 }

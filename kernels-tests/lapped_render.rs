@@ -127,7 +127,9 @@ fn lapped_render_matches_the_ray_cast() {
         // hosts), where compiling the render pipeline crashes it: the render refuses with a
         // clear error, and the comparison runs in a child process at 256 bits.
         let camera = Camera::orbit(&model, "30,20").unwrap();
-        let refused = render(gpu, &model.render_scene(), &camera, 96).unwrap_err().to_string();
+        let refused = render(gpu, &model.render_scene(), &camera, 96)
+            .unwrap_err()
+            .to_string();
         assert!(refused.contains("LP_NATIVE_VECTOR_WIDTH=256"), "{refused}");
         // (The child must not refuse and spawn again.)
         assert!(

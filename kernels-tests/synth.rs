@@ -9,9 +9,7 @@ use crate::synth_inputs::{analysis, analyze, fixture};
 use solidsynth::backend::{BackendChoice, Compute};
 use solidsynth::exemplar::Border;
 use solidsynth::gpu::GpuOptions;
-use solidsynth::lazy::{
-    Box3, CandidateMode, ColorSource, SynthOptions, SynthParams, Synthesizer,
-};
+use solidsynth::lazy::{Box3, CandidateMode, ColorSource, SynthOptions, SynthParams, Synthesizer};
 
 /// Whole box syntheses run every kernel in sequence (init, upsample, 8 sub-passes x passes per
 /// level, colorize) on both backends; any kernel differing makes the volumes differ.
@@ -67,9 +65,14 @@ fn synthesis_kernels_bit_exact_on_gpu_and_cpu() {
         ..Default::default()
     };
     let thin = Box3::new([-6, 1, 5], [13, 22, 6]);
-    same_on_both("one-voxel-thick slab", &a, &params, &gpu, Default::default(), |s| {
-        s.synthesize(thin, &|_, _| {}).unwrap()
-    });
+    same_on_both(
+        "one-voxel-thick slab",
+        &a,
+        &params,
+        &gpu,
+        Default::default(),
+        |s| s.synthesize(thin, &|_, _| {}).unwrap(),
+    );
     // Four channels (RGB + feature: one value word per voxel) and five (RGBA + feature: two
     // words; the CPU correction reads those through the brick index, not a window). Also with
     // the projection weights as bytes (`GpuOptions::byte_weights`, for packed dot products on
@@ -115,9 +118,14 @@ fn synthesis_kernels_bit_exact_on_gpu_and_cpu() {
             ..Default::default()
         };
         let b = Box3::new([-3, 5, 0], [9, 13, 10]);
-        same_on_both(&format!("feature, rgba={rgba}"), &a, &params, &gpu, Default::default(), |s| {
-            s.synthesize(b, &|_, _| {}).unwrap()
-        });
+        same_on_both(
+            &format!("feature, rgba={rgba}"),
+            &a,
+            &params,
+            &gpu,
+            Default::default(),
+            |s| s.synthesize(b, &|_, _| {}).unwrap(),
+        );
         let what = format!("feature, rgba={rgba}, byte weights");
         same_on_both(&what, &a, &params, &bytes_gpu, Default::default(), |s| {
             s.synthesize(b, &|_, _| {}).unwrap()
@@ -128,9 +136,14 @@ fn synthesis_kernels_bit_exact_on_gpu_and_cpu() {
                 color: "x,matched,average,z".parse().unwrap(),
                 ..params
             };
-            same_on_both("feature, rgba, per channel", &a, &params, &gpu, Default::default(), |s| {
-                s.synthesize(b, &|_, _| {}).unwrap()
-            });
+            same_on_both(
+                "feature, rgba, per channel",
+                &a,
+                &params,
+                &gpu,
+                Default::default(),
+                |s| s.synthesize(b, &|_, _| {}).unwrap(),
+            );
         }
     }
     // Odd exemplar sizes (27, 14, 7, 4: children one pixel wider than twice their parent's
@@ -144,9 +157,14 @@ fn synthesis_kernels_bit_exact_on_gpu_and_cpu() {
             ..Default::default()
         };
         let b = Box3::new([-4, 6, -2], [8, 14, 9]);
-        same_on_both(&format!("odd size, {border:?}"), &a, &params, &gpu, Default::default(), |s| {
-            s.synthesize(b, &|_, _| {}).unwrap()
-        });
+        same_on_both(
+            &format!("odd size, {border:?}"),
+            &a,
+            &params,
+            &gpu,
+            Default::default(),
+            |s| s.synthesize(b, &|_, _| {}).unwrap(),
+        );
     }
     // Weights beyond 16 bits (analyses before revision 2): the GPU reads them unpacked and the
     // CPU backend without its 16-bit multiply-adds.
@@ -159,9 +177,14 @@ fn synthesis_kernels_bit_exact_on_gpu_and_cpu() {
         ..Default::default()
     };
     let b = Box3::new([-2, -7, 3], [9, 2, 12]);
-    same_on_both("weights beyond 16 bits", &a, &params, &gpu, Default::default(), |s| {
-        s.synthesize(b, &|_, _| {}).unwrap()
-    });
+    same_on_both(
+        "weights beyond 16 bits",
+        &a,
+        &params,
+        &gpu,
+        Default::default(),
+        |s| s.synthesize(b, &|_, _| {}).unwrap(),
+    );
     let a = analysis(false, Border::Wrap);
     // A parameter arena of 1 KiB (a few dispatches): each level's batch is submitted in parts,
     // whenever the arena is full.
@@ -169,17 +192,31 @@ fn synthesis_kernels_bit_exact_on_gpu_and_cpu() {
         seed: 13,
         ..Default::default()
     };
-    same_on_both("small parameter arena", &a, &params, &gpu, Default::default(), |s| {
-        s.set_parameter_arena_bytes(1024).unwrap();
-        s.synthesize(b, &|_, _| {}).unwrap()
-    });
+    same_on_both(
+        "small parameter arena",
+        &a,
+        &params,
+        &gpu,
+        Default::default(),
+        |s| {
+            s.set_parameter_arena_bytes(1024).unwrap();
+            s.synthesize(b, &|_, _| {}).unwrap()
+        },
+    );
     // `correct`'s threads in blocks of 8, 16 and 32 bricks (the adapter picks 8 or 16): list
     // counts that are not whole blocks leave a last block part empty.
     for n in [8, 16, 32] {
-        same_on_both(&format!("blocks of {n} bricks"), &a, &params, &gpu, Default::default(), |s| {
-            s.set_block_bricks(n);
-            s.synthesize(b, &|_, _| {}).unwrap()
-        });
+        same_on_both(
+            &format!("blocks of {n} bricks"),
+            &a,
+            &params,
+            &gpu,
+            Default::default(),
+            |s| {
+                s.set_block_bricks(n);
+                s.synthesize(b, &|_, _| {}).unwrap()
+            },
+        );
     }
     // A tileable solid (reads wrap around each level's period; periodic jitter and tiling).
     let params = SynthParams {
@@ -208,9 +245,14 @@ fn synthesis_kernels_bit_exact_on_gpu_and_cpu() {
         ..Default::default()
     };
     let b = Box3::new([-5, -1, 2], [6, 8, 9]);
-    same_on_both("per-channel colours", &three, &params, &gpu, Default::default(), |s| {
-        s.synthesize(b, &|_, _| {}).unwrap()
-    });
+    same_on_both(
+        "per-channel colours",
+        &three,
+        &params,
+        &gpu,
+        Default::default(),
+        |s| s.synthesize(b, &|_, _| {}).unwrap(),
+    );
     // The coarse-level cache: level L-1 built once from a tileable solid, uploaded per request.
     let params = SynthParams {
         seed: 8,
@@ -261,16 +303,23 @@ fn synthesis_kernels_bit_exact_on_gpu_and_cpu() {
         shared_coarse_levels: Some(true),
         ..Default::default()
     };
-    same_on_both("shared coarse levels, twice", &a, &params, &gpu, shared, |s| {
-        let mut v = s
-            .synthesize(Box3::new([-9, -3, 0], [20, 12, 24]), &|_, _| {})
-            .unwrap();
-        let w = s
-            .synthesize(Box3::new([3, -20, -4], [30, 1, 9]), &|_, _| {})
-            .unwrap();
-        v.data.extend_from_slice(&w.data);
-        v
-    });
+    same_on_both(
+        "shared coarse levels, twice",
+        &a,
+        &params,
+        &gpu,
+        shared,
+        |s| {
+            let mut v = s
+                .synthesize(Box3::new([-9, -3, 0], [20, 12, 24]), &|_, _| {})
+                .unwrap();
+            let w = s
+                .synthesize(Box3::new([3, -20, -4], [30, 1, 9]), &|_, _| {})
+                .unwrap();
+            v.data.extend_from_slice(&w.data);
+            v
+        },
+    );
 }
 
 /// Spatial determinism on the GPU backend itself (the CPU backend's is tested in
@@ -334,7 +383,17 @@ fn gpu_boxes_are_windows_of_larger_gpu_boxes() {
     .unwrap();
     // The same groups sharing their coarse levels: each level above the finest synthesized
     // once (itself in groups), its triples read back and uploaded as the groups' parents.
-    let mut s = Synthesizer::with_options(&a, params.clone(), &gpu, SynthOptions { max_group: Some(12), shared_coarse_levels: Some(true), ..Default::default() }).unwrap();
+    let mut s = Synthesizer::with_options(
+        &a,
+        params.clone(),
+        &gpu,
+        SynthOptions {
+            max_group: Some(12),
+            shared_coarse_levels: Some(true),
+            ..Default::default()
+        },
+    )
+    .unwrap();
     let shared = s.synthesize(big, &|_, _| {}).unwrap();
     assert!(s.last_stats().unwrap().groups > 1);
     words_equal(
@@ -347,7 +406,18 @@ fn gpu_boxes_are_windows_of_larger_gpu_boxes() {
     // default on a GPU of its own memory only, forced here): with their own and with shared
     // coarse levels.
     for shared_levels in [false, true] {
-        let mut s = Synthesizer::with_options(&a, params.clone(), &gpu, SynthOptions { max_group: Some(12), shared_coarse_levels: Some(shared_levels), overlapped_reads: Some(true), ..Default::default() }).unwrap();
+        let mut s = Synthesizer::with_options(
+            &a,
+            params.clone(),
+            &gpu,
+            SynthOptions {
+                max_group: Some(12),
+                shared_coarse_levels: Some(shared_levels),
+                overlapped_reads: Some(true),
+                ..Default::default()
+            },
+        )
+        .unwrap();
         let overlapped = s.synthesize(big, &|_, _| {}).unwrap();
         let groups = s.last_stats().unwrap().groups;
         assert!(groups > 1);
@@ -370,7 +440,17 @@ fn gpu_boxes_are_windows_of_larger_gpu_boxes() {
         ..params.clone()
     };
     let by_group = |compute: &Compute| {
-        let mut s = Synthesizer::with_options(&a, cached.clone(), compute, SynthOptions { max_group: Some(12), overlapped_reads: Some(true), ..Default::default() }).unwrap();
+        let mut s = Synthesizer::with_options(
+            &a,
+            cached.clone(),
+            compute,
+            SynthOptions {
+                max_group: Some(12),
+                overlapped_reads: Some(true),
+                ..Default::default()
+            },
+        )
+        .unwrap();
         let mut bricks = Vec::new();
         let mut colors = Vec::new();
         let requested = solidsynth::lazy::bricks::bricks_of_box(big);

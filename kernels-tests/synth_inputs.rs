@@ -87,7 +87,11 @@ impl BoxBricks {
 
 /// A state of `box_bricks` at `pack`'s level, made by the CPU `init` (jitter 3, a seed with a
 /// high word, the slab tiled from an offset).
-pub fn initial_state(pack: &LevelPack, border: Border, box_bricks: &BoxBricks) -> (Vec<u32>, solidsynth::contract::uniforms::InitParams) {
+pub fn initial_state(
+    pack: &LevelPack,
+    border: Border,
+    box_bricks: &BoxBricks,
+) -> (Vec<u32>, solidsynth::contract::uniforms::InitParams) {
     let mut init = solidsynth::lazy::kernel_params::init_params(
         pack,
         border.code(),

@@ -13,7 +13,9 @@ fn upsample_matches_its_reference() {
     let a = analysis(false, Border::Wrap);
     // (The same level's data serves for the child's values.)
     let pack = LevelPack::new(&a, 3);
-    let Some(mut g) = gpu_synth(&pack) else { return };
+    let Some(mut g) = gpu_synth(&pack) else {
+        return;
+    };
     let parent = BoxBricks::of(Box3::new([-9, -2, 5], [2, 4, 12]));
     let (parent_state, _) = initial_state(&pack, Border::Wrap, &parent);
     // The child bricks: some of the parents' children, and one whose parent is absent (reads as
@@ -32,8 +34,7 @@ fn upsample_matches_its_reference() {
         parent_table,
         (child_list, child_bricks.len() as u32),
     );
-    let cpu_up =
-        solidsynth::cpu::upsample::upsample(&up, &pack.words, &parent_state, &child_index);
+    let cpu_up = solidsynth::cpu::upsample::upsample(&up, &pack.words, &parent_state, &child_index);
     let gpu_parent = g.upload_state(&parent_state);
     let gpu_child_index = g.upload_index(&child_index);
     let gpu_up = g.upsample(0, &up, gpu_parent, &gpu_child_index).unwrap();

@@ -5,11 +5,11 @@
 mod common;
 
 use solidsynth::analysis::balance;
-use solidsynth::lazy::balance::top_percent_share;
 use solidsynth::analysis::{Analysis, AnalysisInput, AnalysisParams};
 use solidsynth::backend::Compute;
 use solidsynth::exemplar::{Border, Image};
 use solidsynth::io::ssa;
+use solidsynth::lazy::balance::top_percent_share;
 use solidsynth::lazy::{SynthParams, Synthesizer};
 
 fn analyze(image: Image, rounds: u32) -> Analysis {

@@ -1838,7 +1838,9 @@ fn an_output_named_like_its_subcommand_is_written() {
     let dir = tempfile::tempdir().unwrap();
     let o = bin()
         .current_dir(dir.path())
-        .args(["ptm", "capture", "--size", "40", "--lights", "12", "-o", "capture"])
+        .args([
+            "ptm", "capture", "--size", "40", "--lights", "12", "-o", "capture",
+        ])
         .output()
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
@@ -1847,5 +1849,10 @@ fn an_output_named_like_its_subcommand_is_written() {
     std::fs::copy(fixture_path("cells32.png"), &image).unwrap();
     let p = image.to_str().unwrap();
     let o = run(&["analyze", p, "--backend", "cpu", "-o", p]);
-    assert_user_error(&o, "is also given as an input", dir.path(), &["capture", "e.png"]);
+    assert_user_error(
+        &o,
+        "is also given as an input",
+        dir.path(),
+        &["capture", "e.png"],
+    );
 }

@@ -40,14 +40,28 @@ fn cli_region(input: Option<&std::path::Path>, b: &str, seed: &str) -> solidsynt
 fn the_facade_gives_the_command_lines_bytes() {
     // The built-in exemplar (three images in the paper's frame, feature masks, balancing).
     let b = Box3::new([-5, 3, -9], [11, 12, 4]);
-    let lib = Solid::builder().seed(6).cpu().build().unwrap().region(b).unwrap();
+    let lib = Solid::builder()
+        .seed(6)
+        .cpu()
+        .build()
+        .unwrap()
+        .region(b)
+        .unwrap();
     let cli = cli_region(None, "-5,3,-9,11,12,4", "6");
-    assert_eq!((lib.nx, lib.ny, lib.nz, lib.channels), (cli.nx, cli.ny, cli.nz, cli.channels));
+    assert_eq!(
+        (lib.nx, lib.ny, lib.nz, lib.channels),
+        (cli.nx, cli.ny, cli.nz, cli.channels)
+    );
     assert_eq!(lib.data, cli.data, "built-in exemplar");
     // A fixture image, not periodic (mirrored borders).
     let image = common::fixture("marble32.png");
     let b = Box3::new([0, 0, 0], [12, 10, 8]);
-    let mut solid = Solid::builder().exemplar(image).seed(2).cpu().build().unwrap();
+    let mut solid = Solid::builder()
+        .exemplar(image)
+        .seed(2)
+        .cpu()
+        .build()
+        .unwrap();
     let lib = solid.region(b).unwrap();
     let cli = cli_region(Some(&fixture_path("marble32.png")), "0,0,0,12,10,8", "2");
     assert_eq!(lib.data, cli.data, "marble32.png");
@@ -74,26 +88,47 @@ fn bad_input_through_the_facade_is_refused_by_name() {
     let marble = common::fixture("marble32.png");
     let cells = common::crop(&common::fixture("cells32.png"), 32, 24);
     refused(
-        Solid::builder().exemplars(marble.clone(), cells, marble.clone()).cpu().build(),
+        Solid::builder()
+            .exemplars(marble.clone(), cells, marble.clone())
+            .cpu()
+            .build(),
         "same size",
     );
     refused(Solid::builder().jitter(-1.0).cpu().build(), "--jitter");
     refused(
-        Solid::builder().feature_masks(solidsynth::solid::FeatureMasks::None).feature_weight(2.0).cpu().build(),
+        Solid::builder()
+            .feature_masks(solidsynth::solid::FeatureMasks::None)
+            .feature_weight(2.0)
+            .cpu()
+            .build(),
         "--feature-weight",
     );
-    let mut solid = Solid::builder().exemplar(marble).balance(0, 1.0).cpu().build().unwrap();
-    refused(solid.region(Box3::new([0, 0, 0], [0, 4, 4])), "--box 0,0,0,0,4,4");
+    let mut solid = Solid::builder()
+        .exemplar(marble)
+        .balance(0, 1.0)
+        .cpu()
+        .build()
+        .unwrap();
+    refused(
+        solid.region(Box3::new([0, 0, 0], [0, 4, 4])),
+        "--box 0,0,0,0,4,4",
+    );
     refused(solid.region(Box3::new([3, 0, 0], [1, 4, 4])), "--box");
     // Beyond any machine's memory: refused before allocating, naming the estimate.
-    refused(solid.region(Box3::new([0; 3], [1 << 20; 3])), "GiB of memory");
+    refused(
+        solid.region(Box3::new([0; 3], [1 << 20; 3])),
+        "GiB of memory",
+    );
     refused(solid.tileable(48), "multiple of 32");
     // A device lacking a limit the kernels need: the limit is named.
     let mut limits = solidsynth::gpu::context::required_limits();
     assert_eq!(solidsynth::gpu::context::missing_limit(&limits), None);
     limits.max_storage_buffers_per_shader_stage = 4;
     let missing = solidsynth::gpu::context::missing_limit(&limits).unwrap();
-    assert!(missing.contains("max_storage_buffers_per_shader_stage"), "{missing}");
+    assert!(
+        missing.contains("max_storage_buffers_per_shader_stage"),
+        "{missing}"
+    );
 }
 
 #[test]
@@ -148,15 +183,24 @@ fn the_cache_uses_only_what_belongs_to_the_input() {
     let (analysis_input, params) = input.analysis_input().unwrap();
     let key = cache_key(&analysis_input, &params);
     // A different input (another border) has another key.
-    let mirrored = ExemplarInput { periodic: false, ..input.clone() };
+    let mirrored = ExemplarInput {
+        periodic: false,
+        ..input.clone()
+    };
     let (other_input, other_params) = mirrored.analysis_input().unwrap();
     assert_ne!(key, cache_key(&other_input, &other_params));
     assert!(matches!(cache.load(key), Cached::Miss));
-    let solid = Solid::builder().exemplar_input(input.clone()).cache(Some(cache.clone())).cpu();
+    let solid = Solid::builder()
+        .exemplar_input(input.clone())
+        .cache(Some(cache.clone()))
+        .cpu();
     let first = solid.analyze().unwrap();
     assert!(matches!(cache.load(key), Cached::Hit(_)));
     let second = solid.analyze().unwrap();
-    assert_eq!(solidsynth::io::ssa::to_bytes(&first), solidsynth::io::ssa::to_bytes(&second));
+    assert_eq!(
+        solidsynth::io::ssa::to_bytes(&first),
+        solidsynth::io::ssa::to_bytes(&second)
+    );
     // Another input's file under this key: refused, analysed again, replaced.
     let path = cache.path(key);
     let good = std::fs::read(&path).unwrap();
@@ -164,8 +208,15 @@ fn the_cache_uses_only_what_belongs_to_the_input() {
     std::fs::copy(cache.path(key ^ 1), &path).unwrap();
     assert!(matches!(cache.load(key), Cached::Invalid(p) if p.contains("another input")));
     let again = solid.analyze().unwrap();
-    assert_eq!(solidsynth::io::ssa::to_bytes(&again), solidsynth::io::ssa::to_bytes(&first));
-    assert_eq!(std::fs::read(&path).unwrap(), good, "replaced by the right analysis");
+    assert_eq!(
+        solidsynth::io::ssa::to_bytes(&again),
+        solidsynth::io::ssa::to_bytes(&first)
+    );
+    assert_eq!(
+        std::fs::read(&path).unwrap(),
+        good,
+        "replaced by the right analysis"
+    );
     // Truncated, or a flipped bit: refused too.
     std::fs::write(&path, &good[..good.len() / 2]).unwrap();
     assert!(matches!(cache.load(key), Cached::Invalid(_)));
@@ -190,13 +241,20 @@ fn concurrent_cache_writers_leave_one_whole_file() {
     };
     let (analysis_input, params) = input.analysis_input().unwrap();
     let key = cache_key(&analysis_input, &params);
-    let analysis = Solid::builder().exemplar_input(input).cpu().analyze().unwrap();
+    let analysis = Solid::builder()
+        .exemplar_input(input)
+        .cpu()
+        .analyze()
+        .unwrap();
     std::thread::scope(|s| {
         for _ in 0..4 {
             s.spawn(|| {
                 for _ in 0..10 {
                     cache.store(key, &analysis).unwrap();
-                    assert!(matches!(cache.load(key), Cached::Hit(_)), "a reader saw a partial file");
+                    assert!(
+                        matches!(cache.load(key), Cached::Hit(_)),
+                        "a reader saw a partial file"
+                    );
                 }
             });
         }

@@ -54,11 +54,15 @@ fn fuzz<T, E>(name: &str, valid: &[u8], parse: impl Fn(&[u8]) -> Result<T, E>) -
     for case in 0..cases {
         let input = common::mutate(valid, &mut rng);
         LARGEST.store(0, Ordering::Relaxed);
-        let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| parse(&input).is_ok()));
+        let outcome =
+            std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| parse(&input).is_ok()));
         let largest = LARGEST.load(Ordering::Relaxed);
         match outcome {
             Ok(ok) => accepted += ok as usize,
-            Err(_) => panic!("{name}: case {case} panicked (input of {} bytes)", input.len()),
+            Err(_) => panic!(
+                "{name}: case {case} panicked (input of {} bytes)",
+                input.len()
+            ),
         }
         assert!(
             largest <= ALLOCATION_BOUND,
@@ -79,7 +83,10 @@ fn every_parser_survives_structured_mutations() {
         Ok(Vec::<u8>::with_capacity(claimed).capacity())
     };
     let caught = std::panic::catch_unwind(|| fuzz("trusting", &[8, 0, 0, 0, 1, 2], trusting));
-    assert!(caught.is_err(), "an allocation of a claimed length goes unnoticed");
+    assert!(
+        caught.is_err(),
+        "an allocation of a claimed length goes unnoticed"
+    );
     let fragile = |b: &[u8]| -> Result<u8, String> { Ok(b[5]) };
     let caught = std::panic::catch_unwind(|| fuzz("fragile", &[1, 2, 3, 4, 5, 6], fragile));
     assert!(caught.is_err(), "a panic goes unnoticed");
@@ -87,10 +94,18 @@ fn every_parser_survives_structured_mutations() {
     // NRRD.
     let dir = tempfile::tempdir().unwrap();
     let mut volume = solidsynth::volume::Volume::new(6, 5, 4, 3);
-    volume.data.iter_mut().enumerate().for_each(|(i, v)| *v = i as u8);
+    volume
+        .data
+        .iter_mut()
+        .enumerate()
+        .for_each(|(i, v)| *v = i as u8);
     let nrrd_path = dir.path().join("v.nrrd");
     solidsynth::io::nrrd::save(&volume, &nrrd_path).unwrap();
-    fuzz("nrrd", &std::fs::read(&nrrd_path).unwrap(), solidsynth::io::nrrd::parse);
+    fuzz(
+        "nrrd",
+        &std::fs::read(&nrrd_path).unwrap(),
+        solidsynth::io::nrrd::parse,
+    );
     // .ssa.
     let analysis = common::analyze(
         vec![common::crop(&common::fixture("cells32.png"), 20, 20)],
@@ -100,23 +115,41 @@ fn every_parser_survives_structured_mutations() {
     fuzz("ssa", &ssa, solidsynth::io::ssa::from_bytes);
     // .gsolid.
     let solid = solidsynth::gradient::render::random_solid(13, 3, 5).unwrap();
-    for encoding in [solidsynth::gradient::format::Encoding::U8, solidsynth::gradient::format::Encoding::F32] {
+    for encoding in [
+        solidsynth::gradient::format::Encoding::U8,
+        solidsynth::gradient::format::Encoding::F32,
+    ] {
         let bytes = solidsynth::gradient::format::to_bytes(&solid, encoding);
-        fuzz("gsolid", &bytes, |b| solidsynth::gradient::format::from_bytes(b, "fuzz"));
+        fuzz("gsolid", &bytes, |b| {
+            solidsynth::gradient::format::from_bytes(b, "fuzz")
+        });
     }
     // PTM.
     let capture = solidsynth::ptm::capture::synthetic(16, 8, 3);
-    let ptm = solidsynth::ptm::fit::fit(&capture, solidsynth::ptm::PtmFormat::Lrgb, "fuzz").unwrap();
-    fuzz("ptm", &solidsynth::ptm::format::to_bytes(&ptm), solidsynth::ptm::format::from_bytes);
+    let ptm =
+        solidsynth::ptm::fit::fit(&capture, solidsynth::ptm::PtmFormat::Lrgb, "fuzz").unwrap();
+    fuzz(
+        "ptm",
+        &solidsynth::ptm::format::to_bytes(&ptm),
+        solidsynth::ptm::format::from_bytes,
+    );
     // .lst: a small lapped model.
     let lst = lapped_model_bytes();
     fuzz("lst", &lst, solidsynth::lapped::model::LstModel::parse);
     // OBJ.
     let obj = solidsynth::lapped::shapes::obj_text(&solidsynth::lapped::shapes::sphere(8, 4));
-    fuzz("obj", obj.as_bytes(), |b| solidsynth::mesh::parse_obj(b, "fuzz"));
+    fuzz("obj", obj.as_bytes(), |b| {
+        solidsynth::mesh::parse_obj(b, "fuzz")
+    });
     // Constraints and strokes JSON.
-    let constraints = std::fs::read(concat!(env!("CARGO_MANIFEST_DIR"), "/examples/lapped/kiwi.json")).unwrap();
-    fuzz("constraints", &constraints, |b| solidsynth::lapped::field::Constraints::parse(b, "fuzz"));
+    let constraints = std::fs::read(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/examples/lapped/kiwi.json"
+    ))
+    .unwrap();
+    fuzz("constraints", &constraints, |b| {
+        solidsynth::lapped::field::Constraints::parse(b, "fuzz")
+    });
     let strokes = br#"{"strokes": [{"position": [8, 8, 8], "strength": 1.0}, {"position": [1, 2, 3], "strength": 0.5}]}"#;
     fuzz("strokes", strokes, |b| {
         let text = std::str::from_utf8(b).map_err(|e| e.to_string())?;
@@ -127,7 +160,10 @@ fn every_parser_survives_structured_mutations() {
 fn lapped_model_bytes() -> Vec<u8> {
     use solidsynth::lapped::{self, exemplar::SolidExemplar, field::Constraints};
     let mut cube = solidsynth::volume::Volume::new(8, 8, 8, 4);
-    cube.data.iter_mut().enumerate().for_each(|(i, v)| *v = (i * 7) as u8);
+    cube.data
+        .iter_mut()
+        .enumerate()
+        .for_each(|(i, v)| *v = (i * 7) as u8);
     let exemplar = SolidExemplar::from_volume(&cube, "cube").unwrap();
     let sphere = lapped::shapes::sphere(10, 5);
     let constraints = Constraints::isotropic();
@@ -139,6 +175,12 @@ fn lapped_model_bytes() -> Vec<u8> {
         constraints: &constraints,
         constraints_name: "isotropic",
     };
-    let opts = lapped::FillOptions { resolution: 3, ..Default::default() };
-    lapped::build(inputs, &opts, &|_, _| {}).unwrap().0.to_bytes()
+    let opts = lapped::FillOptions {
+        resolution: 3,
+        ..Default::default()
+    };
+    lapped::build(inputs, &opts, &|_, _| {})
+        .unwrap()
+        .0
+        .to_bytes()
 }

@@ -533,7 +533,11 @@ fn raw(addr: SocketAddr, text: &str) -> (u16, String) {
     let mut out = Vec::new();
     let _ = s.read_to_end(&mut out);
     let text = String::from_utf8_lossy(&out).to_string();
-    let code = text.split_whitespace().nth(1).and_then(|c| c.parse().ok()).unwrap_or(0);
+    let code = text
+        .split_whitespace()
+        .nth(1)
+        .and_then(|c| c.parse().ok())
+        .unwrap_or(0);
     (code, text)
 }
 
@@ -545,14 +549,36 @@ fn requests_from_elsewhere_are_refused() {
     let port = addr.port();
     let (code, text) = raw(addr, "GET /api/health HTTP/1.1\nHost: evil.example\n\n");
     assert_eq!(code, 421, "{text}");
-    assert!(text.contains("evil.example") && text.contains("\"error\""), "{text}");
-    assert_eq!(raw(addr, &format!("GET /api/health HTTP/1.1\nHost: evil.example:{port}\n\n")).0, 421);
+    assert!(
+        text.contains("evil.example") && text.contains("\"error\""),
+        "{text}"
+    );
+    assert_eq!(
+        raw(
+            addr,
+            &format!("GET /api/health HTTP/1.1\nHost: evil.example:{port}\n\n")
+        )
+        .0,
+        421
+    );
     assert_eq!(raw(addr, "GET /api/health HTTP/1.1\n\n").0, 400);
-    for host in [format!("127.0.0.1:{port}"), format!("localhost:{port}"), format!("LOCALHOST:{port}")] {
-        assert_eq!(raw(addr, &format!("GET /api/health HTTP/1.1\nHost: {host}\n\n")).0, 200, "{host}");
+    for host in [
+        format!("127.0.0.1:{port}"),
+        format!("localhost:{port}"),
+        format!("LOCALHOST:{port}"),
+    ] {
+        assert_eq!(
+            raw(addr, &format!("GET /api/health HTTP/1.1\nHost: {host}\n\n")).0,
+            200,
+            "{host}"
+        );
     }
     // A page elsewhere posting a "simple" (no preflight) request with an image body.
-    let png = std::fs::read(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/fixtures/marble32.png")).unwrap();
+    let png = std::fs::read(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/tests/fixtures/marble32.png"
+    ))
+    .unwrap();
     let post = |origin: &str, content_type: &str| {
         use std::io::{Read, Write};
         let mut s = std::net::TcpStream::connect(addr).unwrap();
@@ -565,20 +591,40 @@ fn requests_from_elsewhere_are_refused() {
         let _ = s.write_all(&png);
         let mut out = Vec::new();
         let _ = s.read_to_end(&mut out);
-        String::from_utf8_lossy(&out).split_whitespace().nth(1).and_then(|c| c.parse::<u16>().ok()).unwrap()
+        String::from_utf8_lossy(&out)
+            .split_whitespace()
+            .nth(1)
+            .and_then(|c| c.parse::<u16>().ok())
+            .unwrap()
     };
     assert_eq!(post("Origin: http://evil.example\r\n", "text/plain"), 403);
     assert_eq!(post("Origin: http://evil.example\r\n", "image/png"), 403);
-    assert_eq!(post(&format!("Origin: http://{addr}x\r\n"), "image/png"), 403);
+    assert_eq!(
+        post(&format!("Origin: http://{addr}x\r\n"), "image/png"),
+        403
+    );
     assert_eq!(post("", "text/plain"), 415);
     assert_eq!(post("", "application/octet-stream"), 415);
     // HEAD: GET's status and length, no body.
     let (code, text) = raw(addr, &format!("HEAD / HTTP/1.1\nHost: {addr}\n\n"));
     assert_eq!(code, 200, "{text}");
     let page = get(addr, "/");
-    assert!(text.contains(&format!("Content-Length: {}", page.body.len())), "{text}");
-    assert!(text.ends_with("\r\n\r\n"), "a HEAD answer has no body: {text}");
-    assert_eq!(raw(addr, &format!("HEAD /api/health HTTP/1.1\nHost: {addr}\n\n")).0, 200);
+    assert!(
+        text.contains(&format!("Content-Length: {}", page.body.len())),
+        "{text}"
+    );
+    assert!(
+        text.ends_with("\r\n\r\n"),
+        "a HEAD answer has no body: {text}"
+    );
+    assert_eq!(
+        raw(
+            addr,
+            &format!("HEAD /api/health HTTP/1.1\nHost: {addr}\n\n")
+        )
+        .0,
+        200
+    );
 }
 
 /// The server keeps its analyses in the command line's disk cache: a second server (a restart)
@@ -604,7 +650,10 @@ fn a_restarted_server_reads_its_analyses_from_the_disk_cache() {
     let job = first.state().start_job(source(), 1).unwrap();
     wait_job(first.addr(), job.id);
     first.shutdown();
-    let cached: Vec<_> = std::fs::read_dir(dir.path()).unwrap().map(|e| e.unwrap().path()).collect();
+    let cached: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
     assert_eq!(cached.len(), 1, "one analysis cached");
     let written = std::fs::metadata(&cached[0]).unwrap().modified().unwrap();
     let bytes = std::fs::read(&cached[0]).unwrap();
@@ -614,7 +663,11 @@ fn a_restarted_server_reads_its_analyses_from_the_disk_cache() {
     wait_job(second.addr(), job.id);
     second.shutdown();
     assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
-    assert_eq!(std::fs::metadata(&cached[0]).unwrap().modified().unwrap(), written, "not rewritten");
+    assert_eq!(
+        std::fs::metadata(&cached[0]).unwrap().modified().unwrap(),
+        written,
+        "not rewritten"
+    );
     assert_eq!(std::fs::read(&cached[0]).unwrap(), bytes);
 }
 
@@ -638,7 +691,9 @@ fn mutated_requests_get_clean_answers() {
             "POST /api/solids?seed=3&periodic=1 HTTP/1.1\r\nHost: {addr}\r\nOrigin: http://{addr}\r\nContent-Type: image/png\r\nContent-Length: 4\r\n\r\nXPNG"
         ),
     ];
-    let meant = [200, 202, 400, 403, 404, 405, 408, 411, 413, 415, 421, 431, 503];
+    let meant = [
+        200, 202, 400, 403, 404, 405, 408, 411, 413, 415, 421, 431, 503,
+    ];
     let mut rng = solidsynth::util::hash::SeededRng::new(0x4771);
     for case in 0..cases {
         let request = common::mutate(valid[case % valid.len()].as_bytes(), &mut rng);
@@ -650,7 +705,11 @@ fn mutated_requests_get_clean_answers() {
         let mut out = Vec::new();
         let _ = s.read_to_end(&mut out);
         let text = String::from_utf8_lossy(&out);
-        let code: u16 = text.split_whitespace().nth(1).and_then(|c| c.parse().ok()).unwrap_or(0);
+        let code: u16 = text
+            .split_whitespace()
+            .nth(1)
+            .and_then(|c| c.parse().ok())
+            .unwrap_or(0);
         assert!(
             text.starts_with("HTTP/1.1 ") && meant.contains(&code),
             "case {case}: {:?} -> {:?}",
@@ -667,15 +726,39 @@ fn mutated_requests_get_clean_answers() {
 fn the_mixed_load_test_runs_and_every_answer_is_as_expected() {
     let o = bin()
         .args([
-            "bench", "serve", "--mixed", "2", "--idle", "1", "--clients", "1", "--size", "16",
-            "--backend", "cpu", "--json",
+            "bench",
+            "serve",
+            "--mixed",
+            "2",
+            "--idle",
+            "1",
+            "--clients",
+            "1",
+            "--size",
+            "16",
+            "--backend",
+            "cpu",
+            "--json",
         ])
         .output()
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let report: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     let kinds = report["kinds"].as_array().unwrap();
-    assert!(kinds.iter().any(|k| k["kind"] == "cut" && k["as_expected"].as_u64().unwrap() > 0), "{report}");
-    assert!(kinds.iter().any(|k| k["kind"] == "hostile: bad Host"), "{report}");
-    assert!(kinds.iter().all(|k| k["unexpected"].as_array().unwrap().is_empty()), "{report}");
+    assert!(
+        kinds
+            .iter()
+            .any(|k| k["kind"] == "cut" && k["as_expected"].as_u64().unwrap() > 0),
+        "{report}"
+    );
+    assert!(
+        kinds.iter().any(|k| k["kind"] == "hostile: bad Host"),
+        "{report}"
+    );
+    assert!(
+        kinds
+            .iter()
+            .all(|k| k["unexpected"].as_array().unwrap().is_empty()),
+        "{report}"
+    );
 }

@@ -273,9 +273,29 @@ mod determinism {
         // Grouping (seams at multiples of 12 voxels) changes nothing, whether each group
         // synthesizes its own coarse levels or all share them (each level above the finest
         // synthesized once, itself in groups of 12 down to l_start).
-        let mut own = Synthesizer::with_options(&a, params.clone(), &Compute::Cpu, SynthOptions { max_group: Some(12), shared_coarse_levels: Some(false), ..Default::default() }).unwrap();
+        let mut own = Synthesizer::with_options(
+            &a,
+            params.clone(),
+            &Compute::Cpu,
+            SynthOptions {
+                max_group: Some(12),
+                shared_coarse_levels: Some(false),
+                ..Default::default()
+            },
+        )
+        .unwrap();
         assert_eq!(own.synthesize(big, &|_, _| {}).unwrap(), v);
-        let mut shared = Synthesizer::with_options(&a, params.clone(), &Compute::Cpu, SynthOptions { max_group: Some(12), shared_coarse_levels: Some(true), ..Default::default() }).unwrap();
+        let mut shared = Synthesizer::with_options(
+            &a,
+            params.clone(),
+            &Compute::Cpu,
+            SynthOptions {
+                max_group: Some(12),
+                shared_coarse_levels: Some(true),
+                ..Default::default()
+            },
+        )
+        .unwrap();
         assert_eq!(shared.synthesize(big, &|_, _| {}).unwrap(), v);
         let (own, shared) = (own.last_stats().unwrap(), shared.last_stats().unwrap());
         assert!(shared.groups > 1);
@@ -289,7 +309,16 @@ mod determinism {
         }
         // Streamed in slabs of groups (what `synth` writes to its file): the slabs follow each
         // other along z, span the box in x and y, and together are the volume.
-        let mut s = Synthesizer::with_options(&a, params.clone(), &Compute::Cpu, SynthOptions { max_group: Some(8), ..Default::default() }).unwrap();
+        let mut s = Synthesizer::with_options(
+            &a,
+            params.clone(),
+            &Compute::Cpu,
+            SynthOptions {
+                max_group: Some(8),
+                ..Default::default()
+            },
+        )
+        .unwrap();
         let mut joined = Vec::new();
         let mut next_z = 0;
         let mut depths = Vec::new();
@@ -319,7 +348,17 @@ mod determinism {
         let colors = s.sample(&points, &|_, _| {}).unwrap();
         // The same points in groups of 8 sharing their coarse levels (a sparse request's
         // parents: scattered bricks, not a box).
-        let mut shared = Synthesizer::with_options(&a, params.clone(), &Compute::Cpu, SynthOptions { max_group: Some(8), shared_coarse_levels: Some(true), ..Default::default() }).unwrap();
+        let mut shared = Synthesizer::with_options(
+            &a,
+            params.clone(),
+            &Compute::Cpu,
+            SynthOptions {
+                max_group: Some(8),
+                shared_coarse_levels: Some(true),
+                ..Default::default()
+            },
+        )
+        .unwrap();
         assert_eq!(shared.sample(&points, &|_, _| {}).unwrap(), colors);
         assert!(shared.last_stats().unwrap().groups > 1);
         for (p, c) in points.iter().zip(&colors) {
@@ -345,10 +384,28 @@ mod determinism {
         let dense_bound =
             solidsynth::lazy::grouping::planned_state_bytes([64, 56, 48], &[2; 4], &[16; 4]);
         assert!(dense_bound > fitting, "{dense_bound} vs {fitting}");
-        let mut limited = Synthesizer::with_options(&a, params.clone(), &Compute::Cpu, SynthOptions { state_limit: Some(fitting), ..Default::default() }).unwrap();
+        let mut limited = Synthesizer::with_options(
+            &a,
+            params.clone(),
+            &Compute::Cpu,
+            SynthOptions {
+                state_limit: Some(fitting),
+                ..Default::default()
+            },
+        )
+        .unwrap();
         assert_eq!(limited.sample(&far, &|_, _| {}).unwrap(), far_colors);
         assert_eq!(limited.last_stats().unwrap().groups, 1);
-        let mut split = Synthesizer::with_options(&a, params.clone(), &Compute::Cpu, SynthOptions { state_limit: Some(fitting - 1), ..Default::default() }).unwrap();
+        let mut split = Synthesizer::with_options(
+            &a,
+            params.clone(),
+            &Compute::Cpu,
+            SynthOptions {
+                state_limit: Some(fitting - 1),
+                ..Default::default()
+            },
+        )
+        .unwrap();
         assert_eq!(split.sample(&far, &|_, _| {}).unwrap(), far_colors);
         assert!(split.last_stats().unwrap().groups > 1);
         // Storage follows the request: two scattered points cost less than the box around them
@@ -474,12 +531,18 @@ fn triples_explain_the_colours() {
     use solidsynth::backend::Compute;
     use solidsynth::lazy::{Box3, SynthOptions, SynthParams, Synthesizer};
     let a = common::analyze(vec![common::fixture("cells32.png")], Border::Wrap);
-    let mut s = Synthesizer::with_options(&a,
+    let mut s = Synthesizer::with_options(
+        &a,
         SynthParams {
             seed: 4,
             ..Default::default()
         },
-        &Compute::Cpu, SynthOptions { max_group: Some(8), ..Default::default() })
+        &Compute::Cpu,
+        SynthOptions {
+            max_group: Some(8),
+            ..Default::default()
+        },
+    )
     .unwrap();
     let b = Box3::new([-3, 2, 7], [7, 11, 15]);
     let (v, triples) = s.synthesize_with_triples(b, &|_, _| {}).unwrap();
@@ -750,12 +813,19 @@ fn tileable_solids_in_groups_equal_the_one_piece_solid() {
     assert!(group_triples == one_piece_triples, "grouped triples differ");
     // The same groups sharing their coarse levels (each synthesized once, as boxes of the
     // periodic solid whose initial level wraps).
-    let mut shared = Synthesizer::with_options(&a,
+    let mut shared = Synthesizer::with_options(
+        &a,
         SynthParams {
             seed: 3,
             ..Default::default()
         },
-        &Compute::Cpu, SynthOptions { max_group: Some(16), shared_coarse_levels: Some(true), ..Default::default() })
+        &Compute::Cpu,
+        SynthOptions {
+            max_group: Some(16),
+            shared_coarse_levels: Some(true),
+            ..Default::default()
+        },
+    )
     .unwrap();
     let (in_shared, shared_triples) = shared.synthesize_tileable(n, &|_, _| {}, true).unwrap();
     assert_eq!(shared.last_stats().unwrap().groups, 8);
@@ -813,7 +883,16 @@ fn coarse_cache_solids_are_spatially_deterministic() {
         .build()
         .unwrap();
     let (grouped, groups) = pool.install(|| {
-        let mut g = Synthesizer::with_options(&a, params.clone(), &Compute::Cpu, SynthOptions { max_group: Some(8), ..Default::default() }).unwrap();
+        let mut g = Synthesizer::with_options(
+            &a,
+            params.clone(),
+            &Compute::Cpu,
+            SynthOptions {
+                max_group: Some(8),
+                ..Default::default()
+            },
+        )
+        .unwrap();
         let out = g.synthesize(big, &|_, _| {}).unwrap();
         (out, g.last_stats().unwrap().groups)
     });

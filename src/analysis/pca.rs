@@ -188,7 +188,6 @@ fn choose_shift(basis: &[f64], dims: usize, keep: usize, scale: f64) -> (u32, Ve
     (1, weights)
 }
 
-
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -7,9 +7,9 @@
 
 use super::Compute;
 use crate::contract::level::LevelPack;
+use crate::contract::uniforms::{ColorizeParams, CorrectParams, InitParams, UpsampleParams};
 use crate::error::Result;
 use crate::gpu::synth::GpuSynth;
-use crate::contract::uniforms::{ColorizeParams, CorrectParams, InitParams, UpsampleParams};
 
 /// A level's brick index (tables and brick lists, `lazy::bricks`) on the backend.
 pub enum IndexBuf {

@@ -205,8 +205,8 @@ fn bench_gradient_synth(args: BenchGradientArgs) -> anyhow::Result<()> {
 
 fn bench_gradient_render(args: BenchRenderArgs) -> anyhow::Result<()> {
     use solidsynth::backend::Compute;
-    use solidsynth::gradient::Query;
     use solidsynth::gradient::render::{random_solid, render_u8};
+    use solidsynth::gradient::Query;
     let mut backends = vec![("cpu", Compute::Cpu)];
     if !args.no_gpu {
         let mut opts = solidsynth::gpu::GpuOptions::from_env();

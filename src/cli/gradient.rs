@@ -6,9 +6,9 @@
 
 use clap::{Args, Subcommand};
 use solidsynth::backend::Compute;
-use solidsynth::gradient::{quantize, Query};
 use solidsynth::gradient::regions::{self, Blend, RegionSolid};
 use solidsynth::gradient::{detail, edit, format, vectorize, GradientSolid};
+use solidsynth::gradient::{quantize, Query};
 use solidsynth::io::{atomic, nrrd};
 use solidsynth::Error;
 use std::path::{Path, PathBuf};

@@ -2,10 +2,10 @@
 //! fit, synthesize, relight).
 
 use clap::{Args, Subcommand};
-use solidsynth::ptm::Lighting;
 use solidsynth::io::atomic;
 use solidsynth::ptm::quilt::{Boundary, QuiltParams, SearchMethod};
 use solidsynth::ptm::search::Tolerance;
+use solidsynth::ptm::Lighting;
 use solidsynth::ptm::{capture, fit, format, relight, PtmFormat};
 use solidsynth::Error;
 use std::path::{Path, PathBuf};

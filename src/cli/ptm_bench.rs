@@ -4,8 +4,8 @@
 
 use clap::Args;
 use solidsynth::backend::{BackendChoice, Compute};
-use solidsynth::ptm::Lighting;
 use solidsynth::ptm::quilt::{self, QuiltParams, SearchMethod};
+use solidsynth::ptm::Lighting;
 use solidsynth::ptm::{capture, fit, Ptm, PtmFormat};
 use std::time::Instant;
 
@@ -126,7 +126,10 @@ pub fn run(a: BenchPtmArgs) -> anyhow::Result<()> {
         specular: 0.0,
     };
     println!("relight {0}x{0} (one light, no specular):", a.relight_size);
-    let (t_cpu, cpu) = timed(a.runs.max(5), || Ok(Compute::Cpu.ptm_relight(&big, &light)?))?;
+    let (t_cpu, cpu) = timed(
+        a.runs.max(5),
+        || Ok(Compute::Cpu.ptm_relight(&big, &light)?),
+    )?;
     println!("  {:<34} {:>10.2} ms", "cpu", t_cpu * 1e3);
     if !a.no_gpu {
         let gpu = Compute::open(BackendChoice::Gpu, &solidsynth::gpu::GpuOptions::from_env())?;

@@ -344,9 +344,15 @@ fn mixed_traffic(
 ) -> anyhow::Result<Vec<(&'static str, KindResults)>> {
     use solidsynth::util::hash::SeededRng;
     let deadline = Instant::now() + Duration::from_secs(seconds as u64);
-    let png = solidsynth::io::atomic::png_bytes(&jobs::builtin("marble").expect("built in").image().to_rgba8())?;
+    let png = solidsynth::io::atomic::png_bytes(
+        &jobs::builtin("marble")
+            .expect("built in")
+            .image()
+            .to_rgba8(),
+    )?;
     let host = format!("Host: {addr}\r\n");
-    let results = std::sync::Mutex::new(std::collections::BTreeMap::<&'static str, KindResults>::new());
+    let results =
+        std::sync::Mutex::new(std::collections::BTreeMap::<&'static str, KindResults>::new());
     let record = |kind: &'static str, code: u16, ms: f64, expected: &[u16]| {
         let mut r = results.lock().unwrap();
         let entry = r.entry(kind).or_default();
@@ -460,7 +466,11 @@ fn mixed_traffic(
                     }
                     std::thread::sleep(Duration::from_secs(1));
                 }
-                let code = String::from_utf8_lossy(&out).split_whitespace().nth(1).and_then(|c| c.parse().ok()).unwrap_or(0);
+                let code = String::from_utf8_lossy(&out)
+                    .split_whitespace()
+                    .nth(1)
+                    .and_then(|c| c.parse().ok())
+                    .unwrap_or(0);
                 // Held open to the end of the test (0), or timed out by the server (408).
                 let ms = t.elapsed().as_secs_f64() * 1e3;
                 record("slow connection (held open, or 408)", code, ms, &[0, 408]);
@@ -489,15 +499,20 @@ fn print_mixed(
     if args.json {
         let rows: Vec<_> = table
             .iter()
-            .map(|(kind, r)| serde_json::json!({
-                "kind": kind, "as_expected": r.latencies_ms.len(), "unexpected": r.unexpected,
-                "per_s": r.latencies_ms.len() as f64 / seconds as f64,
-                "p50_ms": pct(&r.latencies_ms, 0.5), "p95_ms": pct(&r.latencies_ms, 0.95),
-                "p99_ms": pct(&r.latencies_ms, 0.99),
-            }))
+            .map(|(kind, r)| {
+                serde_json::json!({
+                    "kind": kind, "as_expected": r.latencies_ms.len(), "unexpected": r.unexpected,
+                    "per_s": r.latencies_ms.len() as f64 / seconds as f64,
+                    "p50_ms": pct(&r.latencies_ms, 0.5), "p95_ms": pct(&r.latencies_ms, 0.95),
+                    "p99_ms": pct(&r.latencies_ms, 0.99),
+                })
+            })
             .collect();
-        println!("{}", serde_json::json!({"seconds": seconds, "clients": args.clients, "idle": args.idle,
-            "backend": backend, "setup_seconds": setup_s, "peak_rss_mib": rss, "kinds": rows}));
+        println!(
+            "{}",
+            serde_json::json!({"seconds": seconds, "clients": args.clients, "idle": args.idle,
+            "backend": backend, "setup_seconds": setup_s, "peak_rss_mib": rss, "kinds": rows})
+        );
         return;
     }
     println!(

@@ -3,9 +3,7 @@
 use super::analyze::{load_or_analyze, InputArgs};
 use clap::Args;
 use solidsynth::io::{atomic, nrrd};
-use solidsynth::lazy::{
-    memory, Box3, CandidateMode, ColorSource, SynthOptions, SynthParams,
-};
+use solidsynth::lazy::{memory, Box3, CandidateMode, ColorSource, SynthOptions, SynthParams};
 use solidsynth::metrics::sheet::contact_sheet;
 use solidsynth::volume::Volume;
 use solidsynth::Error;
@@ -96,7 +94,13 @@ impl SolidParams {
             profile,
             ..Default::default()
         };
-        solidsynth::Solid::new(analysis, self.synth_params(), options, compute.clone(), progress)
+        solidsynth::Solid::new(
+            analysis,
+            self.synth_params(),
+            options,
+            compute.clone(),
+            progress,
+        )
     }
 
     /// The group edge the memory checks of boxes and surfaces assume, before the backend is

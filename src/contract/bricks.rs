@@ -30,4 +30,3 @@ pub fn voxel_of(b: Brick, local: u32) -> [i32; 3] {
         b[2] * BRICK + (l >> 4),
     ]
 }
-

@@ -7,4 +7,3 @@ pub struct Buckets {
     pub counts: Vec<u32>,
     pub sums: Vec<u32>,
 }
-

@@ -14,6 +14,6 @@ pub mod lapped;
 pub mod level;
 pub mod pca;
 pub mod ptm;
-pub mod triple;
 pub mod tricubic;
+pub mod triple;
 pub mod uniforms;

@@ -41,7 +41,6 @@ pub const HALF: i32 = NEIGHBOURHOOD / 2;
 /// Pixels in one 2D neighbourhood.
 pub const NEIGHBOURHOOD_PIXELS: usize = (NEIGHBOURHOOD * NEIGHBOURHOOD) as usize;
 
-
 /// The neighbourhood vector of pixel (x, y), appended to `out`.
 pub fn gather(img: &Image, border: Border, x: u32, y: u32, out: &mut Vec<u8>) {
     for dv in -HALF..=HALF {
@@ -50,4 +49,3 @@ pub fn gather(img: &Image, border: Border, x: u32, y: u32, out: &mut Vec<u8>) {
         }
     }
 }
-

@@ -91,7 +91,6 @@ impl Query {
     }
 }
 
-
 /// The 8-bit value of an evaluated channel: rounded half up, clamped to [0, 255] (what the
 /// kernel's `quantize` mode writes, and what renders store).
 #[inline]

@@ -237,12 +237,7 @@ mod tests {
         }
         assert!(packed.spills.len() > 10, "the test must spill");
         let flat: Vec<u32> = samples.iter().flatten().copied().collect();
-        let want = bucket_accumulate(
-            &flat,
-            voxels,
-            clusters as u32,
-            channels as u32,
-        );
+        let want = bucket_accumulate(&flat, voxels, clusters as u32, channels as u32);
         let without_counts = packed.clone().finish(channels, false);
         assert!(without_counts.counts.is_empty());
         assert_eq!(without_counts.sums, want.sums);
@@ -256,12 +251,7 @@ mod tests {
         }
         assert!(packed.spills.is_empty());
         let flat: Vec<u32> = few.iter().flatten().copied().collect();
-        let want = bucket_accumulate(
-            &flat,
-            voxels,
-            clusters as u32,
-            channels as u32,
-        );
+        let want = bucket_accumulate(&flat, voxels, clusters as u32, channels as u32);
         assert_eq!(packed.finish(channels, true), want);
     }
 }

@@ -5,8 +5,8 @@
 //! (`lazy::color_match`).
 
 use super::synth_common::{brick_at, voxel_index};
-use crate::contract::uniforms::ColorizeParams;
 use crate::contract::bricks::voxel_of;
+use crate::contract::uniforms::ColorizeParams;
 use rayon::prelude::*;
 
 /// Colours of the bricks of the list in `p`: 64 per brick (x fastest), list order.

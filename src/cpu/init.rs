@@ -2,10 +2,10 @@
 //! (5 voxels thick along x), warped by the jitter field.
 
 use super::synth_common::{brick_at, coord, pack_resolved, write_voxel};
-use crate::contract::triple::pack;
-use crate::contract::uniforms::InitParams;
 use crate::contract::bricks::voxel_of;
 use crate::contract::jitter;
+use crate::contract::triple::pack;
+use crate::contract::uniforms::InitParams;
 use crate::util::hash::hash32;
 use rayon::prelude::*;
 

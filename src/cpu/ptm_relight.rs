@@ -13,7 +13,6 @@ pub const INV_255: f32 = 1.0 / 255.0;
 /// Highlight exponent (applied as five squarings, no `pow`).
 pub const SHININESS: u32 = 32;
 
-
 fn poly(a: &[f32; COEFFS], lu: f32, lv: f32) -> f32 {
     a[0] * lu * lu + a[1] * lv * lv + a[2] * lu * lv + a[3] * lu + a[4] * lv + a[5]
 }

@@ -1,8 +1,8 @@
 //! CPU reference of `wgsl/tricubic_eval.wgsl`: a gradient solid evaluated at the points of a
 //! query, all channels per point, in f32 (the interpolant is derived in `gradient`).
 
-pub use crate::contract::tricubic::{quantize, Query};
 use crate::contract::tricubic::{hermite_g, hermite_h, GradientSolid, SPACING};
+pub use crate::contract::tricubic::{quantize, Query};
 use rayon::prelude::*;
 
 /// `channels` values per point of the query, in query order.
@@ -21,7 +21,6 @@ pub fn tricubic_eval(solid: &GradientSolid, query: &Query) -> Vec<f32> {
         });
     out
 }
-
 
 /// [`tricubic_eval`] quantized to 8 bits per channel (reference of the kernel's `quantize`
 /// mode: the same bytes wherever the float value is not within the float tolerance of a

@@ -4,8 +4,8 @@
 //! computed from the child level's exemplar pixels.
 
 use super::synth_common::{brick_at, coord, pack_resolved, voxel_index, write_voxel};
-use crate::contract::uniforms::UpsampleParams;
 use crate::contract::bricks::voxel_of;
+use crate::contract::uniforms::UpsampleParams;
 use rayon::prelude::*;
 
 /// `level` is the child level's data (for the voxel values).

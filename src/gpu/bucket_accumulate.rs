@@ -2,8 +2,8 @@
 
 use super::context::{dispatch_grid, GpuContext};
 use crate::contract::buckets::Buckets;
-use crate::error::{Error, Result};
 use crate::contract::uniforms::BucketParams;
+use crate::error::{Error, Result};
 
 /// Same result as [`crate::cpu::bucket_accumulate::bucket_accumulate`], bit for bit.
 pub fn bucket_accumulate(

@@ -310,7 +310,14 @@ impl GpuContext {
             max_storage_binding = adapter_max,
             "GPU adapter"
         );
-        Ok(Self::with_device(device, queue, info, limits, max_binding_bytes, opts))
+        Ok(Self::with_device(
+            device,
+            queue,
+            info,
+            limits,
+            max_binding_bytes,
+            opts,
+        ))
     }
 
     /// A context over an application's own device and queue (a game engine's, a viewer's):
@@ -332,7 +339,14 @@ impl GpuContext {
             .max_binding_bytes
             .map_or(adapter_max, |m| m.min(adapter_max));
         tracing::info!(adapter = %info.name, "GPU device given by the application");
-        Ok(Self::with_device(device, queue, info, limits, max_binding_bytes, opts))
+        Ok(Self::with_device(
+            device,
+            queue,
+            info,
+            limits,
+            max_binding_bytes,
+            opts,
+        ))
     }
 
     fn with_device(
@@ -834,7 +848,8 @@ pub fn required_limits() -> wgpu::Limits {
         max_compute_workgroups_per_dimension: 65535,
         max_storage_buffers_per_shader_stage: 5,
         max_uniform_buffers_per_shader_stage: 2,
-        max_uniform_buffer_binding_size: (super::projection_weights::PROJECTION_VECTORS * 16) as u64,
+        max_uniform_buffer_binding_size: (super::projection_weights::PROJECTION_VECTORS * 16)
+            as u64,
         max_storage_buffer_binding_size: 16 << 20,
         ..wgpu::Limits::downlevel_webgl2_defaults()
     }
@@ -844,13 +859,41 @@ pub fn required_limits() -> wgpu::Limits {
 pub fn missing_limit(limits: &wgpu::Limits) -> Option<String> {
     let need = required_limits();
     let checks: [(&str, u64, u64); 7] = [
-        ("max_compute_workgroup_size_x", limits.max_compute_workgroup_size_x.into(), need.max_compute_workgroup_size_x.into()),
-        ("max_compute_invocations_per_workgroup", limits.max_compute_invocations_per_workgroup.into(), need.max_compute_invocations_per_workgroup.into()),
-        ("max_compute_workgroups_per_dimension", limits.max_compute_workgroups_per_dimension.into(), need.max_compute_workgroups_per_dimension.into()),
-        ("max_storage_buffers_per_shader_stage", limits.max_storage_buffers_per_shader_stage.into(), need.max_storage_buffers_per_shader_stage.into()),
-        ("max_uniform_buffers_per_shader_stage", limits.max_uniform_buffers_per_shader_stage.into(), need.max_uniform_buffers_per_shader_stage.into()),
-        ("max_uniform_buffer_binding_size", limits.max_uniform_buffer_binding_size.into(), need.max_uniform_buffer_binding_size.into()),
-        ("max_storage_buffer_binding_size", limits.max_storage_buffer_binding_size.into(), need.max_storage_buffer_binding_size.into()),
+        (
+            "max_compute_workgroup_size_x",
+            limits.max_compute_workgroup_size_x.into(),
+            need.max_compute_workgroup_size_x.into(),
+        ),
+        (
+            "max_compute_invocations_per_workgroup",
+            limits.max_compute_invocations_per_workgroup.into(),
+            need.max_compute_invocations_per_workgroup.into(),
+        ),
+        (
+            "max_compute_workgroups_per_dimension",
+            limits.max_compute_workgroups_per_dimension.into(),
+            need.max_compute_workgroups_per_dimension.into(),
+        ),
+        (
+            "max_storage_buffers_per_shader_stage",
+            limits.max_storage_buffers_per_shader_stage.into(),
+            need.max_storage_buffers_per_shader_stage.into(),
+        ),
+        (
+            "max_uniform_buffers_per_shader_stage",
+            limits.max_uniform_buffers_per_shader_stage.into(),
+            need.max_uniform_buffers_per_shader_stage.into(),
+        ),
+        (
+            "max_uniform_buffer_binding_size",
+            limits.max_uniform_buffer_binding_size.into(),
+            need.max_uniform_buffer_binding_size.into(),
+        ),
+        (
+            "max_storage_buffer_binding_size",
+            limits.max_storage_buffer_binding_size.into(),
+            need.max_storage_buffer_binding_size.into(),
+        ),
     ];
     checks
         .iter()

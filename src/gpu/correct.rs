@@ -202,7 +202,8 @@ impl GpuSynth {
             )));
         }
         let (projection, layout) = &self.projections[level];
-        let constants = correct_constants(p.ex.channels, p.pca_out, p.k2d, *layout, self.block_bricks);
+        let constants =
+            correct_constants(p.ex.channels, p.pca_out, p.k2d, *layout, self.block_bricks);
         Ok((candidates, projection, constants))
     }
 

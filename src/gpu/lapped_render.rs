@@ -6,9 +6,9 @@
 //! CPU reference: [`crate::cpu::lapped_render::reference_pixel`].
 
 use super::context::GpuContext;
-use crate::error::{Error, Result};
-use crate::contract::uniforms::RenderParams;
 use crate::contract::lapped::{Camera, RenderScene, VERTEX_FLOATS};
+use crate::contract::uniforms::RenderParams;
+use crate::error::{Error, Result};
 
 /// Largest image side.
 pub const MAX_RENDER_SIZE: u32 = 4096;

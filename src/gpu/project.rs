@@ -2,9 +2,9 @@
 
 use super::context::{chunk_ranges, dispatch_grid, GpuContext};
 use crate::contract::pca::PcaBasis;
+use crate::contract::uniforms::ProjectParams;
 use crate::error::Result;
 use crate::exemplar::{Border, Image};
-use crate::contract::uniforms::ProjectParams;
 
 /// Written into the output before the kernel runs; a quantized vector whose bytes are all 0xFF
 /// can occur, so callers that test coverage look at words the kernel must zero-pad instead.

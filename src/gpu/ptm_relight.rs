@@ -2,9 +2,9 @@
 //! stay on the GPU ([`GpuPtm`]) so relighting under a new light costs one dispatch and a readback.
 
 use super::context::{dispatch_grid, GpuContext};
-use crate::error::Result;
-use crate::contract::uniforms::PtmRelightParams;
 use crate::contract::ptm::{Lighting, Ptm, PtmFormat};
+use crate::contract::uniforms::PtmRelightParams;
+use crate::error::Result;
 use std::ops::Range;
 
 /// Written into a new output buffer, and before every relight in debug builds (a NaN: never a

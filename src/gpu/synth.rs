@@ -12,8 +12,8 @@ use super::context::GpuContext;
 use super::correct::{block_bricks, correct_constants, upload_tables};
 pub use super::correct::{WeightLayout, BLOCK_BRICKS_ENV};
 use super::projection_weights::{projection_uniform, PROJECTION_VECTORS};
-use crate::error::{Error, Result};
 use crate::contract::level::LevelPack;
+use crate::error::{Error, Result};
 use std::sync::Arc;
 
 pub struct GpuState {
@@ -473,7 +473,6 @@ impl GpuSynth {
         })
     }
 
-
     /// Read a state back (tests and debugging).
     pub fn read_state(&self, s: &GpuState) -> Result<Vec<u32>> {
         self.flush()?;
@@ -486,4 +485,3 @@ impl GpuSynth {
         self.ctx.wait_idle()
     }
 }
-

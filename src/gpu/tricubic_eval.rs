@@ -1,9 +1,9 @@
 //! Dispatch of `wgsl/tricubic_eval.wgsl` (CPU reference: `src/cpu/tricubic_eval.rs`).
 
 use super::context::{chunk_ranges, dispatch_grid, GpuContext};
-use crate::error::Result;
 use crate::contract::tricubic::{GradientSolid, Query};
 use crate::contract::uniforms::TricubicParams;
+use crate::error::Result;
 use rayon::prelude::*;
 
 /// Written into the output before the kernel runs in debug builds (a NaN: never a result of

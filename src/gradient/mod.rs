@@ -22,8 +22,10 @@ pub mod render;
 pub mod synth;
 pub mod vectorize;
 
+pub use crate::contract::tricubic::{
+    hermite_g, hermite_h, quantize, GradientSolid, Query, SPACING,
+};
 use crate::error::{Error, Result};
-pub use crate::contract::tricubic::{hermite_g, hermite_h, quantize, GradientSolid, Query, SPACING};
 
 /// Sub-positions per cube edge of the weight table (the paper's 33: 1/8 voxel at d = 4).
 pub const TABLE_SAMPLES: usize = 33;

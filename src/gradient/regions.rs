@@ -20,8 +20,8 @@
 use super::format::{self, Encoding};
 use super::vectorize::{fit_point, grid_for, point_position};
 use super::{GradientSolid, SPACING};
-use crate::backend::Compute;
 use crate::backend::host_tricubic_eval as tricubic_eval;
+use crate::backend::Compute;
 use crate::contract::tricubic::Query;
 use crate::error::{Error, Result};
 use crate::exemplar::feature::edt_1d;

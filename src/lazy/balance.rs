@@ -40,10 +40,9 @@ pub fn analyze(
     compute: &Compute,
     progress: &(dyn Fn(&str, f32) + Sync),
 ) -> Result<Analysis> {
-    let mut analysis =
-        crate::analysis::analyze_unbalanced(input, params, compute, &|stage, f| {
-            progress(stage, 0.9 * f)
-        })?;
+    let mut analysis = crate::analysis::analyze_unbalanced(input, params, compute, &|stage, f| {
+        progress(stage, 0.9 * f)
+    })?;
     balance(&mut analysis, compute, &|stage, f| {
         progress(&format!("usage balancing: {stage}"), 0.9 + 0.1 * f)
     })?;

@@ -77,22 +77,17 @@ impl Synthesizer {
         let grid = BrickColors::lookup(&all);
         let mut colors = vec![0u32; all.len() * 64];
         let mut triples = vec![0u32; if want_triples { all.len() * 64 * 3 } else { 0 }];
-        self.for_each_group(
-            &all,
-            job,
-            |group, c, t| {
-                for (j, b) in group.iter().enumerate() {
-                    let slot =
-                        BrickColors::slot_in(&all, grid.as_ref(), *b).expect("requested brick");
-                    colors[slot * 64..(slot + 1) * 64].copy_from_slice(&c[j * 64..(j + 1) * 64]);
-                    if want_triples {
-                        triples[slot * 192..(slot + 1) * 192]
-                            .copy_from_slice(&t[j * 192..(j + 1) * 192]);
-                    }
+        self.for_each_group(&all, job, |group, c, t| {
+            for (j, b) in group.iter().enumerate() {
+                let slot = BrickColors::slot_in(&all, grid.as_ref(), *b).expect("requested brick");
+                colors[slot * 64..(slot + 1) * 64].copy_from_slice(&c[j * 64..(j + 1) * 64]);
+                if want_triples {
+                    triples[slot * 192..(slot + 1) * 192]
+                        .copy_from_slice(&t[j * 192..(j + 1) * 192]);
                 }
-                Ok(())
-            },
-        )?;
+            }
+            Ok(())
+        })?;
         Ok(BrickColors {
             bricks: all,
             grid,

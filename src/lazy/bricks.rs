@@ -19,7 +19,9 @@
 use super::plan::{plan, Box3};
 use rayon::prelude::*;
 
-pub use crate::contract::bricks::{brick_of, local_index, voxel_of, Brick, ABSENT, BRICK, BRICK_VOXELS};
+pub use crate::contract::bricks::{
+    brick_of, local_index, voxel_of, Brick, ABSENT, BRICK, BRICK_VOXELS,
+};
 
 /// The inclusive per-axis bounds of points (bricks or voxels); None when there are none.
 pub fn bounds(points: &[[i32; 3]]) -> Option<([i32; 3], [i32; 3])> {

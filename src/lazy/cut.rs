@@ -309,7 +309,6 @@ pub fn cut(synth: &mut Synthesizer, spec: &CutSpec) -> Result<Image> {
     Ok(img)
 }
 
-
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -131,7 +131,12 @@ impl Synthesizer {
 
     /// The plan of `group` through the levels from `first`: the one made by
     /// [`Self::planned_one_group`] when it is for this group, else a new one.
-    pub(super) fn plan_of(&mut self, group: &[Brick], exact: Option<Box3>, first: usize) -> Vec<SparseLevel> {
+    pub(super) fn plan_of(
+        &mut self,
+        group: &[Brick],
+        exact: Option<Box3>,
+        first: usize,
+    ) -> Vec<SparseLevel> {
         if let Some((planned, planned_exact, levels)) = self.next_plan.take() {
             if planned == group && planned_exact == exact {
                 return levels;
@@ -213,7 +218,11 @@ impl Synthesizer {
 
 /// The plan of a group of bricks: voxel-exact at the finest level when the request is the
 /// box `exact` (see [`Synthesizer::for_each_group`]).
-pub(super) fn plan_group(group: &[Brick], exact: Option<Box3>, passes: &[usize]) -> Vec<SparseLevel> {
+pub(super) fn plan_group(
+    group: &[Brick],
+    exact: Option<Box3>,
+    passes: &[usize],
+) -> Vec<SparseLevel> {
     match exact {
         Some(b) => bricks::plan_voxel_box(b, passes),
         None => bricks::plan_sparse(group, passes),

@@ -63,7 +63,11 @@ pub fn coarse_cache_bytes(coarse_cache: Option<u32>) -> u64 {
 /// bytes per voxel, an eighth of the finest voxels, and the level below it while it is built:
 /// at most 1.7 bytes per finest voxel, 2 with the padding) and one group's parent state built on
 /// the host (an eighth of its voxels, one copy: a sixteenth of its working set).
-pub fn shared_levels_bytes(coarse_cache: Option<u32>, finest_voxels: u64, group_working: u64) -> u64 {
+pub fn shared_levels_bytes(
+    coarse_cache: Option<u32>,
+    finest_voxels: u64,
+    group_working: u64,
+) -> u64 {
     if coarse_cache.is_some() {
         return 0;
     }
@@ -88,7 +92,10 @@ pub fn coarse_group_bytes(coarse_cache: Option<u32>, group: u32, largest: u32) -
 pub fn box_working_bytes(size: [u64; 3], group: u32, coarse_cache: Option<u32>) -> u64 {
     let largest = size.into_iter().max().unwrap_or(0) as u32;
     let group = group.min(largest);
-    let padded: u64 = size.iter().map(|&d| d + 2 * PADDING_ESTIMATE as u64).product();
+    let padded: u64 = size
+        .iter()
+        .map(|&d| d + 2 * PADDING_ESTIMATE as u64)
+        .product();
     let working = chunk_bytes(group);
     working.max(coarse_group_bytes(coarse_cache, group, largest))
         + coarse_cache_bytes(coarse_cache)

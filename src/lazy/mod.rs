@@ -43,20 +43,20 @@ pub use bricks::{Brick, BrickGrid, SparseLevel};
 use index_layout::IndexLayout;
 use level_triples::LevelTriples;
 pub use memory::{group_cap, PADDING_ESTIMATE};
-pub use options::SynthOptions;
 use options::RequestKind;
+pub use options::SynthOptions;
 use pack::LevelPack;
 use params::periods_below;
-use request::{Job, Periodic};
-pub use request::{Delivery, Region, Request};
-pub use slabs::Slab;
-use slabs::SlabsJoined;
 pub use params::{
     check_tileable_size, CandidateMode, ChannelSource, ChannelSources, ColorSource, PassSchedule,
     SynthParams, MAX_PASSES,
 };
 pub use plan::Box3;
 use rayon::prelude::*;
+pub use request::{Delivery, Region, Request};
+use request::{Job, Periodic};
+pub use slabs::Slab;
+use slabs::SlabsJoined;
 
 /// Order of the parity classes (bit 0 = x, 1 = y, 2 = z) within a pass. Chosen (exhaustively,
 /// over all 8! orders) to minimize the dependency padding when every sub-pass read the latest
@@ -504,7 +504,6 @@ impl Synthesizer {
     pub fn kernel_times(&self) -> Option<&exec::KernelTimes> {
         self.times.as_ref()
     }
-
 }
 
 /// The box `voxels` fill exactly (each of its voxels once, in any order), if they do.

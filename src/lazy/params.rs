@@ -1,8 +1,8 @@
 //! What defines a solid besides its analysis ([`SynthParams`]: seed, jitter, candidate mode,
 //! correction passes per level, colour rule, coarse-level cache), with the checks on them.
 
-use crate::contract::jitter;
 use crate::analysis::ANALYSED_LEVELS;
+use crate::contract::jitter;
 use crate::error::{Error, Result};
 
 /// Most correction passes a level may run.

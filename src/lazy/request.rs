@@ -283,12 +283,8 @@ impl Synthesizer {
         // The coarse levels hold about a seventh of the voxels.
         let coarse_share = 0.15;
         let coarse_progress = |m: &str, f| progress(m, coarse_share * f);
-        let parents = self.level_triples(
-            wanted,
-            finest - 1,
-            job.reporting(&coarse_progress),
-            stats,
-        )?;
+        let parents =
+            self.level_triples(wanted, finest - 1, job.reporting(&coarse_progress), stats)?;
         // (Not in a warm session, whose next request of several groups would build them again.)
         if !self.exec.keeps_buffers() {
             self.exec.release_coarse_pipelines(finest);
@@ -413,7 +409,7 @@ impl Synthesizer {
         }
         let levels = self.plan_of(group, job.exact, 0);
         self.synthesize_group(levels, 0, FirstLevel::Init, group, job, stats)
-        .map(|r| (r.colors, r.triples))
+            .map(|r| (r.colors, r.triples))
     }
 }
 

@@ -73,44 +73,39 @@ impl Synthesizer {
             exact: Some(out),
             ..job
         };
-        self.for_each_group(
-            &all,
-            job,
-            |group, colors, group_triples| {
-                let bz = group.iter().map(|b| b[2]).fold(i32::MAX, i32::min);
-                let bz_end = group.iter().map(|b| b[2]).fold(i32::MIN, i32::max) + 1;
-                let z =
-                    (bz * bricks::BRICK).max(out.lo[2])..(bz_end * bricks::BRICK).min(out.hi[2]);
-                if pending
-                    .as_ref()
-                    .is_some_and(|(range, ..)| z.start >= range.end)
-                {
-                    flush(&mut pending)?;
-                }
-                let (range, slab, slab_triples) = pending.get_or_insert_with(|| {
-                    let depth = (z.end - z.start) as u32;
-                    let voxels = size[0] as usize * size[1] as usize * depth as usize;
-                    (
-                        z.clone(),
-                        Volume::new(size[0], size[1], depth, channels as u32),
-                        vec![0; if want_triples { voxels * 3 } else { 0 }],
-                    )
-                });
-                debug_assert!(z.start >= range.start && z.end <= range.end);
-                let timer = std::time::Instant::now();
-                place_group(
-                    group,
-                    colors,
-                    group_triples,
-                    out,
-                    range.start,
-                    slab,
-                    want_triples.then_some(slab_triples),
-                );
-                tracing::debug!("group placed in its slab in {:.1} ms", ms(timer));
-                Ok(())
-            },
-        )?;
+        self.for_each_group(&all, job, |group, colors, group_triples| {
+            let bz = group.iter().map(|b| b[2]).fold(i32::MAX, i32::min);
+            let bz_end = group.iter().map(|b| b[2]).fold(i32::MIN, i32::max) + 1;
+            let z = (bz * bricks::BRICK).max(out.lo[2])..(bz_end * bricks::BRICK).min(out.hi[2]);
+            if pending
+                .as_ref()
+                .is_some_and(|(range, ..)| z.start >= range.end)
+            {
+                flush(&mut pending)?;
+            }
+            let (range, slab, slab_triples) = pending.get_or_insert_with(|| {
+                let depth = (z.end - z.start) as u32;
+                let voxels = size[0] as usize * size[1] as usize * depth as usize;
+                (
+                    z.clone(),
+                    Volume::new(size[0], size[1], depth, channels as u32),
+                    vec![0; if want_triples { voxels * 3 } else { 0 }],
+                )
+            });
+            debug_assert!(z.start >= range.start && z.end <= range.end);
+            let timer = std::time::Instant::now();
+            place_group(
+                group,
+                colors,
+                group_triples,
+                out,
+                range.start,
+                slab,
+                want_triples.then_some(slab_triples),
+            );
+            tracing::debug!("group placed in its slab in {:.1} ms", ms(timer));
+            Ok(())
+        })?;
         flush(&mut pending)
     }
 }

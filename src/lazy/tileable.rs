@@ -144,8 +144,8 @@ mod tileable_tests {
     use super::super::request::{Job, Periodic};
     use super::*;
     use crate::analysis::{AnalysisInput, AnalysisParams};
-    use crate::lazy::analyze;
     use crate::exemplar::Border;
+    use crate::lazy::analyze;
 
     /// A tileable solid is exactly periodic: a box of the periodic solid shifted by part of a
     /// period holds the tileable volume's voxels rolled by that shift, for a period in one
@@ -177,14 +177,10 @@ mod tileable_tests {
                 max_group: None,
                 progress: &|_, _| {},
             };
-            s.synthesize_slabs_of(
-                out,
-                job,
-                |slab| {
-                    shifted.extend_from_slice(&slab.volume.data);
-                    Ok(())
-                },
-            )
+            s.synthesize_slabs_of(out, job, |slab| {
+                shifted.extend_from_slice(&slab.volume.data);
+                Ok(())
+            })
             .unwrap();
             let c = whole.channels as usize;
             let mut i = 0;

@@ -1,9 +1,9 @@
 //! Rendering a PTM under chosen lights (kernel `ptm_relight` on the selected backend) into
 //! images, and contact sheets of a ring of lights.
 
+use super::Lighting;
 use super::Ptm;
 use crate::backend::Compute;
-use super::Lighting;
 use crate::error::Result;
 
 /// r, g, b per pixel (unit intensity, unclamped) under `light`, on `compute`.

@@ -115,7 +115,9 @@ fn parse(bytes: &[u8], key: u128) -> std::result::Result<Analysis, String> {
     }
     let stored = u128::from_le_bytes(bytes[MAGIC.len()..header].try_into().unwrap());
     if stored != key {
-        return Err(format!("it holds the analysis of another input ({stored:032x})"));
+        return Err(format!(
+            "it holds the analysis of another input ({stored:032x})"
+        ));
     }
     ssa::from_bytes(&bytes[header..])
 }
@@ -129,21 +131,27 @@ pub fn cache_key(input: &AnalysisInput, params: &AnalysisParams) -> u128 {
         }
     }
     let mut h = xxhash_rust::xxh3::Xxh3::new();
-    words(&mut h, &[
-        ssa::FORMAT_VERSION,
-        ALGORITHM_REVISION,
-        input.border.code(),
-        params.strips_per_axis,
-        params.crossbar_keep,
-        params.max_3d,
-        params.max_filter_rounds,
-        params.feature_weight.to_bits(),
-        params.balance_rounds,
-        params.balance_strength.to_bits(),
-    ]);
+    words(
+        &mut h,
+        &[
+            ssa::FORMAT_VERSION,
+            ALGORITHM_REVISION,
+            input.border.code(),
+            params.strips_per_axis,
+            params.crossbar_keep,
+            params.max_3d,
+            params.max_filter_rounds,
+            params.feature_weight.to_bits(),
+            params.balance_rounds,
+            params.balance_strength.to_bits(),
+        ],
+    );
     words(&mut h, &params.pca_dims);
     words(&mut h, &params.k2d);
-    words(&mut h, &[input.exemplars.len() as u32, input.masks.len() as u32]);
+    words(
+        &mut h,
+        &[input.exemplars.len() as u32, input.masks.len() as u32],
+    );
     for img in input.exemplars.iter().chain(&input.masks) {
         words(&mut h, &[img.width, img.height, img.channels]);
         h.update(&(img.pixels.len() as u64).to_le_bytes());

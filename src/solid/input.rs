@@ -104,8 +104,7 @@ impl ExemplarInput {
                 ));
             }
         }
-        if self.feature_masks == FeatureMasks::None
-            && self.feature_weight != DEFAULT_FEATURE_WEIGHT
+        if self.feature_masks == FeatureMasks::None && self.feature_weight != DEFAULT_FEATURE_WEIGHT
         {
             return Err(Error::invalid(
                 "--feature-weight",

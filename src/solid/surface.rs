@@ -97,8 +97,12 @@ impl SurfacePlan {
         let mut wanted = BrickSet::default();
         atlas.for_each_texel_voxel(mesh, &placement, |_, p| wanted.add(p));
         let wanted = wanted.finish();
-        let working =
-            memory::sparse_working_bytes(wanted.len() as u64, resolution as f64, group_side, coarse_cache);
+        let working = memory::sparse_working_bytes(
+            wanted.len() as u64,
+            resolution as f64,
+            group_side,
+            coarse_cache,
+        );
         let total = working + estimate;
         if total > available {
             return Err(Error::invalid(

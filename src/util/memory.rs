@@ -68,7 +68,10 @@ pub fn available_memory_under(root: &std::path::Path) -> u64 {
     let read = |p: &str| std::fs::read_to_string(root.join(p)).ok();
     let machine = read("proc/meminfo")
         .and_then(|s| {
-            let line = s.lines().find(|l| l.starts_with("MemAvailable:"))?.to_string();
+            let line = s
+                .lines()
+                .find(|l| l.starts_with("MemAvailable:"))?
+                .to_string();
             line.split_whitespace().nth(1)?.parse::<u64>().ok()
         })
         .map_or(u64::MAX, |kib| kib.saturating_mul(1024));
@@ -80,12 +83,17 @@ pub fn available_memory_under(root: &std::path::Path) -> u64 {
 /// up their hierarchy to the root; u64::MAX where none is set.
 fn cgroup_room(root: &std::path::Path, proc_cgroup: &str) -> u64 {
     let number = |path: std::path::PathBuf| -> Option<u64> {
-        std::fs::read_to_string(path).ok()?.trim().parse::<u64>().ok()
+        std::fs::read_to_string(path)
+            .ok()?
+            .trim()
+            .parse::<u64>()
+            .ok()
     };
     let mut room = u64::MAX;
     for line in proc_cgroup.lines() {
         let mut fields = line.splitn(3, ':');
-        let (Some(_), Some(controllers), Some(path)) = (fields.next(), fields.next(), fields.next())
+        let (Some(_), Some(controllers), Some(path)) =
+            (fields.next(), fields.next(), fields.next())
         else {
             continue;
         };
@@ -93,7 +101,11 @@ fn cgroup_room(root: &std::path::Path, proc_cgroup: &str) -> u64 {
             // cgroup v2: one unified hierarchy.
             ("sys/fs/cgroup", "memory.max", "memory.current")
         } else if controllers.split(',').any(|c| c == "memory") {
-            ("sys/fs/cgroup/memory", "memory.limit_in_bytes", "memory.usage_in_bytes")
+            (
+                "sys/fs/cgroup/memory",
+                "memory.limit_in_bytes",
+                "memory.usage_in_bytes",
+            )
         } else {
             continue;
         };
@@ -149,10 +161,22 @@ mod tests {
         assert_eq!(available_memory_under(v2.path()), 1_000_000_000);
         let v1 = tree(&[
             ("proc/meminfo", MEMINFO),
-            ("proc/self/cgroup", "12:cpu,cpuacct:/x\n4:memory:/docker/abc\n"),
-            ("sys/fs/cgroup/memory/docker/abc/memory.limit_in_bytes", "536870912\n"),
-            ("sys/fs/cgroup/memory/docker/abc/memory.usage_in_bytes", "36870912\n"),
-            ("sys/fs/cgroup/memory/memory.limit_in_bytes", "9223372036854771712\n"),
+            (
+                "proc/self/cgroup",
+                "12:cpu,cpuacct:/x\n4:memory:/docker/abc\n",
+            ),
+            (
+                "sys/fs/cgroup/memory/docker/abc/memory.limit_in_bytes",
+                "536870912\n",
+            ),
+            (
+                "sys/fs/cgroup/memory/docker/abc/memory.usage_in_bytes",
+                "36870912\n",
+            ),
+            (
+                "sys/fs/cgroup/memory/memory.limit_in_bytes",
+                "9223372036854771712\n",
+            ),
             ("sys/fs/cgroup/memory/memory.usage_in_bytes", "5000000000\n"),
         ]);
         assert_eq!(available_memory_under(v1.path()), 500_000_000);

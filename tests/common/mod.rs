@@ -44,7 +44,9 @@ pub fn crop(img: &Image, w: u32, h: u32) -> Image {
 /// number made huge.
 pub fn mutate(valid: &[u8], rng: &mut solidsynth::util::hash::SeededRng) -> Vec<u8> {
     let mut b = valid.to_vec();
-    let at = |rng: &mut solidsynth::util::hash::SeededRng, len: usize| rng.below(len.max(1) as u64) as usize;
+    let at = |rng: &mut solidsynth::util::hash::SeededRng, len: usize| {
+        rng.below(len.max(1) as u64) as usize
+    };
     match rng.below(5) {
         // Truncated anywhere.
         0 => b.truncate(at(rng, valid.len())),
@@ -59,7 +61,11 @@ pub fn mutate(valid: &[u8], rng: &mut solidsynth::util::hash::SeededRng) -> Vec<
         }
         // A little-endian word (a length or count, often) set huge, in the head or anywhere.
         2 => {
-            let span = if rng.below(2) == 0 { 256.min(b.len()) } else { b.len() };
+            let span = if rng.below(2) == 0 {
+                256.min(b.len())
+            } else {
+                b.len()
+            };
             let i = at(rng, span.saturating_sub(4));
             let huge = [u32::MAX, 0x7FFF_FFFF, 0x4000_0000, 1 << 24][rng.below(4) as usize];
             if i + 4 <= b.len() {
@@ -84,4 +90,3 @@ pub fn mutate(valid: &[u8], rng: &mut solidsynth::util::hash::SeededRng) -> Vec<
     }
     b
 }
-

@@ -282,7 +282,15 @@ pub(super) fn fused_run<const MADD: bool>(
             for (l, t) in found {
                 let s = Window::brick_slot(m, l);
                 let mut record = [0u32; 4];
-                write_voxel(&mut record, ctx.level, t, pixels, p.ex.width, 1, p.ex.channels);
+                write_voxel(
+                    &mut record,
+                    ctx.level,
+                    t,
+                    pixels,
+                    p.ex.width,
+                    1,
+                    p.ex.channels,
+                );
                 window.triples[s] = t;
                 window.values[s] = record[3];
             }

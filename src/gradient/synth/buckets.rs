@@ -22,8 +22,8 @@
 use super::matching::{Match, MatchContext, UNMATCHED};
 use super::refine::Targets;
 use super::{wrap, PeriodicSolid};
-use crate::backend::Compute;
 use crate::backend::buckets::{dominant, Buckets, PackedSums};
+use crate::backend::Compute;
 use crate::error::Result;
 use crate::gradient::SPACING;
 use nalgebra::{Matrix4, Vector4};
@@ -72,7 +72,6 @@ fn indices_in_band(
         }
     }
 }
-
 
 /// One tile's view of the samples: the buckets of control layers `layers` (voxels z in
 /// [4 layers.start - 2, 4 layers.end - 2)), control rows `rows` (likewise along y) and control
@@ -617,12 +616,7 @@ fn accumulate_on_gpu(gpu: &Compute, tiles: &[Tile]) -> Result<Vec<Buckets>> {
                 }
             });
         let parts: Vec<&[u32]> = lists[start..end].iter().map(|l| &l[..]).collect();
-        let all = gpu.bucket_accumulate_parts(
-            &parts,
-            voxels,
-            clusters as u32,
-            channels as u32,
-        )?;
+        let all = gpu.bucket_accumulate_parts(&parts, voxels, clusters as u32, channels as u32)?;
         let (mut counts, mut sums) = (&all.counts[..], &all.sums[..]);
         for tile in &tiles[start..end] {
             let v = tile.voxels();

@@ -3,10 +3,10 @@
 //! grid), their PCA projections for the nearest-patch search, and what the bucket step reads back: the sample
 //! values and, at the finest level, their colour clusters.
 
-use crate::backend::buckets::PackedSums;
 use super::folded::FoldedProjection;
 use super::ivf::IvfIndex;
 use super::pca::{PatchPca, KEPT, MAX_SAMPLES};
+use crate::backend::buckets::PackedSums;
 use crate::error::{Error, Result};
 use crate::exemplar::Image;
 use rayon::prelude::*;
