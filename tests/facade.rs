@@ -133,16 +133,25 @@ fn bad_input_through_the_facade_is_refused_by_name() {
 
 #[test]
 fn a_cancelled_request_stops_with_a_typed_error() {
-    let token = CancelToken::new();
-    let mut solid = Solid::builder()
+    // One analysis, two solids of it, each with its own token, in groups of 8 voxels.
+    let builder = Solid::builder()
         .exemplar(common::fixture("cells32.png"))
         .periodic(true)
         .balance(0, 1.0)
         .max_group(Some(8))
-        .cancel(token.clone())
-        .cpu()
-        .build()
-        .unwrap();
+        .cpu();
+    let analysis = builder.analyze().unwrap();
+    let solid_with = |token: CancelToken| {
+        builder
+            .clone()
+            .shared_analysis(analysis.clone())
+            .exemplar_input(ExemplarInput::default())
+            .cancel(token)
+            .build()
+            .unwrap()
+    };
+    let token = CancelToken::new();
+    let mut solid = solid_with(token.clone());
     let b = Box3::new([0; 3], [24; 3]);
     let whole = solid.region(b).unwrap();
     token.cancel();
@@ -150,15 +159,7 @@ fn a_cancelled_request_stops_with_a_typed_error() {
     // Cancelled part way: the sink saw some slabs, then the request stopped.
     let token = CancelToken::new();
     let stop = token.clone();
-    let mut solid = Solid::builder()
-        .exemplar(common::fixture("cells32.png"))
-        .periodic(true)
-        .balance(0, 1.0)
-        .max_group(Some(8))
-        .cancel(token)
-        .cpu()
-        .build()
-        .unwrap();
+    let mut solid = solid_with(token);
     let mut slabs = 0;
     let r = solid.region_slabs(b, false, |slab| {
         slabs += 1;

@@ -483,6 +483,12 @@ impl Synthesizer {
         }
     }
 
+    /// The largest group edge of a box or tileable request (None: as large as the backend
+    /// allows): what a box's memory estimate assumes.
+    pub fn volume_group_limit(&self) -> Option<u32> {
+        self.group_limit(RequestKind::Volume)
+    }
+
     /// The largest group edge of a request of `kind`: the options' `max_group`, else the
     /// library's default ([`SynthOptions::max_group`]).
     fn group_limit(&self, kind: RequestKind) -> Option<u32> {

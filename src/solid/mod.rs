@@ -372,15 +372,8 @@ impl Solid {
     /// The working bytes a box of `size` voxels needs, with `output_bytes` of the caller's
     /// outputs, before anything is allocated ([`memory::box_working_bytes`]).
     pub fn box_memory_estimate(&self, size: [u64; 3]) -> u64 {
-        let group = self
-            .synth
-            .options()
-            .max_group
-            .unwrap_or(if self.compute.memory_is_hosts() {
-                memory::HOST_MEMORY_GROUP
-            } else {
-                512
-            });
+        // The synthesizer's own grouping (512: the engine's largest group).
+        let group = self.synth.volume_group_limit().unwrap_or(512);
         memory::box_working_bytes(size, group, self.synth.params.coarse_cache)
             + size.iter().product::<u64>() * self.color_channels() as u64
     }
