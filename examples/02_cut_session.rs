@@ -1,6 +1,6 @@
 //! Planar cuts on demand: a warm session cuts the infinite solid anywhere, at any angle, and
 //! prints each cut's latency. `cargo run --release --example 02_cut_session`
-use solidsynth::lazy::cut::CutSpec;
+use solidsynth::CutSpec;
 use solidsynth::Solid;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {

@@ -3,9 +3,9 @@
 //! the voxels into a storage buffer it owns and reads them back, and they equal the CPU
 //! backend's bytes. `cargo run --release --example 04_host_device` (needs a Vulkan adapter:
 //! lavapipe works; without one it says so and exits 0, unless CI is set).
-use solidsynth::backend::Compute;
-use solidsynth::gpu::{GpuContext, GpuOptions};
+use solidsynth::Compute;
 use solidsynth::{Box3, Solid};
+use solidsynth::{GpuContext, GpuOptions};
 use std::sync::Arc;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {

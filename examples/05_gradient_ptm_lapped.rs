@@ -1,11 +1,11 @@
 //! The other three papers, one call each: a gradient solid synthesized from an exemplar, a
 //! relightable (PTM) texture fitted and relit, a lapped solid texture filled into a sphere and
 //! cut. `cargo run --release --example 05_gradient_ptm_lapped`
-use solidsynth::backend::Compute;
 use solidsynth::gradient::synth::{synthesize, GradientSynthParams};
 use solidsynth::lapped::field::Constraints;
 use solidsynth::lapped::{self, FillInputs, FillOptions};
 use solidsynth::ptm::{capture, fit, relight, Lighting, PtmFormat};
+use solidsynth::Compute;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let compute = Compute::Cpu;
@@ -62,7 +62,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         ..Default::default()
     };
     let (model, _) = lapped::build(inputs, &opts, &|_, _| {})?;
-    let spec = solidsynth::lazy::cut::CutSpec {
+    let spec = solidsynth::CutSpec {
         origin: [0.0; 3],
         normal: [0.0, 0.0, 1.0],
         up: None,

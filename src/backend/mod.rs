@@ -19,7 +19,7 @@ use std::sync::Arc;
 pub mod buckets {
     pub use crate::contract::buckets::Buckets;
     pub use crate::cpu::bucket_accumulate::{
-        bucket_accumulate as reference_accumulate, dominant, PackedSums,
+        dominant, PackedSums,
     };
 }
 

@@ -1,13 +1,13 @@
 //! `solidsynth analyze`, and the input handling shared with the commands that synthesize.
 
+use crate::analysis::frame::InputFrame;
+use crate::analysis::{self, Analysis};
+use crate::backend::Compute;
+use crate::exemplar;
+use crate::io::{atomic, ssa};
+use crate::solid::{AnalysisCache, ExemplarInput, FeatureMasks};
+use crate::{Error, Solid, SolidBuilder};
 use clap::Args;
-use solidsynth::analysis::frame::InputFrame;
-use solidsynth::analysis::{self, Analysis};
-use solidsynth::backend::Compute;
-use solidsynth::exemplar;
-use solidsynth::io::{atomic, ssa};
-use solidsynth::solid::{AnalysisCache, ExemplarInput, FeatureMasks};
-use solidsynth::{Error, Solid, SolidBuilder};
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Instant;
@@ -47,7 +47,7 @@ pub struct InputArgs {
     #[arg(long)]
     pub ez_feature_mask: Option<PathBuf>,
     /// Weight of the feature channel relative to one colour channel.
-    #[arg(long, default_value_t = solidsynth::analysis::DEFAULT_FEATURE_WEIGHT)]
+    #[arg(long, default_value_t = crate::analysis::DEFAULT_FEATURE_WEIGHT)]
     pub feature_weight: f32,
     /// The exemplars tile (wrap around at the edges). Without it, edges are mirrored so no
     /// neighbourhood straddles the seam of a non-tileable image. The built-in exemplar tiles.
@@ -56,7 +56,7 @@ pub struct InputArgs {
     /// Usage-balancing rounds of the analysis: small calibration solids that find the exemplar
     /// pixels the correction over-uses, which it then penalizes (keeps photographs from washing
     /// out to a few flat pixels). 0: the paper's unmodified search.
-    #[arg(long, default_value_t = solidsynth::analysis::balance::DEFAULT_ROUNDS)]
+    #[arg(long, default_value_t = crate::analysis::balance::DEFAULT_ROUNDS)]
     pub balance_rounds: u32,
     /// Strength of the usage penalty (0..=8).
     #[arg(long, default_value_t = 1.0)]
@@ -68,9 +68,9 @@ pub struct InputArgs {
 /// Where the feature channel's masks come from.
 #[derive(Clone, Debug, PartialEq)]
 pub enum FeatureMask {
-    /// [`solidsynth::exemplar::feature::auto_masks`] of the exemplars.
+    /// [`crate::exemplar::feature::auto_masks`] of the exemplars.
     Auto,
-    /// [`solidsynth::exemplar::feature::edge_masks`] of the exemplars.
+    /// [`crate::exemplar::feature::edge_masks`] of the exemplars.
     Edges,
     /// No feature channel.
     None,
@@ -94,7 +94,7 @@ impl InputArgs {
         self.feature_mask != FeatureMask::Auto
             || self.ey_feature_mask.is_some()
             || self.ez_feature_mask.is_some()
-            || self.feature_weight != solidsynth::analysis::DEFAULT_FEATURE_WEIGHT
+            || self.feature_weight != crate::analysis::DEFAULT_FEATURE_WEIGHT
     }
 
     fn is_ssa(&self) -> bool {
@@ -104,7 +104,7 @@ impl InputArgs {
     }
 
     /// The exemplar-side settings the arguments name, images and masks loaded.
-    pub fn exemplar_input(&self) -> solidsynth::Result<ExemplarInput> {
+    pub fn exemplar_input(&self) -> crate::Result<ExemplarInput> {
         let mut images = Vec::new();
         let mut names = Vec::new();
         match &self.input {
@@ -171,7 +171,7 @@ impl InputArgs {
 
     /// The analysis side of a solid's builder: an .ssa file loaded, or the exemplars with the
     /// user's analysis cache.
-    pub fn builder(&self) -> solidsynth::Result<SolidBuilder> {
+    pub fn builder(&self) -> crate::Result<SolidBuilder> {
         let builder = Solid::builder().backend(self.backend.backend, self.backend.gpu_options());
         if self.is_ssa() {
             if self.ey.is_some() || self.feature_mask_given() || self.frame.is_some() {
@@ -202,7 +202,7 @@ pub fn load_or_analyze(
     args: &InputArgs,
     compute: &Compute,
     quiet: bool,
-) -> solidsynth::Result<Arc<Analysis>> {
+) -> crate::Result<Arc<Analysis>> {
     let bar = super::progress_bar(quiet);
     let shown = bar.clone();
     let builder = args.builder()?.progress(move |stage: &str, f: f32| {
@@ -256,7 +256,7 @@ pub fn run(args: AnalyzeArgs, quiet: bool) -> anyhow::Result<()> {
         let summary = serde_json::json!({
             "output": args.output, "width": finest.width, "height": finest.height,
             "shared": result.shared, "bytes": bytes.len(), "seconds": seconds,
-            "peak_rss_bytes": solidsynth::util::memory::peak_rss_bytes(),
+            "peak_rss_bytes": crate::util::memory::peak_rss_bytes(),
             "backend": compute.describe(),
         });
         println!("{summary}");

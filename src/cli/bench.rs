@@ -1,7 +1,7 @@
 //! `solidsynth bench ...`: benchmark tables (the numbers recorded in BENCHMARKS.md).
 
+use crate::exemplar::{self, procedural, Image};
 use clap::{Args, Subcommand};
-use solidsynth::exemplar::{self, procedural, Image};
 use std::path::PathBuf;
 use std::process::Command;
 use std::time::Instant;
@@ -83,7 +83,7 @@ pub struct BenchSynthArgs {
     pub feature_mask: String,
     /// Correction passes, as `synth --passes` (one count, or one per level, coarsest first).
     #[arg(long, default_value = "2", value_name = "N|N,N,N,N")]
-    pub passes: solidsynth::lazy::PassSchedule,
+    pub passes: crate::lazy::PassSchedule,
     /// Largest group, as `synth --max-group`.
     #[arg(long, value_name = "VOXELS")]
     pub max_group: Option<u32>,
@@ -103,7 +103,7 @@ pub struct BenchAnalyzeArgs {
     pub runs: u32,
     /// Usage-balancing rounds of each analysis (see `analyze --balance-rounds`; 0 times the
     /// paper's precomputation alone).
-    #[arg(long, default_value_t = solidsynth::analysis::balance::DEFAULT_ROUNDS)]
+    #[arg(long, default_value_t = crate::analysis::balance::DEFAULT_ROUNDS)]
     pub balance_rounds: u32,
     /// The feature channel, as `analyze --feature-mask` (auto, edges or none).
     #[arg(long, default_value = "auto", value_parser = ["auto", "edges", "none"])]
@@ -204,14 +204,14 @@ fn bench_gradient_synth(args: BenchGradientArgs) -> anyhow::Result<()> {
 }
 
 fn bench_gradient_render(args: BenchRenderArgs) -> anyhow::Result<()> {
-    use solidsynth::backend::Compute;
-    use solidsynth::gradient::render::{random_solid, render_u8};
-    use solidsynth::gradient::Query;
+    use crate::backend::Compute;
+    use crate::gradient::render::{random_solid, render_u8};
+    use crate::gradient::Query;
     let mut backends = vec![("cpu", Compute::Cpu)];
     if !args.no_gpu {
-        let mut opts = solidsynth::gpu::GpuOptions::from_env();
+        let mut opts = crate::gpu::GpuOptions::from_env();
         opts.adapter_filter = args.adapter.clone().or(opts.adapter_filter);
-        let ctx = solidsynth::gpu::GpuContext::new(&opts)?;
+        let ctx = crate::gpu::GpuContext::new(&opts)?;
         println!("adapter: {}", ctx.describe());
         backends.push(("gpu", Compute::Gpu(std::sync::Arc::new(ctx))));
     }
@@ -368,7 +368,7 @@ fn bench_analyze(args: BenchAnalyzeArgs) -> anyhow::Result<()> {
     if let Some(src) = &source {
         let biggest = args.sizes.iter().copied().max().unwrap_or(0);
         if src.width < biggest || src.height < biggest {
-            anyhow::bail!(solidsynth::Error::invalid(
+            anyhow::bail!(crate::Error::invalid(
                 "--exemplar",
                 format!(
                     "is {}x{}, smaller than --sizes {biggest}",

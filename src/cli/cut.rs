@@ -3,10 +3,10 @@
 
 use super::analyze::load_or_analyze;
 use super::synth::SolidParams;
+use crate::io::atomic;
+use crate::lazy::cut::CutSpec;
+use crate::Error;
 use clap::Args;
-use solidsynth::io::atomic;
-use solidsynth::lazy::cut::CutSpec;
-use solidsynth::Error;
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -45,7 +45,7 @@ pub struct CutArgs {
 }
 
 /// Parse `A,B,C` (finite numbers) for `flag`.
-pub fn triple(text: &str, flag: &str) -> solidsynth::Result<[f64; 3]> {
+pub fn triple(text: &str, flag: &str) -> crate::Result<[f64; 3]> {
     let v: Vec<f64> = text
         .split(',')
         .map(|t| t.trim().parse::<f64>())
@@ -76,19 +76,16 @@ pub fn run(args: CutArgs, quiet: bool) -> anyhow::Result<()> {
     spec.frame()?;
     let params = args.solid.synth_params();
     params.validate()?;
-    // The bricks a cut crosses: its plane's area over a brick face, up to sqrt(3) more for an
-    // oblique plane and a margin for its edges; never more than one per pixel.
-    let extent = args.size as f64 * args.spacing;
-    let pixels = args.size as u64 * args.size as u64;
-    let bricks = ((extent / 4.0 + 2.0).powi(2) * 1.75).min(pixels as f64) as u64;
-    super::synth::check_sparse_memory(
+    crate::solid::memory::check_cut(
         &format!("cut --size {} --spacing {}", args.size, args.spacing),
-        bricks,
-        extent,
+        args.size,
+        args.spacing,
+        args.solid
+            .max_group
+            .unwrap_or(crate::lazy::memory::LARGEST_GROUP),
+        args.solid.coarse_cache,
         // The image, its PNG and the sample positions.
-        pixels * 24,
-        &args.solid,
-        args.solid.max_group.unwrap_or(512),
+        args.size as u64 * args.size as u64 * 24,
     )?;
     let compute = args.solid.input.backend.open()?;
     let analysis = load_or_analyze(&args.solid.input, &compute, quiet || args.json)?;
@@ -138,7 +135,7 @@ pub fn run(args: CutArgs, quiet: bool) -> anyhow::Result<()> {
             serde_json::json!({"output": args.output, "size": args.size, "repeat": args.repeat,
                 "median_ms": median, "p95_ms": p95, "first_ms": latencies[0], "kernels": kernels,
                 "stats": session.synthesizer().last_stats(),
-                "peak_rss_bytes": solidsynth::util::memory::peak_rss_bytes(), "backend": compute.describe()})
+                "peak_rss_bytes": crate::util::memory::peak_rss_bytes(), "backend": compute.describe()})
         );
     } else if !quiet {
         eprintln!(

@@ -1,10 +1,10 @@
 //! `solidsynth eval`.
 
+use crate::analysis::frame::InputFrame;
+use crate::exemplar;
+use crate::io::{atomic, nrrd};
+use crate::metrics::{self, sheet, EvalParams, Scores};
 use clap::Args;
-use solidsynth::analysis::frame::{resolve_frame, to_crate_frame, InputFrame};
-use solidsynth::exemplar;
-use solidsynth::io::{atomic, nrrd};
-use solidsynth::metrics::{self, sheet, EvalParams, Scores};
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -50,8 +50,7 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
         exemplars.push(exemplar::load_image(ey, "--ey")?);
         exemplars.push(exemplar::load_image(ez, "--ez")?);
     }
-    let frame = resolve_frame(&exemplars, args.frame)?;
-    let exemplars = to_crate_frame(exemplars, frame);
+    let exemplars = metrics::exemplars_in_eval_frame(exemplars, args.frame)?;
     let volume = nrrd::load(&args.volume)?;
     let params = EvalParams {
         slices_per_axis: args.slices,
@@ -59,8 +58,8 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
         ..Default::default()
     };
     let report = metrics::evaluate(&volume, &exemplars, &params).map_err(|e| match e {
-        solidsynth::Error::InvalidInput { what, problem } if what == "volume" => {
-            solidsynth::Error::invalid(format!("volume {}", args.volume.display()), problem)
+        crate::Error::InvalidInput { what, problem } if what == "volume" => {
+            crate::Error::invalid(format!("volume {}", args.volume.display()), problem)
         }
         other => other,
     })?;

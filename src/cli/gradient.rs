@@ -4,13 +4,14 @@
 //! Length: about 720 lines of the gradient subcommands' arguments, checks and reports (no engine
 //! logic).
 
+use crate::backend::Compute;
+use crate::gradient::file::GradientFile;
+use crate::gradient::regions::{self, Blend, RegionSolid};
+use crate::gradient::Query;
+use crate::gradient::{detail, edit, format, vectorize, GradientSolid};
+use crate::io::{atomic, nrrd};
+use crate::Error;
 use clap::{Args, Subcommand};
-use solidsynth::backend::Compute;
-use solidsynth::gradient::regions::{self, Blend, RegionSolid};
-use solidsynth::gradient::{detail, edit, format, vectorize, GradientSolid};
-use solidsynth::gradient::{quantize, Query};
-use solidsynth::io::{atomic, nrrd};
-use solidsynth::Error;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -59,7 +60,7 @@ pub struct SynthArgs {
     /// Nearest-patch search: P > 0 approximate (the paper's ANN step), scanning the P lists (of
     /// about sqrt(candidates), k-means of the patches' projections) nearest to each query; 0
     /// exact (exhaustive, about 3x slower; the same quality by `eval`).
-    #[arg(long, default_value_t = solidsynth::gradient::synth::DEFAULT_PROBES)]
+    #[arg(long, default_value_t = crate::gradient::synth::DEFAULT_PROBES)]
     pub probes: u32,
     /// Slices matched per check point: 3, or 2 (orthogonal to x and y only) for anisotropic
     /// exemplars such as brick walls or strata.
@@ -193,9 +194,14 @@ pub struct RenderArgs {
 /// `gradient render --normal ...`: a slice of any orientation as a PNG (the `cut` conventions:
 /// pixel (i, j) samples origin + (i + 0.5 - N/2) s u + (j + 0.5 - N/2) s v, at that point, not at
 /// a voxel: the solid is continuous).
-fn render_slice(a: &RenderArgs, solid: &AnySolid, normal: &str, quiet: bool) -> anyhow::Result<()> {
+fn render_slice(
+    a: &RenderArgs,
+    solid: &GradientFile,
+    normal: &str,
+    quiet: bool,
+) -> anyhow::Result<()> {
     let centre = solid.extent().map(|e| (e as f64 - 1.0) / 2.0);
-    let spec = solidsynth::lazy::cut::CutSpec {
+    let spec = crate::lazy::cut::CutSpec {
         origin: match &a.origin {
             Some(o) => super::cut::triple(o, "--origin")?,
             None => centre,
@@ -244,46 +250,10 @@ fn render_slice(a: &RenderArgs, solid: &AnySolid, normal: &str, quiet: bool) -> 
     Ok(())
 }
 
-/// Refuse a render volume before allocating it: its points must fit the kernels' 32-bit
-/// indices, and the output (plus the float values of the paths that are not quantized in the
-/// kernel) must fit the available memory.
-fn check_render_memory(n: [u32; 3], solid: &AnySolid) -> solidsynth::Result<()> {
-    let points = n.iter().map(|&v| v as u64).product::<u64>();
-    let what = || format!("--size {}", n[0]);
-    if points > u32::MAX as u64 {
-        return Err(Error::invalid(
-            what(),
-            "a rendered volume holds at most 2^32 - 1 voxels (1625^3)",
-        ));
-    }
-    // Bytes per voxel: the output, plus the GPU's packed words for a plain solid (quantized as
-    // it is evaluated), or the float values of the other paths (a region solid evaluates three
-    // grids).
-    let channels = solid.channels() as u64;
-    let per_voxel = match solid {
-        AnySolid::Plain(s) if s.detail == 0 => channels + 4,
-        AnySolid::Plain(_) => channels * 9,
-        AnySolid::Regions(_) => channels + 4 * (1 + 3 * channels),
-    };
-    let estimate = points * per_voxel;
-    let available = solidsynth::util::memory::available_memory();
-    if estimate > available {
-        return Err(Error::invalid(
-            what(),
-            format!(
-                "needs about {:.1} GiB of memory, {:.1} GiB is available",
-                estimate as f64 / (1u64 << 30) as f64,
-                available as f64 / (1u64 << 30) as f64
-            ),
-        ));
-    }
-    Ok(())
-}
-
-fn load(path: &Path) -> solidsynth::Result<GradientSolid> {
-    match load_any(path)? {
-        AnySolid::Plain(s) => Ok(s),
-        AnySolid::Regions(_) => Err(Error::invalid(
+fn load(path: &Path) -> crate::Result<GradientSolid> {
+    match GradientFile::load(path)? {
+        GradientFile::Plain(s) => Ok(s),
+        GradientFile::Regions(_) => Err(Error::invalid(
             path.display().to_string(),
             "is a region-separated solid; this command takes plain solids only (vectorize \
              without --mask)",
@@ -291,90 +261,18 @@ fn load(path: &Path) -> solidsynth::Result<GradientSolid> {
     }
 }
 
-/// A plain or a region-separated gradient solid (told apart by the file's magic).
-enum AnySolid {
-    Plain(GradientSolid),
-    Regions(RegionSolid),
-}
-
-impl AnySolid {
-    /// Output (colour) channels.
-    fn channels(&self) -> u32 {
-        match self {
-            AnySolid::Plain(s) => s.channels - s.detail,
-            AnySolid::Regions(r) => r.channels(),
-        }
-    }
-    fn extent(&self) -> [u32; 3] {
-        match self {
-            AnySolid::Plain(s) => s.extent(),
-            AnySolid::Regions(r) => r.extent(),
-        }
-    }
-    /// Kernel `tricubic_eval` on the chosen backend (float results; rounding may differ by one
-    /// 8-bit level between backends where a value lies within the tolerance of a .5).
-    fn eval(
-        &self,
-        query: &Query,
-        compute: &Compute,
-        blend: Blend,
-        grain: bool,
-    ) -> solidsynth::Result<Vec<f32>> {
-        match self {
-            AnySolid::Plain(s) => {
-                let values = compute.tricubic_eval(s, query)?;
-                Ok(if s.detail > 0 {
-                    detail::colours(s, query, &values, grain)
-                } else {
-                    values
-                })
-            }
-            AnySolid::Regions(r) => r.eval_query(query, compute, blend),
-        }
-    }
-
-    /// [`AnySolid::eval`] as 8-bit values ([`quantize`]d): plain solids through
-    /// [`solidsynth::gradient::render::render_u8`] (the kernel quantizes on the GPU), the others
-    /// quantize the float results.
-    fn eval_u8(
-        &self,
-        query: &Query,
-        compute: &Compute,
-        blend: Blend,
-        grain: bool,
-    ) -> solidsynth::Result<Vec<u8>> {
-        if let AnySolid::Plain(s) = self {
-            if s.detail == 0 {
-                return solidsynth::gradient::render::render_u8(s, query, compute);
-            }
-        }
-        let values = self.eval(query, compute, blend, grain)?;
-        Ok(values.into_iter().map(quantize).collect())
-    }
-}
-
-fn load_any(path: &Path) -> solidsynth::Result<AnySolid> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-    let name = path.display().to_string();
-    if regions::is_region_file(&bytes) {
-        Ok(AnySolid::Regions(RegionSolid::from_bytes(&bytes, &name)?))
-    } else {
-        Ok(AnySolid::Plain(format::from_bytes(&bytes, &name)?))
-    }
-}
-
 fn synth(a: SynthArgs, quiet: bool) -> anyhow::Result<()> {
-    use solidsynth::gradient::synth::{self, Field, GradientSynthParams, SliceSearch};
+    use crate::gradient::synth::{self, Field, GradientSynthParams, SliceSearch};
     atomic::check_output_path(&a.output, "-o")?;
     let exemplar = match &a.input {
-        Some(path) => solidsynth::exemplar::load_image(path, &path.display().to_string())?,
-        None => solidsynth::exemplar::default_exemplar(),
+        Some(path) => crate::exemplar::load_image(path, &path.display().to_string())?,
+        None => crate::exemplar::default_exemplar(),
     };
     let name = a
         .input
         .as_ref()
         .map_or("built-in exemplar".to_string(), |p| p.display().to_string());
-    solidsynth::exemplar::check_exemplar_size(&exemplar, &name)?;
+    crate::exemplar::check_exemplar_size(&exemplar, &name)?;
     let field = Field::parse(&a.field).ok_or_else(|| {
         Error::invalid(
             format!("--field {}", a.field),
@@ -417,7 +315,7 @@ fn synth(a: SynthArgs, quiet: bool) -> anyhow::Result<()> {
             let what = format!("--mask {}", path.display());
             let bytes = std::fs::read(path)
                 .map_err(|e| Error::invalid(&what, format!("cannot read the file: {e}")))?;
-            let mask = solidsynth::exemplar::decode_image(&bytes, &what)?;
+            let mask = crate::exemplar::decode_image(&bytes, &what)?;
             Some(synth::MaskedExemplar::new(&exemplar, &mask, &what)?)
         }
         None => None,
@@ -442,7 +340,7 @@ fn synth(a: SynthArgs, quiet: bool) -> anyhow::Result<()> {
     };
     bar.finish_and_clear();
     atomic::write_file(&a.output, &bytes)?;
-    let period = params.cells() * solidsynth::gradient::SPACING;
+    let period = params.cells() * crate::gradient::SPACING;
     // The file against the RGB volume it stands for (a period, 3 bytes per voxel).
     let fraction = bytes.len() as f64 / (3.0 * (period as f64).powi(3));
     if a.json {
@@ -471,7 +369,7 @@ fn synth(a: SynthArgs, quiet: bool) -> anyhow::Result<()> {
                 "optimize_rms": [report.optimize_rms.0, report.optimize_rms.1],
                 "regions": regions,
                 "backend": compute.describe(),
-                "peak_rss_bytes": solidsynth::util::memory::peak_rss_bytes()})
+                "peak_rss_bytes": crate::util::memory::peak_rss_bytes()})
         );
     } else if !quiet {
         for l in &report.levels {
@@ -531,7 +429,7 @@ fn blend_of(a: &RenderArgs) -> Blend {
 /// without the anti-aliasing blend, and the plain fit's for comparison.
 fn vectorize_with_mask(
     a: &VectorizeArgs,
-    volume: &solidsynth::volume::Volume,
+    volume: &crate::volume::Volume,
     mask_path: &Path,
     quiet: bool,
 ) -> anyhow::Result<()> {
@@ -683,7 +581,7 @@ pub fn run(cmd: GradientCommand, quiet: bool) -> anyhow::Result<()> {
         }
         GradientCommand::Render(a) => {
             atomic::check_output_path(&a.output, "-o")?;
-            let solid = load_any(&a.input)?;
+            let solid = GradientFile::load(&a.input)?;
             if let Some(normal) = &a.normal {
                 return render_slice(&a, &solid, normal, quiet);
             }
@@ -695,11 +593,11 @@ pub fn run(cmd: GradientCommand, quiet: bool) -> anyhow::Result<()> {
                 )
                 .into());
             }
-            check_render_memory(n, &solid)?;
+            solid.check_render_memory(n)?;
             let compute = a.backend.open()?;
             let start = Instant::now();
             let query = Query::volume(n);
-            let mut v = solidsynth::volume::Volume::new(n[0], n[1], n[2], solid.channels());
+            let mut v = crate::volume::Volume::new(n[0], n[1], n[2], solid.channels());
             v.data = solid.eval_u8(&query, &compute, blend_of(&a), !a.no_detail)?;
             nrrd::save(&v, &a.output)?;
             if !quiet {

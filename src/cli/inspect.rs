@@ -1,8 +1,8 @@
 //! `solidsynth inspect`.
 
+use crate::analysis::{candidate_stats, slab};
+use crate::io::{atomic, ssa};
 use clap::Args;
-use solidsynth::analysis::{candidate_stats, slab};
-use solidsynth::io::{atomic, ssa};
 use std::path::PathBuf;
 
 #[derive(Args, Debug)]
@@ -37,8 +37,8 @@ pub fn run(args: InspectArgs) -> anyhow::Result<()> {
             ""
         },
         match a.border {
-            solidsynth::exemplar::Border::Wrap => "periodic",
-            solidsynth::exemplar::Border::Mirror => "mirrored",
+            crate::exemplar::Border::Wrap => "periodic",
+            crate::exemplar::Border::Mirror => "mirrored",
         },
         if a.shared {
             "one exemplar shared by x, y, z"

@@ -3,17 +3,17 @@
 
 use super::cut::triple;
 use super::{progress_bar, BackendArgs};
+use crate::backend::{BackendChoice, Compute};
+use crate::io::{atomic, nrrd};
+use crate::lapped::camera::Camera;
+use crate::lapped::exemplar::SolidExemplar;
+use crate::lapped::field::Constraints;
+use crate::lapped::model::LstModel;
+use crate::lapped::{self, FillOptions};
+use crate::lazy::cut::CutSpec;
+use crate::mesh::{self, bake as mesh_bake};
+use crate::Error;
 use clap::{Args, Subcommand};
-use solidsynth::backend::{BackendChoice, Compute};
-use solidsynth::io::{atomic, nrrd};
-use solidsynth::lapped::camera::Camera;
-use solidsynth::lapped::exemplar::SolidExemplar;
-use solidsynth::lapped::field::Constraints;
-use solidsynth::lapped::model::LstModel;
-use solidsynth::lapped::{self, FillOptions};
-use solidsynth::lazy::cut::CutSpec;
-use solidsynth::mesh::{self, bake as mesh_bake};
-use solidsynth::Error;
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -211,7 +211,7 @@ fn fill(args: FillArgs, quiet: bool) -> anyhow::Result<()> {
                 "mesh_seconds": report.mesh_seconds, "field_seconds": report.field_seconds,
                 "fill_seconds": report.fill_seconds, "total_seconds": seconds,
                 "model_bytes": bytes.len(),
-                "peak_rss_bytes": solidsynth::util::memory::peak_rss_bytes(),
+                "peak_rss_bytes": crate::util::memory::peak_rss_bytes(),
             })
         );
     } else if !quiet {
@@ -246,7 +246,7 @@ fn fill(args: FillArgs, quiet: bool) -> anyhow::Result<()> {
 }
 
 /// A mesh file or a `builtin:` shape.
-fn load_mesh(path: &std::path::Path) -> solidsynth::Result<mesh::Mesh> {
+fn load_mesh(path: &std::path::Path) -> crate::Result<mesh::Mesh> {
     match path.to_str() {
         Some("builtin:sphere") => Ok(lapped::shapes::sphere(48, 24)),
         Some("builtin:bent-cylinder") => Ok(lapped::shapes::bent_cylinder(0.3, 1.0, 32, 32)),
@@ -303,7 +303,7 @@ fn cut(args: CutArgs, quiet: bool) -> anyhow::Result<()> {
             serde_json::json!({"output": args.output, "size": args.size, "repeat": args.repeat,
                 "median_ms": median, "p95_ms": p95, "first_ms": latencies[0],
                 "pixels_inside": inside,
-                "peak_rss_bytes": solidsynth::util::memory::peak_rss_bytes()})
+                "peak_rss_bytes": crate::util::memory::peak_rss_bytes()})
         );
     } else if !quiet {
         eprintln!(

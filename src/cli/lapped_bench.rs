@@ -32,7 +32,7 @@ pub struct BenchLappedArgs {
 
 fn child(exe: &Path, args: &[&str]) -> anyhow::Result<serde_json::Value> {
     let mut command = Command::new(exe);
-    solidsynth::gpu::context::user_driver_environment(&mut command);
+    crate::gpu::context::user_driver_environment(&mut command);
     let out = command.args(args).output()?;
     if !out.status.success() {
         anyhow::bail!(

@@ -3,6 +3,7 @@
 pub mod analyze;
 pub mod bench;
 pub mod cut;
+mod entry;
 pub mod eval;
 pub mod gradient;
 pub mod inspect;
@@ -15,8 +16,10 @@ pub mod surface;
 pub mod synth;
 
 use clap::{Args, Parser, Subcommand};
-use solidsynth::backend::{BackendChoice, Compute};
-use solidsynth::gpu::GpuOptions;
+
+use crate::backend::{BackendChoice, Compute};
+use crate::gpu::GpuOptions;
+pub use entry::main;
 
 #[derive(Parser, Debug)]
 #[command(
@@ -89,7 +92,7 @@ impl BackendArgs {
         opts
     }
 
-    pub fn open(&self) -> solidsynth::Result<Compute> {
+    pub fn open(&self) -> crate::Result<Compute> {
         let compute = Compute::open(self.backend, &self.gpu_options())?;
         tracing::info!("backend: {}", compute.describe());
         Ok(compute)
@@ -138,7 +141,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Serve(a) => serve::run(a, cli.quiet),
         Command::Bench(b) => bench::run(b),
         Command::Adapters => {
-            let list = solidsynth::gpu::context::list_adapters();
+            let list = crate::gpu::context::list_adapters();
             if list.is_empty() {
                 println!("no Vulkan adapters (install mesa-vulkan-drivers for lavapipe)");
             }

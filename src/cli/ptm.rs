@@ -1,13 +1,13 @@
 //! `solidsynth ptm ...`: relightable texture synthesis with polynomial texture maps (capture,
 //! fit, synthesize, relight).
 
+use crate::io::atomic;
+use crate::ptm::quilt::{Boundary, QuiltParams, SearchMethod};
+use crate::ptm::search::Tolerance;
+use crate::ptm::Lighting;
+use crate::ptm::{capture, fit, format, relight, PtmFormat};
+use crate::Error;
 use clap::{Args, Subcommand};
-use solidsynth::io::atomic;
-use solidsynth::ptm::quilt::{Boundary, QuiltParams, SearchMethod};
-use solidsynth::ptm::search::Tolerance;
-use solidsynth::ptm::Lighting;
-use solidsynth::ptm::{capture, fit, format, relight, PtmFormat};
-use solidsynth::Error;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -113,7 +113,7 @@ pub struct RelightArgs {
 }
 
 /// Refuse an output path that names an input file (we never overwrite inputs).
-fn check_not_input(output: &Path, input: &Path) -> solidsynth::Result<()> {
+fn check_not_input(output: &Path, input: &Path) -> crate::Result<()> {
     if let (Ok(a), Ok(b)) = (output.canonicalize(), input.canonicalize()) {
         if a == b {
             return Err(Error::invalid(
@@ -125,7 +125,7 @@ fn check_not_input(output: &Path, input: &Path) -> solidsynth::Result<()> {
     Ok(())
 }
 
-fn parse_light(text: &str) -> solidsynth::Result<(f32, f32)> {
+fn parse_light(text: &str) -> crate::Result<(f32, f32)> {
     let bad = || {
         Error::invalid(
             format!("--light {text}"),
@@ -230,7 +230,7 @@ fn synth_cmd(a: SynthArgs, quiet: bool) -> anyhow::Result<()> {
     let bar = super::progress_bar(quiet);
     bar.set_message("synthesizing blocks");
     let start = Instant::now();
-    let (out, report) = solidsynth::ptm::quilt::synthesize(&src, &params, &mut |done, total| {
+    let (out, report) = crate::ptm::quilt::synthesize(&src, &params, &mut |done, total| {
         bar.set_length(total as u64);
         bar.set_position(done as u64);
     })?;

@@ -2,11 +2,11 @@
 //! (medians, ratio, and a check that the outputs are byte-identical), and relighting on the CPU
 //! and the GPU.
 
+use crate::backend::{BackendChoice, Compute};
+use crate::ptm::quilt::{self, QuiltParams, SearchMethod};
+use crate::ptm::Lighting;
+use crate::ptm::{capture, fit, Ptm, PtmFormat};
 use clap::Args;
-use solidsynth::backend::{BackendChoice, Compute};
-use solidsynth::ptm::quilt::{self, QuiltParams, SearchMethod};
-use solidsynth::ptm::Lighting;
-use solidsynth::ptm::{capture, fit, Ptm, PtmFormat};
 use std::time::Instant;
 
 #[derive(Args, Debug)]
@@ -107,7 +107,7 @@ pub fn run(a: BenchPtmArgs) -> anyhow::Result<()> {
     );
     println!(
         "  candidates left after projection stages ({:?} kernels): {}; exact distances per query: {:.1}",
-        &solidsynth::ptm::search::STAGES[..st.survivors.len()],
+        &crate::ptm::search::STAGES[..st.survivors.len()],
         st.survivors
             .iter()
             .map(|&s| format!("{:.2}%", 100.0 * s as f64 / st.candidates.max(1) as f64))
@@ -132,7 +132,7 @@ pub fn run(a: BenchPtmArgs) -> anyhow::Result<()> {
     )?;
     println!("  {:<34} {:>10.2} ms", "cpu", t_cpu * 1e3);
     if !a.no_gpu {
-        let gpu = Compute::open(BackendChoice::Gpu, &solidsynth::gpu::GpuOptions::from_env())?;
+        let gpu = Compute::open(BackendChoice::Gpu, &crate::gpu::GpuOptions::from_env())?;
         let (t_up, resident) = timed(a.runs, || Ok(gpu.resident_ptm(&big)))?;
         resident.relight(&light)?; // warm the pipeline
         let (t_gpu, out) = timed(a.runs.max(5), || Ok(resident.relight(&light)?))?;

@@ -3,10 +3,10 @@
 
 use super::analyze::load_or_analyze;
 use super::synth::SolidParams;
+use crate::serve::jobs::{self, Source};
+use crate::serve::{client, ServeConfig, Server};
+use crate::Error;
 use clap::Args;
-use solidsynth::serve::jobs::{self, Source};
-use solidsynth::serve::{client, ServeConfig, Server};
-use solidsynth::Error;
 use std::net::IpAddr;
 use std::time::{Duration, Instant};
 
@@ -58,7 +58,7 @@ fn config(args: &ServeArgs) -> ServeConfig {
         max_cut_size: args.max_cut_size,
         params,
         allow_hosts: args.allow_hosts.clone(),
-        cache: solidsynth::solid::AnalysisCache::user_default(),
+        cache: crate::solid::AnalysisCache::user_default(),
         ..ServeConfig::default()
     }
 }
@@ -66,7 +66,7 @@ fn config(args: &ServeArgs) -> ServeConfig {
 pub fn run(args: ServeArgs, quiet: bool) -> anyhow::Result<()> {
     let config = config(&args);
     config.validate()?;
-    if let solidsynth::lazy::ColorSource::PerChannel(_) = config.params.color {
+    if let crate::lazy::ColorSource::PerChannel(_) = config.params.color {
         // Uploads may have 1, 3 or 4 colour channels: one list cannot fit them all.
         return Err(Error::invalid(
             format!("--color {}", config.params.color),
@@ -342,9 +342,9 @@ fn mixed_traffic(
     args: &BenchServeArgs,
     seconds: u32,
 ) -> anyhow::Result<Vec<(&'static str, KindResults)>> {
-    use solidsynth::util::hash::SeededRng;
+    use crate::util::hash::SeededRng;
     let deadline = Instant::now() + Duration::from_secs(seconds as u64);
-    let png = solidsynth::io::atomic::png_bytes(
+    let png = crate::io::atomic::png_bytes(
         &jobs::builtin("marble")
             .expect("built in")
             .image()
@@ -495,7 +495,7 @@ fn print_mixed(
         v.sort_by(f64::total_cmp);
         v[((v.len() as f64 * p).ceil() as usize).clamp(1, v.len()) - 1]
     };
-    let rss = solidsynth::util::memory::peak_rss_bytes().unwrap_or(0) as f64 / (1 << 20) as f64;
+    let rss = crate::util::memory::peak_rss_bytes().unwrap_or(0) as f64 / (1 << 20) as f64;
     if args.json {
         let rows: Vec<_> = table
             .iter()

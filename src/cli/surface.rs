@@ -2,11 +2,11 @@
 
 use super::analyze::load_or_analyze;
 use super::synth::SolidParams;
+use crate::io::atomic;
+use crate::mesh::{self, bake};
+use crate::solid::surface::{AtlasLayout, SurfacePlan};
+use crate::Error;
 use clap::Args;
-use solidsynth::io::atomic;
-use solidsynth::mesh::{self, bake};
-use solidsynth::solid::surface::{AtlasLayout, SurfacePlan};
-use solidsynth::Error;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -37,7 +37,7 @@ pub struct SurfaceArgs {
 }
 
 /// The files an output path stands for: (main, Some((mtl, png)) for OBJ).
-fn outputs(path: &Path) -> solidsynth::Result<Option<(PathBuf, PathBuf)>> {
+fn outputs(path: &Path) -> crate::Result<Option<(PathBuf, PathBuf)>> {
     let ext = path
         .extension()
         .and_then(|e| e.to_str())
@@ -86,7 +86,7 @@ pub fn run(args: SurfaceArgs, quiet: bool) -> anyhow::Result<()> {
     let analysis_time = analysis_start.elapsed();
     let bar = super::progress_bar(quiet || args.json);
     let shown = bar.clone();
-    let report: solidsynth::solid::ProgressFn = std::sync::Arc::new(move |m: &str, f: f32| {
+    let report: crate::solid::ProgressFn = std::sync::Arc::new(move |m: &str, f: f32| {
         shown.set_position((f * 1000.0) as u64);
         shown.set_message(m.to_string());
     });
@@ -131,7 +131,7 @@ pub fn run(args: SurfaceArgs, quiet: bool) -> anyhow::Result<()> {
                 "max_texel_step_voxels": atlas.max_texel_step(&mesh, place),
                 "synthesis_seconds": seconds, "stats": stats,
                 "finest_fraction_of_volume": fraction,
-                "peak_rss_bytes": solidsynth::util::memory::peak_rss_bytes(),
+                "peak_rss_bytes": crate::util::memory::peak_rss_bytes(),
                 "backend": compute.describe(),
             })
         );

@@ -1,12 +1,12 @@
 //! `solidsynth synth`: a full volume, the box [0, N)^3 of the infinite solid.
 
 use super::analyze::{load_or_analyze, InputArgs};
+use crate::io::{atomic, nrrd};
+use crate::lazy::{Box3, CandidateMode, ColorSource, SynthOptions, SynthParams};
+use crate::metrics::sheet::contact_sheet;
+use crate::volume::Volume;
+use crate::Error;
 use clap::Args;
-use solidsynth::io::{atomic, nrrd};
-use solidsynth::lazy::{memory, Box3, CandidateMode, ColorSource, SynthOptions, SynthParams};
-use solidsynth::metrics::sheet::contact_sheet;
-use solidsynth::volume::Volume;
-use solidsynth::Error;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -55,7 +55,7 @@ pub struct SolidParams {
     /// Correction passes per level: one count for every level, or one per level, coarsest
     /// first (`2,2,2,1`).
     #[arg(long, default_value = "2", value_name = "N|N,N,N,N")]
-    pub passes: solidsynth::lazy::PassSchedule,
+    pub passes: crate::lazy::PassSchedule,
     /// Output colour: the mean of the voxel's three exemplar pixels (the paper's rule);
     /// `matched`: that mean with the exemplar's mean colour and contrast restored (a table from
     /// a probe solid synthesized when the session starts; better histogram and sharpness
@@ -84,17 +84,17 @@ impl SolidParams {
     /// otherwise: [`SynthOptions`]), reporting to `progress`.
     pub fn solid(
         &self,
-        analysis: &solidsynth::analysis::Analysis,
-        compute: &solidsynth::backend::Compute,
+        analysis: &crate::analysis::Analysis,
+        compute: &crate::backend::Compute,
         profile: bool,
-        progress: Option<solidsynth::solid::ProgressFn>,
-    ) -> solidsynth::Result<solidsynth::Solid> {
+        progress: Option<crate::solid::ProgressFn>,
+    ) -> crate::Result<crate::Solid> {
         let options = SynthOptions {
             max_group: self.max_group,
             profile,
             ..Default::default()
         };
-        solidsynth::Solid::new(
+        crate::Solid::new(
             analysis,
             self.synth_params(),
             options,
@@ -107,10 +107,7 @@ impl SolidParams {
     /// open: [`memory::HOST_MEMORY_GROUP`] for `--backend cpu`, else the largest (a conservative
     /// estimate).
     pub fn planned_group(&self) -> u32 {
-        self.max_group.unwrap_or(match self.input.backend.backend {
-            solidsynth::backend::BackendChoice::Cpu => memory::HOST_MEMORY_GROUP,
-            _ => 512,
-        })
+        crate::solid::memory::planned_group(self.max_group, self.input.backend.backend)
     }
 
     pub fn synth_params(&self) -> SynthParams {
@@ -167,7 +164,7 @@ struct TriplesWriter {
 }
 
 impl TriplesWriter {
-    fn create(path: &Path, dims: [u32; 3], exemplar: [u32; 2]) -> solidsynth::Result<Self> {
+    fn create(path: &Path, dims: [u32; 3], exemplar: [u32; 2]) -> crate::Result<Self> {
         let mut file = atomic::PendingFile::create(path)?;
         let mut header = TRIPLES_MAGIC.to_vec();
         for v in [1u32, dims[0], dims[1], dims[2], exemplar[0], exemplar[1]] {
@@ -180,7 +177,7 @@ impl TriplesWriter {
         })
     }
 
-    fn write(&mut self, triples: &[u32]) -> solidsynth::Result<()> {
+    fn write(&mut self, triples: &[u32]) -> crate::Result<()> {
         self.words_left -= triples.len() as u64;
         let bytes: Vec<u8> = triples.iter().flat_map(|t| t.to_le_bytes()).collect();
         self.file.write_all(&bytes)
@@ -196,7 +193,7 @@ impl TriplesWriter {
 pub const MAX_SIZE: u32 = 2048;
 
 /// Refuse a size outside what `synth` supports.
-pub fn check_size(size: u32) -> solidsynth::Result<()> {
+pub fn check_size(size: u32) -> crate::Result<()> {
     if !(8..=MAX_SIZE).contains(&size) {
         return Err(Error::invalid(
             format!("--size {size}"),
@@ -207,13 +204,12 @@ pub fn check_size(size: u32) -> solidsynth::Result<()> {
 }
 
 /// Refuse a box whose synthesis would not fit in memory, before allocating anything for it:
-/// one group's working set, one slab of the output (the volume is streamed to the file), and
-/// the whole volume when an output needs it at once (`what` names the request in the error).
-pub fn check_memory(what: &str, b: Box3, args: &SolidArgs) -> solidsynth::Result<u64> {
+/// the engine's working set and this command's outputs (`what` names the request in the error).
+pub fn check_memory(what: &str, b: Box3, args: &SolidArgs) -> crate::Result<u64> {
     let size = b.size().map(|d| d as u64);
-    let largest = size.into_iter().max().unwrap_or(0) as u32;
-    let group = args.solid.planned_group().min(largest);
-    // Four bytes a voxel covers up to four channels; triples add twelve.
+    let group = args.solid.planned_group();
+    // The outputs this command holds: slabs of the volume (four bytes a voxel cover up to four
+    // channels; triples add twelve) and, for the outputs made from the whole volume, all of it.
     let per_voxel = 4 + if args.triples.is_some() { 12 } else { 0 };
     let slab = size[0] * size[1] * size[2].min(group as u64) * per_voxel;
     let keeps_volume = args.vti.is_some()
@@ -221,63 +217,12 @@ pub fn check_memory(what: &str, b: Box3, args: &SolidArgs) -> solidsynth::Result
         || args.sheet.is_some()
         || args.slices.is_some();
     let whole = if keeps_volume { b.voxels() * 4 } else { 0 };
-    let cache = memory::coarse_cache_bytes(args.solid.coarse_cache);
-    let estimate = memory::box_working_bytes(size, group, args.solid.coarse_cache) + slab + whole;
-    let available = solidsynth::util::memory::available_memory();
-    if estimate > available {
-        let gib = |b: u64| b as f64 / (1u64 << 30) as f64;
-        let cache_note = match args.solid.coarse_cache {
-            Some(n) if cache > 0 => {
-                format!(", of which {:.1} GiB for --coarse-cache {n}", gib(cache))
-            }
-            _ => String::new(),
-        };
-        return Err(Error::invalid(
-            what,
-            format!(
-                "needs about {:.1} GiB of memory{cache_note}, {:.1} GiB is available (a \
-                 smaller --max-group bounds the working memory)",
-                gib(estimate),
-                gib(available)
-            ),
-        ));
-    }
-    Ok(estimate)
+    crate::solid::memory::check_box(what, size, group, args.solid.coarse_cache, slab + whole)
 }
 
-/// Refuse a sparse request (cut, surface) whose synthesis would not fit in memory, before
-/// allocating for it: the colours and bookkeeping of its `bricks` requested 4^3-voxel bricks
-/// spread over a surface `extent` voxels wide, one group's working set (the group's bricks
-/// with their dependency padding, at most a dense padded cube), the coarse cache and `extra`
-/// bytes of outputs, in groups of `group_side` voxels. `what` names the request.
-pub fn check_sparse_memory(
-    what: &str,
-    bricks: u64,
-    extent: f64,
-    extra: u64,
-    params: &SolidParams,
-    group_side: u32,
-) -> solidsynth::Result<u64> {
-    let estimate =
-        memory::sparse_working_bytes(bricks, extent, group_side, params.coarse_cache) + extra;
-    let available = solidsynth::util::memory::available_memory();
-    if estimate > available {
-        return Err(Error::invalid(
-            what,
-            format!(
-                "needs about {:.1} GiB of memory ({bricks} bricks of 4^3 voxels), {:.1} GiB \
-                 is available",
-                estimate as f64 / (1u64 << 30) as f64,
-                available as f64 / (1u64 << 30) as f64
-            ),
-        ));
-    }
-    Ok(estimate)
-}
-
-/// All z slices in a grid of exactly N tiles (see [`solidsynth::io::flipbook`]).
+/// All z slices in a grid of exactly N tiles (see [`crate::io::flipbook`]).
 pub fn flipbook(v: &Volume) -> image::RgbaImage {
-    solidsynth::io::flipbook::to_image(v)
+    crate::io::flipbook::to_image(v)
 }
 
 fn rgba(p: &[u8]) -> image::Rgba<u8> {
@@ -297,7 +242,7 @@ pub fn run(args: SynthArgs, quiet: bool) -> anyhow::Result<()> {
     check_size(args.size)?;
     let n = args.size as i32;
     if args.tileable {
-        solidsynth::lazy::check_tileable_size(args.size)?;
+        crate::lazy::check_tileable_size(args.size)?;
     }
     if args.tileable && args.solid.solid.coarse_cache.is_some() {
         return Err(Error::invalid(
@@ -313,7 +258,7 @@ pub fn run(args: SynthArgs, quiet: bool) -> anyhow::Result<()> {
 }
 
 /// Parse and check `--box X0,Y0,Z0,X1,Y1,Z1`.
-pub fn parse_box(text: &str) -> solidsynth::Result<Box3> {
+pub fn parse_box(text: &str) -> crate::Result<Box3> {
     let what = format!("--box {text}");
     let v: Vec<i64> = text
         .split(',')
@@ -425,7 +370,7 @@ fn run_box(args: &SolidArgs, region: Box3, tileable: bool, quiet: bool) -> anyho
         || args.sheet.is_some()
         || args.slices.is_some();
     let mut kept = keep_volume.then(|| Volume::new(dims[0], dims[1], 0, channels));
-    let mut take = |slab: &Volume, triples: &[u32]| -> solidsynth::Result<()> {
+    let mut take = |slab: &Volume, triples: &[u32]| -> crate::Result<()> {
         let timer = Instant::now();
         nrrd_out.write_slab(slab)?;
         tracing::debug!(
@@ -442,7 +387,7 @@ fn run_box(args: &SolidArgs, region: Box3, tileable: bool, quiet: bool) -> anyho
         }
         Ok(())
     };
-    let sink = |slab: solidsynth::lazy::Slab| take(slab.volume, slab.triples);
+    let sink = |slab: crate::lazy::Slab| take(slab.volume, slab.triples);
     if tileable {
         synth.synthesize_tileable_slabs(dims[0], &report, want_triples, sink)?;
     } else {
@@ -459,7 +404,7 @@ fn run_box(args: &SolidArgs, region: Box3, tileable: bool, quiet: bool) -> anyho
     }
     let volume = kept.unwrap_or_else(|| Volume::new(0, 0, 0, channels));
     if let Some(p) = &args.vti {
-        outputs.write_file(p, &solidsynth::io::vti::to_checked_bytes(&volume, p)?)?;
+        outputs.write_file(p, &crate::io::vti::to_checked_bytes(&volume, p)?)?;
     }
     if let Some(p) = &args.flipbook {
         outputs.save_png(p, &flipbook(&volume))?;
@@ -497,7 +442,7 @@ fn run_box(args: &SolidArgs, region: Box3, tileable: bool, quiet: bool) -> anyho
                 "output": args.output, "box": [region.lo, region.hi], "seed": args.solid.seed, "jitter": args.solid.jitter,
                 "candidates": args.solid.candidates, "passes": args.solid.passes,
                 "analysis_seconds": analysis_s, "synthesis_seconds": synth_s,
-                "peak_rss_bytes": solidsynth::util::memory::peak_rss_bytes(),
+                "peak_rss_bytes": crate::util::memory::peak_rss_bytes(),
                 "backend": compute.describe(),
                 "kernels": kernels,
                 "stats": synth.last_stats(),

@@ -137,6 +137,7 @@ pub fn cell_of(p: [i32; 3]) -> [i32; 3] {
 }
 
 /// The warp offset (whole voxels) at l_start voxel `p` (CPU side of `wgsl/init.wgsl`).
+#[cfg(any(test, feature = "internals"))]
 pub fn offset(
     p: [i32; 3],
     seed_lo: u32,
@@ -150,6 +151,7 @@ pub fn offset(
 }
 
 /// The warp offset at `p` from its cell's Gaussians ([`cell_gaussians`] of [`cell_of`] p).
+#[cfg(any(test, feature = "internals"))]
 pub fn offset_from(
     p: [i32; 3],
     gaussians: &[Gaussian],

@@ -20,6 +20,7 @@ macro_rules! gpu_struct {
         const _: () = assert!(std::mem::size_of::<$name>() == $size);
         impl $name {
             /// Field names and byte offsets in declaration order.
+            #[cfg(any(test, feature = "internals"))]
             pub fn layout() -> Vec<(&'static str, usize)> {
                 vec![$((stringify!($field), std::mem::offset_of!($name, $field))),*]
             }
@@ -77,6 +78,7 @@ impl ExemplarFields {
     }
 
     /// Each exemplar's pixels' word offset.
+    #[cfg(any(test, feature = "internals"))]
     pub fn pixels(&self) -> [u32; 3] {
         [self.pixels0, self.pixels1, self.pixels2]
     }
@@ -243,6 +245,7 @@ pub struct RenderParams {
 }
 const _: () = assert!(std::mem::size_of::<RenderParams>() == 96);
 impl RenderParams {
+    #[cfg(any(test, feature = "internals"))]
     pub fn layout() -> Vec<(&'static str, usize)> {
         vec![
             ("view_proj", std::mem::offset_of!(RenderParams, view_proj)),
@@ -252,6 +255,7 @@ impl RenderParams {
     }
 }
 
+#[cfg(any(test, feature = "internals"))]
 pub fn all_layouts() -> Vec<(
     &'static str,
     &'static str,

@@ -6,6 +6,8 @@ pub mod bucket_accumulate;
 pub mod colorize;
 pub mod correct;
 pub mod init;
+// The render pipeline's reference is for its tests only: the CPU backend renders no models.
+#[cfg(any(test, feature = "internals"))]
 pub mod lapped_render;
 pub mod project;
 pub mod ptm_relight;

@@ -11,6 +11,7 @@ use rayon::prelude::*;
 pub const INV_255: f32 = 1.0 / 255.0;
 
 /// Highlight exponent (applied as five squarings, no `pow`).
+#[cfg(any(test, feature = "internals"))]
 pub const SHININESS: u32 = 32;
 
 fn poly(a: &[f32; COEFFS], lu: f32, lv: f32) -> f32 {

@@ -6,6 +6,7 @@ use crate::contract::uniforms::BucketParams;
 use crate::error::{Error, Result};
 
 /// Same result as [`crate::cpu::bucket_accumulate::bucket_accumulate`], bit for bit.
+#[cfg(any(test, feature = "internals"))]
 pub fn bucket_accumulate(
     gpu: &GpuContext,
     samples: &[u32],

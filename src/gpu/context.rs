@@ -98,26 +98,20 @@ fn new_instance() -> wgpu::Instance {
     wgpu::Instance::new(desc)
 }
 
-/// Set the drivers' environment variables this process relies on (`prefer_full_width_cpu_vectors`),
-/// once. Every wgpu instance is made after it; a program should call it before starting threads
-/// that may read the environment from C (the binary does so first thing in `main`; otherwise the
-/// first GPU context calls it, while other threads may be running).
-pub fn prepare_driver_environment() {
-    prepare_driver_environment_for(DriverUse::Compute);
-}
-
 /// What a process asks of its GPU: compute kernels only, or also render pipelines (`lapped
-/// render`), which llvmpipe cannot compile at 512-bit vectors ([`RENDER_CRASHING_WIDTH`]).
+/// render`), which llvmpipe cannot compile at 512-bit vectors (`RENDER_CRASHING_WIDTH`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum DriverUse {
     Compute,
     Rendering,
 }
 
-/// [`prepare_driver_environment`] for a process that renders too: llvmpipe runs 256 bits wide
-/// (Mesa's own choice on AVX-512 hosts, set explicitly there) unless the user chose a width.
-/// The first call in a process decides (later ones, and the first GPU context's implicit
-/// `Compute` call, change nothing): call it before any GPU context exists.
+/// Set the driver environment this process's GPU work runs best with, once, before any GPU
+/// context exists and before other threads may read the environment (it calls `set_var`):
+/// on an AVX-512 host, llvmpipe (lavapipe) at 512-bit vectors for `Compute` and at 256 bits for
+/// `Rendering` (render pipelines crash it at 512); a width the user set is kept; other drivers
+/// ignore the variable. The first call decides. The library never calls it itself: the
+/// `solidsynth` binary does, first thing in `main`; an application may, or may leave it.
 pub fn prepare_driver_environment_for(work: DriverUse) {
     static ONCE: std::sync::Once = std::sync::Once::new();
     ONCE.call_once(|| match work {
@@ -143,7 +137,7 @@ fn render_safe_cpu_vectors() {
 pub const RENDER_CRASHING_WIDTH: &str = "512 bits";
 
 impl GpuContext {
-    /// Whether this device is llvmpipe at [`RENDER_CRASHING_WIDTH`] (render pipelines refuse
+    /// Whether this device is llvmpipe at `RENDER_CRASHING_WIDTH` (render pipelines refuse
     /// to run there rather than crash the process).
     pub fn render_pipelines_crash(&self) -> bool {
         self.info.device_type == wgpu::DeviceType::Cpu
@@ -158,7 +152,7 @@ impl GpuContext {
 /// same bytes 1.3-1.4x faster on the development machine's AMD EPYC (BENCHMARKS.md, session 29:
 /// 256^3, the bunny's bake, warm cuts), so solidsynth asks for it on AVX-512 hosts; a value the
 /// user set is kept (256 restores Mesa's choice). Other drivers ignore the variable. Called once
-/// ([`prepare_driver_environment`]), before the first wgpu instance exists.
+/// ([`prepare_driver_environment_for`]), before the first wgpu instance exists.
 fn prefer_full_width_cpu_vectors() {
     const VARIABLE: &str = "LP_NATIVE_VECTOR_WIDTH";
     if std::env::var_os(VARIABLE).is_some() || !has_avx512() {
@@ -524,7 +518,7 @@ impl GpuContext {
     }
 
     /// [`Self::storage_buffer`] for large contents kept for long (a synthesis' level data and
-    /// candidate tables): uploaded in pieces of [`UPLOAD_PIECE_BYTES`], each waited for. wgpu
+    /// candidate tables): uploaded in pieces of `UPLOAD_PIECE_BYTES`, each waited for. wgpu
     /// stages an upload in memory of its own until its copy has run, so an upload made whole
     /// holds its bytes twice, and on lavapipe, whose device memory is host memory, the staging
     /// pages stay with the process: the built-in exemplar's 31 MiB of level data and tables

@@ -44,6 +44,7 @@ pub fn source(name: &str) -> &'static str {
 }
 
 /// Parse and validate WGSL with naga; returns the module and its validation info.
+#[cfg(any(test, feature = "internals"))]
 pub fn validate(name: &str, src: &str) -> Result<(naga::Module, naga::valid::ModuleInfo), String> {
     let module = naga::front::wgsl::parse_str(src)
         .map_err(|e| format!("{name}.wgsl: {}", e.emit_to_string(src)))?;
@@ -57,6 +58,7 @@ pub fn validate(name: &str, src: &str) -> Result<(naga::Module, naga::valid::Mod
 }
 
 /// Byte offsets of the members of WGSL struct `struct_name`, as naga lays them out, with its size.
+#[cfg(any(test, feature = "internals"))]
 pub fn struct_layout(
     module: &naga::Module,
     struct_name: &str,

@@ -10,7 +10,7 @@
 
 use super::context::GpuContext;
 use super::correct::{block_bricks, correct_constants, upload_tables};
-pub use super::correct::{WeightLayout, BLOCK_BRICKS_ENV};
+pub use super::correct::WeightLayout;
 use super::projection_weights::{projection_uniform, PROJECTION_VECTORS};
 use crate::contract::level::LevelPack;
 use crate::error::{Error, Result};

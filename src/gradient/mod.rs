@@ -16,6 +16,7 @@
 
 pub mod detail;
 pub mod edit;
+pub mod file;
 pub mod format;
 pub mod regions;
 pub mod render;

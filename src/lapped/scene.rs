@@ -1,4 +1,4 @@
-//! A lapped model as the render pipeline draws it ([`crate::contract::lapped::RenderScene`]).
+//! A lapped model as the render pipeline draws it (`crate::contract::lapped::RenderScene`).
 
 use super::model::LstModel;
 use crate::contract::lapped::{RenderScene, VERTEX_FLOATS};

@@ -153,6 +153,7 @@ pub fn balance(
 
 /// Share of all coordinates held by the most-used 1% of the pixels (at least one pixel):
 /// the concentration balancing reduces (1% when usage is uniform).
+#[cfg(any(test, feature = "internals"))]
 pub fn top_percent_share(counts: &[u64]) -> f64 {
     let mut sorted = counts.to_vec();
     sorted.sort_unstable_by(|a, b| b.cmp(a));

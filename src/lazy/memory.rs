@@ -11,6 +11,9 @@
 /// 256^2 with the paper's passes: 655 -> 715 ms).
 pub const HOST_MEMORY_GROUP: u32 = 128;
 
+/// The largest group edge at the finest level: the whole group without `--max-group`.
+pub const LARGEST_GROUP: u32 = 512;
+
 /// Padding per side assumed when sizing chunks (the plan's exact padding is at most this).
 pub const PADDING_ESTIMATE: u32 = 14;
 
@@ -23,7 +26,7 @@ pub fn chunk_bytes(side: u32) -> u64 {
 }
 
 /// The largest group side, in its own level's voxels, at `coarser_by` levels above the finest,
-/// given the finest level's cap `max_chunk_side` (`--max-group`; None: 512); `whole_box`: the
+/// given the finest level's cap `max_chunk_side` (`--max-group`; None: [`LARGEST_GROUP`]); `whole_box`: the
 /// level's request is every brick of a box.
 ///
 /// Without a cap, a coarse level's 512 halves per level, so that its groups span the same space
@@ -38,9 +41,9 @@ pub fn chunk_bytes(side: u32) -> u64 {
 /// their cubes are not slivers, and larger ones held the bunny's 1024 at 430 MB against 367.
 pub fn group_cap(max_chunk_side: Option<u32>, coarser_by: usize, whole_box: bool) -> u32 {
     match max_chunk_side {
-        None => 512 >> coarser_by,
-        Some(side) if coarser_by == 0 || !whole_box => side.min(512),
-        Some(side) => ((side + side / 4) / 4 * 4).max(side).min(512),
+        None => LARGEST_GROUP >> coarser_by,
+        Some(side) if coarser_by == 0 || !whole_box => side.min(LARGEST_GROUP),
+        Some(side) => ((side + side / 4) / 4 * 4).max(side).min(LARGEST_GROUP),
     }
 }
 

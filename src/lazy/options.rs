@@ -4,14 +4,14 @@
 use crate::error::{Error, Result};
 use crate::util::cancel::CancelToken;
 
-/// How a [`super::Synthesizer`] runs. `Default` is the library's choice for the backend, the
+/// How a `super::Synthesizer` runs. `Default` is the library's choice for the backend, the
 /// same the command-line tool and the server use.
 #[derive(Clone, Debug, Default)]
 pub struct SynthOptions {
     /// The largest group edge in voxels (0 counts as 1), rounded down to whole bricks
     /// (`--max-group`): groups
     /// bound the working memory. None: the library's default, groups of at most
-    /// [`super::memory::HOST_MEMORY_GROUP`] for boxes, tileable solids and brick sets (surfaces)
+    /// `super::memory::HOST_MEMORY_GROUP` for boxes, tileable solids and brick sets (surfaces)
     /// where the backend's memory is the host's, else as large as the backend's buffers allow;
     /// sampled voxels (cuts) in as few groups as the backend allows.
     pub max_group: Option<u32>,
@@ -32,7 +32,7 @@ pub struct SynthOptions {
     /// next ones of the same sizes, and neither backend hands free heap back between groups.
     pub keep_buffers: bool,
     /// Time every kernel (waiting for the device after each, so totals grow slightly); read
-    /// with [`super::Synthesizer::kernel_times`].
+    /// with `super::Synthesizer::kernel_times`.
     pub profile: bool,
     /// Checked before every group and every correction pass: once cancelled, a request stops
     /// there with [`Error::Cancelled`] and delivers nothing more.

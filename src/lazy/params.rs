@@ -79,7 +79,7 @@ pub enum ColorSource {
     Y,
     Z,
     /// The mean, given the exemplars' mean colour and contrast back (a mean of three pixels
-    /// narrows them) by a per-channel table from a probe solid ([`super::color_match`]). Starting a
+    /// narrows them) by a per-channel table from a probe solid (`super::color_match`). Starting a
     /// session then synthesizes the probe (64^3 to 128^3, tileable).
     Matched,
     /// One of the above per colour channel, red first (`--color x,y,z`: red from Ex, green from

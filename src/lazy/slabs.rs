@@ -32,7 +32,7 @@ impl SlabsJoined {
     }
 }
 
-/// Consecutive z slices of a synthesized box (see [`Synthesizer::synthesize_slabs`]).
+/// Consecutive z slices of a synthesized box (see `Synthesizer::synthesize_slabs`).
 pub struct Slab<'a> {
     /// First slice's z, relative to the box.
     pub z0: u32,

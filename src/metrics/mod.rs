@@ -105,6 +105,18 @@ pub struct Report {
     pub slices_per_axis: u32,
 }
 
+/// The exemplars as a caller gave them (one image, or the X, Y and Z images in `frame`; None:
+/// the frame `synth` resolves for them by default) turned to the orientation [`evaluate`] and
+/// the contact sheet compare slices against.
+pub fn exemplars_in_eval_frame(
+    exemplars: Vec<Image>,
+    frame: Option<crate::analysis::frame::InputFrame>,
+) -> Result<Vec<Image>> {
+    use crate::analysis::frame::{resolve_frame, to_crate_frame};
+    let frame = resolve_frame(&exemplars, frame)?;
+    Ok(to_crate_frame(exemplars, frame))
+}
+
 /// Score `volume` against one exemplar (all axes) or three (`exemplars[a]` for slices
 /// perpendicular to axis a, in the frame orientation of `analysis::frame`).
 pub fn evaluate(volume: &Volume, exemplars: &[Image], params: &EvalParams) -> Result<Report> {

@@ -20,6 +20,7 @@
 
 pub mod cache;
 pub mod input;
+pub mod memory;
 pub mod surface;
 
 use crate::analysis::frame::InputFrame;
@@ -28,10 +29,11 @@ use crate::backend::{BackendChoice, Compute};
 use crate::error::{Error, Result};
 use crate::exemplar::Image;
 use crate::gpu::GpuOptions;
+use crate::lazy;
 use crate::lazy::cut::{CutSession, CutSpec};
 use crate::lazy::{
-    memory, Box3, CandidateMode, ColorSource, PassSchedule, Slab, SynthOptions, SynthParams,
-    SynthStats, Synthesizer,
+    Box3, CandidateMode, ColorSource, PassSchedule, Slab, SynthOptions, SynthParams, SynthStats,
+    Synthesizer,
 };
 use crate::util::cancel::CancelToken;
 use crate::volume::Volume;
@@ -369,33 +371,38 @@ impl Solid {
         &mut self.synth
     }
 
-    /// The working bytes a box of `size` voxels needs, with `output_bytes` of the caller's
-    /// outputs, before anything is allocated ([`memory::box_working_bytes`]).
+    /// The bytes a box of `size` voxels needs: the engine's working set in this solid's groups
+    /// and the returned volume, before anything is allocated.
     pub fn box_memory_estimate(&self, size: [u64; 3]) -> u64 {
-        // The synthesizer's own grouping (512: the engine's largest group).
-        let group = self.synth.volume_group_limit().unwrap_or(512);
-        memory::box_working_bytes(size, group, self.synth.params.coarse_cache)
-            + size.iter().product::<u64>() * self.color_channels() as u64
+        let largest = size.into_iter().max().unwrap_or(0).min(u32::MAX as u64) as u32;
+        lazy::memory::box_working_bytes(
+            size,
+            self.box_group().min(largest),
+            self.synth.params.coarse_cache,
+        ) + self.volume_bytes(size)
     }
 
-    /// Refuse a box whose estimate exceeds the memory available (naming `what`, the request
-    /// as the command line names it).
+    /// Refuse a box whose estimate ([`Solid::box_memory_estimate`]) exceeds the memory
+    /// available, naming `what` (the request as the command line names it).
     pub fn check_box_memory(&self, what: &str, size: [u64; 3]) -> Result<u64> {
-        let estimate = self.box_memory_estimate(size);
-        let available = crate::util::memory::available_memory();
-        if estimate > available {
-            let gib = |b: u64| b as f64 / (1u64 << 30) as f64;
-            return Err(Error::invalid(
-                what,
-                format!(
-                    "needs about {:.1} GiB of memory, {:.1} GiB is available (a smaller \
-                     --max-group bounds the working memory)",
-                    gib(estimate),
-                    gib(available)
-                ),
-            ));
-        }
-        Ok(estimate)
+        memory::check_box(
+            what,
+            size,
+            self.box_group(),
+            self.synth.params.coarse_cache,
+            self.volume_bytes(size),
+        )
+    }
+
+    /// The group edge the synthesizer gives boxes.
+    fn box_group(&self) -> u32 {
+        self.synth
+            .volume_group_limit()
+            .unwrap_or(lazy::memory::LARGEST_GROUP)
+    }
+
+    fn volume_bytes(&self, size: [u64; 3]) -> u64 {
+        size.iter().product::<u64>() * self.color_channels() as u64
     }
 
     /// Refuse an empty box, or one beyond the coordinates the engine addresses (+-2^28).

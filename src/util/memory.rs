@@ -1,6 +1,7 @@
 //! Process memory: readings for benchmark reports, and handing freed memory back.
 
 /// Peak resident set size of this process in bytes (Linux `VmHWM`), if known.
+#[cfg(any(feature = "cli", feature = "internals"))]
 pub fn peak_rss_bytes() -> Option<u64> {
     let status = std::fs::read_to_string("/proc/self/status").ok()?;
     let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
@@ -35,6 +36,7 @@ pub fn return_free_heap() {
 /// 185-186 MB instead of 191-194 and `synth --size 256` at 385-391 MB instead of 393, in the
 /// same time; the CPU backend's times and memory did not move (BENCHMARKS.md, session 37). Call it
 /// first thing in `main`, before any thread exists. A no-op off glibc.
+#[cfg(any(feature = "cli", feature = "internals"))]
 pub fn limit_heap_arenas() {
     let chosen = std::env::var_os("MALLOC_ARENA_MAX").is_some()
         || std::env::var("GLIBC_TUNABLES").is_ok_and(|t| t.contains("arena_max"));

@@ -544,10 +544,12 @@ impl Ctx<'_> {
 pub struct Updates(Vec<Vec<(u32, [u32; 3])>>);
 
 impl Updates {
+    #[cfg(any(test, feature = "internals"))]
     pub fn len(&self) -> usize {
         self.0.iter().map(Vec::len).sum()
     }
 
+    #[cfg(any(test, feature = "internals"))]
     pub fn is_empty(&self) -> bool {
         self.len() == 0
     }
@@ -570,6 +572,7 @@ fn penalty(p: &CorrectParams, level: &[u32], a: usize, c: u32) -> u32 {
 /// Run one sub-pass: returns (state index, new triple) for every voxel of the class in the
 /// bricks of the list in `p`. `pass_start`: the state when its pass began (the same words as
 /// `state` in the pass's first sub-pass).
+#[cfg(any(test, feature = "internals"))]
 pub fn correct(
     p: &CorrectParams,
     level: &[u32],

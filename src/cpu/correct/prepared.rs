@@ -326,6 +326,7 @@ impl Prepared {
 
     /// Without the candidate tables: every candidate scored from the level data directly, as
     /// for exemplars too large for the tables (the same results; tests compare the two).
+    #[cfg(any(test, feature = "internals"))]
     pub fn without_tables(mut self) -> Prepared {
         self.candidates_2d_of = [None; 3];
         self.candidates_2d = Tables2d::Short(Vec::new());

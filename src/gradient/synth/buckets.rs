@@ -11,7 +11,7 @@
 //! Accumulation is kernel `bucket_accumulate` (wgsl/bucket_accumulate.wgsl): pass 1 counts the
 //! samples of every (voxel, colour cluster), pass 2 sums, in 8.8 fixed point, the samples of each
 //! voxel's two dominant clusters. On the CPU backend the samples are streamed straight into
-//! per-(voxel, cluster) counts and sums (packed 16-bit lanes, [`PackedSums`], or with four
+//! per-(voxel, cluster) counts and sums (packed 16-bit lanes, `PackedSums`, or with four
 //! channels plain ones), from which each voxel keeps its two dominant clusters': the same
 //! integers as the kernel's CPU reference, without the kernel's sample list. On the GPU
 //! the tiles' samples are listed in parallel and a batch of tiles dispatched at once.

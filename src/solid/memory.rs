@@ -1,0 +1,115 @@
+//! Memory estimates of requests before they run: a box, a cut or a surface's shell is refused,
+//! naming the request, when its working set and its caller's outputs cannot fit in the memory
+//! available (cgroup limits included), before anything is allocated for it.
+
+use crate::backend::BackendChoice;
+use crate::error::{Error, Result};
+use crate::lazy::memory;
+
+/// The group edge a request's estimate assumes before a backend is open: `max_group` when given,
+/// else the CPU backend's (host memory) group, else the largest a GPU may use (conservative).
+pub fn planned_group(max_group: Option<u32>, backend: BackendChoice) -> u32 {
+    max_group.unwrap_or(match backend {
+        BackendChoice::Cpu => memory::HOST_MEMORY_GROUP,
+        _ => memory::LARGEST_GROUP,
+    })
+}
+
+/// The bytes a box of `size` voxels needs: the engine's working set in groups of edge `group`
+/// (at most the box's largest side), the coarse cache (`--coarse-cache`) and `output_bytes` of
+/// the caller's own outputs. Refused, naming `what`, when that exceeds the memory available.
+pub fn check_box(
+    what: &str,
+    size: [u64; 3],
+    group: u32,
+    coarse_cache: Option<u32>,
+    output_bytes: u64,
+) -> Result<u64> {
+    let largest = size.into_iter().max().unwrap_or(0).min(u32::MAX as u64) as u32;
+    let group = group.min(largest);
+    let estimate = memory::box_working_bytes(size, group, coarse_cache) + output_bytes;
+    let available = crate::util::memory::available_memory();
+    if estimate > available {
+        let cache = memory::coarse_cache_bytes(coarse_cache);
+        let cache_note = match coarse_cache {
+            Some(n) if cache > 0 => {
+                format!(", of which {:.1} GiB for --coarse-cache {n}", gib(cache))
+            }
+            _ => String::new(),
+        };
+        return Err(Error::invalid(
+            what,
+            format!(
+                "needs about {:.1} GiB of memory{cache_note}, {:.1} GiB is available (a \
+                 smaller --max-group bounds the working memory)",
+                gib(estimate),
+                gib(available)
+            ),
+        ));
+    }
+    Ok(estimate)
+}
+
+/// The 4^3-voxel bricks a square cut of `size` pixels `spacing` voxels apart crosses: its
+/// plane's area over a brick face, up to sqrt(3) more for an oblique plane and a margin for its
+/// edges; never more than one per pixel.
+pub fn cut_bricks(size: u32, spacing: f64) -> u64 {
+    let extent = size as f64 * spacing;
+    let pixels = size as u64 * size as u64;
+    ((extent / 4.0 + 2.0).powi(2) * 1.75).min(pixels as f64) as u64
+}
+
+/// The bytes a square cut of `size` pixels `spacing` voxels apart needs in groups of edge
+/// `group_side`, with `output_bytes` of the caller's outputs; refused, naming `what`, when that
+/// exceeds the memory available.
+pub fn check_cut(
+    what: &str,
+    size: u32,
+    spacing: f64,
+    group_side: u32,
+    coarse_cache: Option<u32>,
+    output_bytes: u64,
+) -> Result<u64> {
+    let bricks = cut_bricks(size, spacing);
+    check_sparse(
+        what,
+        bricks,
+        size as f64 * spacing,
+        group_side,
+        coarse_cache,
+        output_bytes,
+    )
+}
+
+/// The bytes a sparse request (a cut, a surface's shell) of `bricks` requested 4^3-voxel bricks
+/// spread over a surface `extent` voxels wide needs in groups of edge `group_side`, with
+/// `output_bytes` of the caller's outputs; refused, naming `what`, when that exceeds the memory
+/// available.
+pub fn check_sparse(
+    what: &str,
+    bricks: u64,
+    extent: f64,
+    group_side: u32,
+    coarse_cache: Option<u32>,
+    output_bytes: u64,
+) -> Result<u64> {
+    let estimate =
+        memory::sparse_working_bytes(bricks, extent, group_side, coarse_cache) + output_bytes;
+    let available = crate::util::memory::available_memory();
+    if estimate > available {
+        return Err(Error::invalid(
+            what,
+            format!(
+                "needs about {:.1} GiB of memory ({bricks} bricks of 4^3 voxels), {:.1} GiB \
+                 is available",
+                gib(estimate),
+                gib(available)
+            ),
+        ));
+    }
+    Ok(estimate)
+}
+
+fn gib(bytes: u64) -> f64 {
+    bytes as f64 / (1u64 << 30) as f64
+}
