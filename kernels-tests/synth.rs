@@ -57,8 +57,7 @@ fn synthesis_kernels_bit_exact_on_gpu_and_cpu() {
         });
     }
     // A one-voxel-thick slab (an axis-aligned cut's request): its bricks and their padding.
-    // (Until session 25 it was planned voxel by voxel, with partial brick masks; passes now
-    // compute whole bricks, so every mask is full.)
+    // (Passes compute whole bricks, so every brick mask here is full.)
     let a = analysis(false, Border::Wrap);
     let params = SynthParams {
         seed: 78,

@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Timing-only variants of the `correct` kernel, for `SOLIDSYNTH_SHADER_DIR` (README, GPU runtime):
 # each skips one part of the correction, so that `synth --profile` on a device shows what that
-# part costs there (BENCHMARKS.md, sessions 23 and 24). Their outputs differ from the real
-# kernel's by design: time them, never use their volumes.
+# part costs there (BENCHMARKS.md). Their outputs differ from the real kernel's by design: time
+# them, never use their volumes.
 #
 #   scripts/correct-ablations.sh OUTDIR
 #

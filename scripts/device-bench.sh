@@ -93,7 +93,8 @@ if wants synth; then
     # One pass at the finest level (README: --passes), the faster schedule.
     section synth.txt $ss bench synth --sizes $both_sizes,$gpu_sizes --backends gpu --runs $runs \
         --passes 2,2,2,1
-    # `correct`'s k-major blocks of 32 bricks, a warp (8 by default on a GPU; session 29).
+    # `correct`'s k-major blocks of 32 bricks, a warp (8 by default on a GPU: `block_bricks` in
+    # src/gpu/correct.rs).
     section synth.txt env SOLIDSYNTH_BLOCK_BRICKS=32 $ss bench synth --sizes $gpu_sizes \
         --backends gpu --runs $runs
     # What each part of `correct` costs here: timing-only variants (scripts/correct-ablations.sh,
@@ -130,7 +131,7 @@ if wants cuts; then
         --passes 2,2,2,1 -o "$work/cut-debug.png"
     section cuts.txt $ss cut --backend gpu --origin 32,32,20 --normal 0,0,1 --size 256 \
         --repeat $repeat --coarse-cache 128 --passes 2,2,2,1 --profile -o "$work/cut-profile.png"
-    # `correct`'s blocks of 8 (the default) and 32 bricks, one after the other (session 29).
+    # `correct`'s blocks of 8 (the default) and 32 bricks, one after the other.
     for bricks in 8 32; do
         section cuts.txt env SOLIDSYNTH_BLOCK_BRICKS=$bricks $ss cut --backend gpu \
             --origin 32,32,20 --normal 0,0,1 --size 256 --repeat $repeat \

@@ -2,8 +2,8 @@
 # Where a command's time goes on the device tool's lent GPU machine, which has no perf but has
 # cuda-gdb: the main thread's stack sampled with cuda-gdb while the command runs, and the
 # debug timings it logs with SOLIDSYNTH_LOG=solidsynth=debug (read-backs, brick indices, plans)
-# summed in a second, unsampled run. Session 21 found the host-side costs of issue 4 and 5 so
-# (BENCHMARKS.md, "Session 21").
+# summed in a second, unsampled run. It shows host-side costs that per-kernel GPU timings miss,
+# such as those of issues 4 and 5 on an NVIDIA H100 (BENCHMARKS.md).
 #
 # Prepare on the build machine (keeps the symbols, drops the debug info; about 17 MB):
 #   scripts/device-profile.sh --prepare

@@ -5,8 +5,8 @@
 # with gdb before it exits, disassembles the region holding most samples (during a long
 # synthesis, the `correct` variant that runs) and writes it with each instruction's sample count.
 # A sample lands on the instruction after the one that stalled, so it also prints the share of
-# samples by the preceding instruction's mnemonic (BENCHMARKS.md session 35: half of `correct`'s
-# samples follow a `vpgatherdd`) and the busiest gathers.
+# samples by the preceding instruction's mnemonic (on the 2-core Intel Xeon development machine
+# half of `correct`'s samples follow a `vpgatherdd`, BENCHMARKS.md) and the busiest gathers.
 #
 #   scripts/lavapipe-profile.sh OUTDIR DELAY SECONDS BINARY [ARGS...]
 #

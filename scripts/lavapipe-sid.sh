@@ -16,8 +16,8 @@
 # `run` makes the copy the first time it runs a new build of CMD, with patchelf, which holds the
 # whole binary in memory (~240 MB for a release build with its debug info): a peak RSS measured
 # around that `run` (GNU time's %M counts the largest process of the tree) is patchelf's, and
-# its wall time ~1 s more. `prepare` a new build before measuring it (session 37: the "rare 240
-# MB peaks" of sessions 33-36 were these first runs).
+# its wall time ~1 s more. `prepare` a new build before measuring it, or that first run's 240 MB
+# peak reads as a rare peak of solidsynth's.
 #
 # sid changes daily and keeps only its latest packages: `fetch` takes whatever is there and
 # records the version, so name it with any number measured this way (BENCHMARKS.md does).

@@ -443,7 +443,7 @@ fn cli_fill_cut_bake() {
         assert_eq!(img.get_pixel(0, 0)[3], 0, "background is transparent");
         // `bench lapped --render` starts the render as a child process, which must choose its
         // own llvmpipe width rather than inherit the 512 bits the bench set for itself (which
-        // the render refuses): session 32.
+        // the render refuses).
         let kiwi = f.dir.path().join("kiwi.nrrd");
         let out = run(&["lapped", "exemplar", "--kind", "kiwi", "-o", p(&kiwi)]);
         assert!(

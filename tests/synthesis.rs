@@ -632,9 +632,9 @@ fn matched_colours_restore_the_exemplar_contrast() {
         spread(&matched.data, 3),
     );
     eprintln!("colour spread: exemplar {e:.1}, mean {m:.1}, matched {t:.1}");
-    // (This fixture's mean keeps most of its contrast, 73.0 against 74.1 in session 25, so
-    // the box is only checked to be near the exemplar; the photographs' gains are measured in
-    // BENCHMARKS.md, and the probe below must match closely.)
+    // (This fixture's mean keeps most of its contrast, 73.0 against 74.1, so the box is only
+    // checked to be near the exemplar; the photographs' gains are measured in BENCHMARKS.md,
+    // and the probe below must match closely.)
     assert!(
         (t - e).abs() < 0.03 * e,
         "exemplar {e:.1}, mean {m:.1}, matched {t:.1}"

@@ -137,8 +137,8 @@ fn in_own_brick(r: Around, a: u32, du: i32, dv: i32) -> bool {
 // its pass-start value and is read from the pass-start copy; a sub-pass writes only voxels of
 // its class, so none of its reads of `state` sees one of its writes, and its results go
 // straight into the state: no records, no second dispatch to write them back, whose stores
-// lavapipe makes lane by lane (session 27: same bytes, one dispatch per sub-pass instead of
-// two, the same time on lavapipe).
+// lavapipe makes lane by lane (the same bytes with one dispatch per sub-pass instead of two, in
+// the same time on lavapipe on an AMD EPYC development machine).
 fn neighbour_word(s: u32, w: u32, own: bool, same_class: bool) -> u32 {
     if (own) {
         if (!same_class) {
@@ -153,11 +153,11 @@ fn neighbour_word(s: u32, w: u32, own: bool, same_class: bool) -> u32 {
 // the same time. Read from the level's storage buffer they took ~45% of the kernel on lavapipe,
 // from here about a quarter: lavapipe loads each word as a scalar and broadcasts it to its 16
 // lanes, and with the sums they outnumber the vector registers, so a neighbour's pass of the
-// projection loop is mostly broadcasts and spills around its multiply-adds (BENCHMARKS.md,
-// sessions 33 and 35; unrolling the loops to make the index constant compiled for seconds and
-// ran slower). Vector g of plane a's bias is v[a * 4 + g]
-// (outputs 4g..4g+3: sum_i mean_i * w_ji). The weights start at vector PROJECTION_BASE, laid out
-// as WEIGHT_LAYOUT says:
+// projection loop is mostly broadcasts and spills around its multiply-adds (on AMD EPYC and
+// Intel Xeon development machines, BENCHMARKS.md; unrolling the loops to make the index constant
+// compiled for seconds and ran slower). Vector g of plane a's bias is v[a * 4 + g] (outputs
+// 4g..4g+3: sum_i mean_i * w_ji). The weights start at vector PROJECTION_BASE, laid out as
+// WEIGHT_LAYOUT says:
 // - PLAIN: input i's weights in per_input = ceil(PCA_OUT / 4) vectors from
 //   PROJECTION_BASE + (a * pca_in + i) * per_input, vector g holding outputs 4g..4g+3.
 // - HALVES (every weight fits 16 bits): the same with per_input = ceil(PCA_OUT / 8), vector h
@@ -166,9 +166,10 @@ fn neighbour_word(s: u32, w: u32, own: bool, same_class: bool) -> u32 {
 // - BYTES (every weight fits 16 bits): per plane, neighbour and pixel word, 2 * groups vectors
 //   (groups = ceil(PCA_OUT / 4)): the high bytes, then the low bytes, of w + 32768 for the word's
 //   four channels, component j % 4 of vector j / 4 for output j (`add_word`). For packed byte dot
-//   products: on lavapipe 1.3x slower than HALVES (BENCHMARKS.md, session 33), where llvmpipe
-//   expands each dot product while it runs HALVES' multiply-adds as AVX-512 VNNI; for hardware
-//   GPUs with a native 4x8-bit dot product, chosen by `SOLIDSYNTH_WEIGHT_LAYOUT=bytes`.
+//   products: on lavapipe 1.3x slower than HALVES on an AMD EPYC development machine
+//   (BENCHMARKS.md), where llvmpipe expands each dot product while it runs HALVES' multiply-adds
+//   as AVX-512 VNNI; for hardware GPUs with a native 4x8-bit dot product, chosen by
+//   `SOLIDSYNTH_WEIGHT_LAYOUT=bytes`.
 const PROJECTION_BASE: u32 = 12u;
 const PROJECTION_VECTORS: u32 = 4096u;
 struct ProjectionWeights {
@@ -196,8 +197,8 @@ fn pack_bytes(bytes: vec4<u32>, g: u32) -> vec2<u32> {
 }
 
 // The projection's partial sums: outputs 4g..4g+3 in s_g. Four vectors by name, not an array:
-// lavapipe kept an array indexed by a loop counter in memory (8% of the kernel at 128^3,
-// BENCHMARKS.md session 31).
+// lavapipe keeps an array indexed by a loop counter in memory (8% of the kernel at 128^3 on an
+// AMD EPYC development machine, BENCHMARKS.md).
 struct Sums {
     s0: vec4<i32>,
     s1: vec4<i32>,
@@ -307,8 +308,9 @@ fn add_neighbour_words(sums: ptr<function, ByteSums>, r: Around, a: u32, du: i32
 
 // The voxel at (du, dv) in plane a of the voxel `r` surrounds, its channels added to the sums
 // (weights from vector `row`, per_input vectors per channel). Absent voxels read as zero. The
-// channels are written out rather than looped over: in a loop lavapipe blended every partial sum
-// with the loop's lane mask after each multiply-add (14% of the kernel at 128^3, session 31).
+// channels are written out rather than looped over: in a loop lavapipe blends every partial sum
+// with the loop's lane mask after each multiply-add (14% of the kernel at 128^3 on an AMD EPYC
+// development machine).
 fn add_neighbour(sums: ptr<function, Sums>, r: Around, a: u32, du: i32, dv: i32, row: u32, per_input: u32) {
     let s = plane_neighbour(r, a, du, dv);
     let own = in_own_brick(r, a, du, dv);
@@ -413,8 +415,8 @@ fn table_words(at: u32) -> vec4<u32> {
 }
 
 // sum_j q_j p_j over the bytes of q and of the projection words p, with packed byte dot
-// products (on an H100 they halved the kernel's time against a loop over the bytes of an array
-// of PCA_OUT i32, BENCHMARKS.md session 24). q's bytes past PCA_OUT are zero, so p's need no mask.
+// products (on an NVIDIA H100 they halved the kernel's time against a loop over the bytes of an
+// array of PCA_OUT i32, BENCHMARKS.md). q's bytes past PCA_OUT are zero, so p's need no mask.
 fn cross(q: Projected, p: vec4<u32>) -> u32 {
     let words = (PCA_OUT + 3u) / 4u;
     var s = dot4U8Packed(q.words.x, p.x);
@@ -474,7 +476,8 @@ fn distance(q: Projected, a: u32, c: u32) -> u32 {
 // A candidate's scale word in the tables (src/gpu/candidate_tables.rs): its distance's scale
 // (16 + usage penalties, below 2^SCALE_BITS) in the low bits, and above them the sum of squares
 // of its stored projections, p.p of `distance`, computed once when the tables are built rather
-// than per candidate and voxel (10% of the kernel on lavapipe, BENCHMARKS.md session 31).
+// than per candidate and voxel (10% of the kernel on lavapipe on an AMD EPYC development
+// machine, BENCHMARKS.md).
 const SCALE_BITS: u32 = 10u;
 const SCALE_MASK: u32 = (1u << SCALE_BITS) - 1u;
 

@@ -18,10 +18,10 @@
 //!
 //! invariant under the cyclic rotation (p0, p1, p2) -> (p1, p2, p0). So when E0 = E1 = E2 the
 //! candidates of E1 and E2 are rotations of those of E0 and are computed once.
-//! Consequence for synthesis (next issue): coordinate inheritance reads
+//! Consequence for synthesis: coordinate inheritance reads
 //! child_a = 2 parent_a + (offset along axis a+1, offset along axis a+2).
 //!
-//! The paper's own inheritance (and the synthesis issue's formula) puts Ey the other way round,
+//! The paper's own inheritance puts Ey the other way round,
 //! columns along x and rows along z, so that Ex and Ey share "up". Inputs given in that frame
 //! ([`InputFrame::Paper`], the command line's default) are brought into this one by transposing
 //! Ey ([`to_crate_frame`]): the same geometry, with the machinery above unchanged.
@@ -30,16 +30,15 @@
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum InputFrame {
-    /// The paper's coordinate inheritance (the issue's formula): Ex columns along y, rows along
-    /// z; Ey columns along x, rows along z; Ez columns along x, rows along y. The planes
-    /// orthogonal to x and y share their rows' axis (z, "up"), so layered structures and
-    /// directional lighting in one image agree in two of the three planes. Ey is transposed
-    /// into the crate's frame ([`to_crate_frame`]), so one image becomes three exemplars
-    /// (about twice the analysis time: no shared candidate set). The default where it fits
-    /// ([`default_frame`]).
+    /// The paper's coordinate inheritance: Ex columns along y, rows along z; Ey columns along
+    /// x, rows along z; Ez columns along x, rows along y. The planes orthogonal to x and y share
+    /// their rows' axis (z, "up"), so layered structures and directional lighting in one image
+    /// agree in two of the three planes. One image becomes three exemplars (Ey transposed),
+    /// about twice the analysis time. The default where it fits.
     Paper,
-    /// The crate's frame as it is (table above): one image serves all three planes with one
-    /// shared candidate set; no two planes agree on "up".
+    /// Ex columns along y, rows along z; Ey columns along z, rows along x; Ez columns along x,
+    /// rows along y: one image serves all three planes with one shared candidate set; no two
+    /// planes agree on "up".
     Cyclic,
 }
 

@@ -53,9 +53,9 @@ pub struct AnalysisParams {
 }
 
 /// Default weight of the feature channel against one colour channel. 3 (with the automatic
-/// masks of [`crate::exemplar::feature::auto_masks`]) was measured in session 10 on eleven
-/// exemplars (BENCHMARKS.md, Quality): it sharpens thin structure most without moving the
-/// colour histogram much; 1 barely changes the search.
+/// masks of [`crate::exemplar::feature::auto_masks`]) was measured on eleven exemplars
+/// (BENCHMARKS.md, Quality): it sharpens thin structure most without moving the colour
+/// histogram much; 1 barely changes the search.
 pub const DEFAULT_FEATURE_WEIGHT: f32 = 3.0;
 
 impl Default for AnalysisParams {

@@ -14,6 +14,7 @@ use std::time::Instant;
 
 /// Exemplar inputs: an image (analysed), an .ssa file (loaded), or nothing (built-in exemplar).
 #[derive(Args, Debug)]
+#[command(next_help_heading = "Input and analysis")]
 pub struct InputArgs {
     /// Exemplar image (PNG, JPEG, ...; gray, RGB or RGBA; 8 or 16 bit), used for all three axes
     /// unless --ey and --ez are given; or an .ssa analysis file. Without it, the built-in exemplar.
@@ -254,6 +255,7 @@ pub fn run(args: AnalyzeArgs, quiet: bool) -> anyhow::Result<()> {
     let finest = &result.exemplars[0].levels[0].image;
     if args.json {
         let summary = serde_json::json!({
+            "schema": 1,
             "output": args.output, "width": finest.width, "height": finest.height,
             "shared": result.shared, "bytes": bytes.len(), "seconds": seconds,
             "peak_rss_bytes": crate::util::memory::peak_rss_bytes(),

@@ -9,25 +9,32 @@ use std::time::Instant;
 #[derive(Subcommand, Debug)]
 pub enum BenchCommand {
     /// Analysis wall time and peak memory per exemplar size (each size in a fresh process).
+    #[command(after_help = super::help::BENCH_ANALYZE)]
     Analyze(BenchAnalyzeArgs),
     /// Synthesis (after analysis) per volume size and backend: median wall time, peak memory,
     /// and per-kernel times with the CPU/GPU ratio (each run in a fresh process).
+    #[command(after_help = super::help::BENCH_SYNTH)]
     Synth(BenchSynthArgs),
     /// Direct gradient-solid synthesis per size and backend: median wall time, peak memory,
     /// per-level match/update times (each run in a fresh process).
+    #[command(after_help = super::help::BENCH_GRADIENT_SYNTH)]
     GradientSynth(BenchGradientArgs),
     /// Gradient-solid rendering (kernel `tricubic_eval`, 8-bit volumes as `gradient render`
     /// writes them) per size and backend, in one warm process: median time, CPU/GPU ratio, and
     /// whether the backends' bytes agree.
+    #[command(after_help = super::help::BENCH_GRADIENT_RENDER)]
     GradientRender(BenchRenderArgs),
     /// PTM synthesis (projection vs brute-force search, identical output) and relighting (CPU vs
     /// GPU) on a synthetic capture.
+    #[command(after_help = super::help::BENCH_PTM)]
     Ptm(super::ptm_bench::BenchPtmArgs),
     /// Lapped solid textures: fill time and memory (fresh processes), warm 512^2 cut latency,
     /// optionally the GPU render.
+    #[command(after_help = super::help::BENCH_LAPPED)]
     Lapped(super::lapped_bench::BenchLappedArgs),
     /// Load test of `serve`: concurrent cut requests on loopback; throughput, p50/p95 latency,
     /// failures.
+    #[command(after_help = super::help::BENCH_SERVE)]
     Serve(super::serve::BenchServeArgs),
 }
 
@@ -432,7 +439,7 @@ fn bench_analyze(args: BenchAnalyzeArgs) -> anyhow::Result<()> {
         if args.json {
             println!(
                 "{}",
-                serde_json::json!({"size": size, "median_s": median, "min_s": times[0],
+                serde_json::json!({"schema": 1,"size": size, "median_s": median, "min_s": times[0],
                     "peak_rss_bytes": peak, "file_bytes": std::fs::metadata(&output)?.len()})
             );
         } else {

@@ -132,7 +132,7 @@ pub fn run(args: CutArgs, quiet: bool) -> anyhow::Result<()> {
     if args.json {
         println!(
             "{}",
-            serde_json::json!({"output": args.output, "size": args.size, "repeat": args.repeat,
+            serde_json::json!({"schema": 1,"output": args.output, "size": args.size, "repeat": args.repeat,
                 "median_ms": median, "p95_ms": p95, "first_ms": latencies[0], "kernels": kernels,
                 "stats": session.synthesizer().last_stats(),
                 "peak_rss_bytes": crate::util::memory::peak_rss_bytes(), "backend": compute.describe()})

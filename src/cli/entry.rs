@@ -2,7 +2,7 @@
 
 use clap::Parser;
 
-use super::{command_arguments, lapped, run, Cli, Command};
+use super::{command_arguments, lapped, output, run, Cli, Command};
 
 /// Run the command line named by the process's arguments; exits the process with its code.
 pub fn main() {
@@ -56,7 +56,8 @@ pub fn main() {
                 format!("{default_level},wgpu_core=warn,wgpu_hal=warn,naga=warn").into()
             }),
         )
-        .with_writer(std::io::stderr)
+        .with_writer(output::LogWriter)
+        .with_ansi(output::use_color())
         .without_time()
         .with_target(false)
         .init();

@@ -67,6 +67,8 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
         atomic::save_png(path, &sheet::contact_sheet(&volume, &exemplars))?;
     }
     if args.json {
+        let mut report = serde_json::to_value(&report)?;
+        report["schema"] = 1.into();
         println!("{}", serde_json::to_string_pretty(&report)?);
         return Ok(());
     }

@@ -19,13 +19,17 @@ use std::time::Instant;
 pub enum GradientCommand {
     /// Synthesize a gradient solid directly from a 2D exemplar (paper section 4): a periodic
     /// solid of period N (rounded up to a multiple of 4) that tiles space.
+    #[command(after_help = super::help::GRADIENT_SYNTH)]
     Synth(SynthArgs),
     /// Fit a gradient solid to a volume (NRRD): per control point, eq. 2's least squares.
+    #[command(after_help = super::help::GRADIENT_VECTORIZE)]
     Vectorize(VectorizeArgs),
     /// Render a .gsolid into a volume (NRRD).
+    #[command(after_help = super::help::GRADIENT_RENDER)]
     Render(RenderArgs),
     /// Recolour by strokes (instant editing): voxels similar in place and colour to the strokes
     /// move towards a reference colour; only control points change.
+    #[command(after_help = super::help::GRADIENT_EDIT)]
     Edit(EditArgs),
 }
 
@@ -124,6 +128,9 @@ pub struct EditArgs {
     /// Output .gsolid.
     #[arg(short, long)]
     pub output: PathBuf,
+    /// Print a JSON summary on stdout.
+    #[arg(long)]
+    pub json: bool,
 }
 
 #[derive(Args, Debug)]
@@ -189,6 +196,9 @@ pub struct RenderArgs {
     /// Output NRRD volume.
     #[arg(short, long)]
     pub output: PathBuf,
+    /// Print a JSON summary on stdout.
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// `gradient render --normal ...`: a slice of any orientation as a PNG (the `cut` conventions:
@@ -362,7 +372,7 @@ fn synth(a: SynthArgs, quiet: bool) -> anyhow::Result<()> {
         });
         println!(
             "{}",
-            serde_json::json!({"output": a.output, "grid": grid, "period": period,
+            serde_json::json!({"schema": 1,"output": a.output, "grid": grid, "period": period,
                 "seconds": report.seconds, "bytes": bytes.len(),
                 "fraction_of_volume": fraction, "levels": levels,
                 "optimize_seconds": report.optimize_seconds,
@@ -460,7 +470,7 @@ fn vectorize_with_mask(
     if a.json {
         println!(
             "{}",
-            serde_json::json!({"output": a.output, "grid": rs.positive.dims,
+            serde_json::json!({"schema": 1,"output": a.output, "grid": rs.positive.dims,
                 "split_points": rs.split_points(), "rms": exact, "rms_antialiased": aa,
                 "rms_without_regions": plain, "seconds": fit_s, "bytes": bytes.len(),
                 "fraction_of_volume": fraction})
@@ -518,7 +528,7 @@ pub fn run(cmd: GradientCommand, quiet: bool) -> anyhow::Result<()> {
             if a.json {
                 println!(
                     "{}",
-                    serde_json::json!({"output": a.output, "grid": solid.dims, "rms": rms,
+                    serde_json::json!({"schema": 1,"output": a.output, "grid": solid.dims, "rms": rms,
                         "seconds": fit_s, "bytes": bytes.len(), "fraction_of_volume": fraction})
                 );
             } else if !quiet {
@@ -569,7 +579,13 @@ pub fn run(cmd: GradientCommand, quiet: bool) -> anyhow::Result<()> {
             let residual = edit::edit(&mut solid, &strokes, &reference, propagation)?;
             let seconds = start.elapsed().as_secs_f64();
             atomic::write_file(&a.output, &format::to_bytes(&solid, a.encoding))?;
-            if !quiet {
+            if a.json {
+                super::output::print_json(serde_json::json!({
+                    "output": a.output, "strokes": strokes.len(), "seconds": seconds,
+                    "strength_fit_rms": residual,
+                    "control_points": solid.data.len() / (solid.channels as usize * 4),
+                }));
+            } else if !quiet {
                 eprintln!(
                     "edited {} control points with {} strokes in {seconds:.3} s (strength fit RMS \
                      {residual:.3}) -> {}",
@@ -600,7 +616,12 @@ pub fn run(cmd: GradientCommand, quiet: bool) -> anyhow::Result<()> {
             let mut v = crate::volume::Volume::new(n[0], n[1], n[2], solid.channels());
             v.data = solid.eval_u8(&query, &compute, blend_of(&a), !a.no_detail)?;
             nrrd::save(&v, &a.output)?;
-            if !quiet {
+            if a.json {
+                super::output::print_json(serde_json::json!({
+                    "output": a.output, "size": n, "channels": v.channels,
+                    "seconds": start.elapsed().as_secs_f64(), "backend": compute.describe(),
+                }));
+            } else if !quiet {
                 eprintln!(
                     "rendered {}x{}x{} in {:.2} s ({}) -> {}",
                     n[0],

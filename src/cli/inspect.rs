@@ -87,6 +87,7 @@ pub fn run(args: InspectArgs) -> anyhow::Result<()> {
         println!(
             "{}",
             serde_json::json!({
+                "schema": 1,
                 "file": args.file, "shared": a.shared, "color_channels": a.color_channels,
                 "feature_channel": a.has_feature, "levels": levels_json, "slab_png": slab_path,
             })

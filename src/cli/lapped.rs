@@ -20,15 +20,20 @@ use std::time::Instant;
 #[derive(Subcommand, Debug)]
 pub enum LappedCommand {
     /// Tetrahedralize a closed mesh and fill it with patches of a solid exemplar (.lst model).
+    #[command(after_help = super::help::LAPPED_FILL)]
     Fill(FillArgs),
     /// A planar cross-section of a model as a PNG.
+    #[command(after_help = super::help::LAPPED_CUT)]
     Cut(CutArgs),
     /// An offscreen GPU render of a model's surface as a PNG.
+    #[command(after_help = super::help::LAPPED_RENDER)]
     Render(RenderArgs),
     /// The model's surface as a textured binary glTF (.glb).
+    #[command(after_help = super::help::LAPPED_BAKE)]
     Bake(BakeArgs),
     /// Write a procedural depth-varying exemplar (texture y = depth) as NRRD, for the kiwi
     /// example (types 1-b and 2-b).
+    #[command(after_help = super::help::LAPPED_EXEMPLAR)]
     Exemplar(ExemplarArgs),
 }
 
@@ -41,6 +46,9 @@ pub struct ExemplarArgs {
     pub size: u32,
     #[arg(short, long)]
     pub output: PathBuf,
+    /// Print a JSON summary on stdout.
+    #[arg(long)]
+    pub json: bool,
 }
 
 #[derive(Args, Debug)]
@@ -150,7 +158,14 @@ pub fn run(cmd: LappedCommand, quiet: bool) -> anyhow::Result<()> {
                 )
                 .into());
             }
-            nrrd::save(&lapped::exemplar::kiwi(a.size).to_volume(), &a.output)?;
+            let volume = lapped::exemplar::kiwi(a.size).to_volume();
+            nrrd::save(&volume, &a.output)?;
+            if a.json {
+                super::output::print_json(serde_json::json!({
+                    "output": a.output, "kind": a.kind,
+                    "size": [volume.nx, volume.ny, volume.nz], "channels": volume.channels,
+                }));
+            }
             Ok(())
         }
     }
@@ -200,6 +215,7 @@ fn fill(args: FillArgs, quiet: bool) -> anyhow::Result<()> {
         println!(
             "{}",
             serde_json::json!({
+                "schema": 1,
                 "output": args.output, "texture_type": model.kind.name(),
                 "tets": q.tets, "vertices": q.vertices,
                 "min_dihedral_degrees": q.min_dihedral, "max_dihedral_degrees": q.max_dihedral,
@@ -300,7 +316,7 @@ fn cut(args: CutArgs, quiet: bool) -> anyhow::Result<()> {
     if args.json {
         println!(
             "{}",
-            serde_json::json!({"output": args.output, "size": args.size, "repeat": args.repeat,
+            serde_json::json!({"schema": 1,"output": args.output, "size": args.size, "repeat": args.repeat,
                 "median_ms": median, "p95_ms": p95, "first_ms": latencies[0],
                 "pixels_inside": inside,
                 "peak_rss_bytes": crate::util::memory::peak_rss_bytes()})
@@ -343,7 +359,7 @@ fn render(args: RenderArgs, quiet: bool) -> anyhow::Result<()> {
     if args.json {
         println!(
             "{}",
-            serde_json::json!({"output": args.output, "size": args.size, "render_ms": ms,
+            serde_json::json!({"schema": 1,"output": args.output, "size": args.size, "render_ms": ms,
                 "adapter": gpu.describe()})
         );
     } else if !quiet {
@@ -390,7 +406,7 @@ fn bake(args: BakeArgs, quiet: bool) -> anyhow::Result<()> {
     if args.json {
         println!(
             "{}",
-            serde_json::json!({"output": args.output, "triangles": surface.triangles.len(),
+            serde_json::json!({"schema": 1,"output": args.output, "triangles": surface.triangles.len(),
                 "texels": texels, "atlas": [atlas.width, atlas.height], "seconds": seconds})
         );
     } else if !quiet {

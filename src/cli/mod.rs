@@ -4,6 +4,8 @@ pub mod analyze;
 pub mod bench;
 pub mod cut;
 mod entry;
+mod help;
+pub mod output;
 pub mod eval;
 pub mod gradient;
 pub mod inspect;
@@ -25,7 +27,8 @@ pub use entry::main;
 #[command(
     name = "solidsynth",
     version,
-    about = "Solid texture synthesis from 2D exemplars, on the GPU"
+    about = "Solid texture synthesis from 2D exemplars, on the GPU",
+    after_help = help::TOOL
 )]
 pub struct Cli {
     #[command(subcommand)]
@@ -38,19 +41,26 @@ pub struct Cli {
 #[derive(Subcommand, Debug)]
 pub enum Command {
     /// Analyse exemplar(s): pyramids, PCA, 3D candidates; writes a .ssa file.
+    #[command(after_help = help::ANALYZE)]
     Analyze(analyze::AnalyzeArgs),
     /// Score a volume against its exemplar: histograms, patch coherence and completeness,
     /// gradient orientations, per axis, with floors; optionally a contact sheet.
+    #[command(after_help = help::EVAL)]
     Eval(eval::EvalArgs),
     /// Synthesize the solid texture box [0, N)^3 (NRRD, optional PNG slices, flipbook, sheet).
+    #[command(after_help = help::SYNTH)]
     Synth(synth::SynthArgs),
     /// Synthesize any box of the infinite solid (same voxels as in any larger box).
+    #[command(after_help = help::REGION)]
     Region(synth::RegionArgs),
     /// A planar cut of the solid (any orientation) as a PNG; --repeat measures warm latency.
+    #[command(after_help = help::CUT)]
     Cut(cut::CutArgs),
     /// The solid baked onto a mesh surface: a UV atlas texture (binary glTF, or OBJ + MTL + PNG).
+    #[command(after_help = help::SURFACE)]
     Surface(surface::SurfaceArgs),
     /// Describe a .ssa file and write its candidate slab as a PNG.
+    #[command(after_help = help::INSPECT)]
     Inspect(inspect::InspectArgs),
     /// Gradient solid textures: vectorize a volume into a .gsolid, render one.
     #[command(subcommand)]
@@ -63,16 +73,46 @@ pub enum Command {
     Lapped(lapped::LappedCommand),
     /// The interactive viewer: a local web page (built into the binary) to cut through the
     /// solid, and its HTTP API.
+    #[command(after_help = help::SERVE)]
     Serve(serve::ServeArgs),
     /// Benchmarks printed as tables.
     #[command(subcommand)]
     Bench(bench::BenchCommand),
     /// List the GPU adapters wgpu can see.
-    Adapters,
+    #[command(after_help = help::ADAPTERS)]
+    Adapters(AdaptersArgs),
+    /// Shell completions (bash, zsh, fish, elvish, powershell) on stdout.
+    #[command(after_help = help::COMPLETIONS)]
+    Completions(CompletionsArgs),
+    /// Man pages (roff): solidsynth.1 and one per subcommand, into a directory.
+    #[command(after_help = help::MAN)]
+    Man(ManArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct AdaptersArgs {
+    /// Print JSON instead of lines.
+    #[arg(long)]
+    pub json: bool,
+}
+
+#[derive(Args, Debug)]
+pub struct CompletionsArgs {
+    /// The shell to complete for.
+    #[arg(value_enum)]
+    pub shell: clap_complete::Shell,
+}
+
+#[derive(Args, Debug)]
+pub struct ManArgs {
+    /// Directory for the pages (created if missing; existing pages of these names are replaced).
+    #[arg(short, long)]
+    pub output: std::path::PathBuf,
 }
 
 /// Backend flags shared by the commands that run kernels.
 #[derive(Args, Debug, Clone)]
+#[command(next_help_heading = "Backend and GPU")]
 pub struct BackendArgs {
     /// Where kernels run: gpu (any Vulkan adapter, lavapipe included), cpu, or auto.
     #[arg(long, value_enum, default_value = "auto")]
@@ -140,32 +180,59 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Lapped(l) => lapped::run(l, cli.quiet),
         Command::Serve(a) => serve::run(a, cli.quiet),
         Command::Bench(b) => bench::run(b),
-        Command::Adapters => {
-            let list = crate::gpu::context::list_adapters();
-            if list.is_empty() {
-                println!("no Vulkan adapters (install mesa-vulkan-drivers for lavapipe)");
-            }
-            for a in list {
-                println!(
-                    "{} ({:?}, {:?}, driver {} {})",
-                    a.name, a.device_type, a.backend, a.driver, a.driver_info
-                );
-            }
+        Command::Adapters(a) => adapters(a),
+        Command::Completions(a) => {
+            use clap::CommandFactory;
+            let mut command = Cli::command();
+            clap_complete::generate(a.shell, &mut command, "solidsynth", &mut std::io::stdout());
             Ok(())
         }
+        Command::Man(a) => man_pages(&a.output),
     }
 }
 
-/// A progress bar on stderr (hidden when stderr is not a terminal or with --quiet).
-pub fn progress_bar(quiet: bool) -> indicatif::ProgressBar {
-    if quiet {
-        return indicatif::ProgressBar::hidden();
+fn adapters(args: AdaptersArgs) -> anyhow::Result<()> {
+    let list = crate::gpu::context::list_adapters();
+    if args.json {
+        let adapters: Vec<_> = list
+            .iter()
+            .map(|a| {
+                serde_json::json!({
+                    "name": a.name,
+                    "device_type": format!("{:?}", a.device_type).to_lowercase(),
+                    "backend": format!("{:?}", a.backend).to_lowercase(),
+                    "driver": a.driver,
+                    "driver_info": a.driver_info,
+                })
+            })
+            .collect();
+        let report = serde_json::json!({"schema": 1, "adapters": adapters});
+        println!("{}", serde_json::to_string_pretty(&report)?);
+        return Ok(());
     }
-    let bar = indicatif::ProgressBar::new(1000);
-    bar.set_style(
-        indicatif::ProgressStyle::with_template("{elapsed:>4} [{bar:30}] {msg}")
-            .unwrap()
-            .progress_chars("=> "),
-    );
-    bar
+    if list.is_empty() {
+        println!("no Vulkan adapters (install mesa-vulkan-drivers for lavapipe)");
+    }
+    for a in list {
+        println!(
+            "{} ({:?}, {:?}, driver {} {})",
+            a.name, a.device_type, a.backend, a.driver, a.driver_info
+        );
+    }
+    Ok(())
+}
+
+/// Write `solidsynth.1` and a page per subcommand (`solidsynth-synth.1`, ...) into `dir`.
+fn man_pages(dir: &std::path::Path) -> anyhow::Result<()> {
+    use clap::CommandFactory;
+    std::fs::create_dir_all(dir).map_err(|e| crate::Error::io(dir, e))?;
+    let command = Cli::command();
+    clap_mangen::generate_to(command, dir).map_err(|e| crate::Error::io(dir, e))?;
+    Ok(())
+}
+
+/// A command's progress on stderr ([`output::Progress`]: a bar on a terminal, a line per stage
+/// otherwise, nothing when `quiet`).
+pub fn progress_bar(quiet: bool) -> output::Progress {
+    output::Progress::new(quiet)
 }

@@ -14,12 +14,16 @@ use std::time::Instant;
 #[derive(Subcommand, Debug)]
 pub enum PtmCommand {
     /// Write a synthetic capture: images of a procedural surface under N lights, and lights.lp.
+    #[command(after_help = super::help::PTM_CAPTURE)]
     Capture(CaptureArgs),
     /// Fit a PTM (least squares per pixel) to a capture directory.
+    #[command(after_help = super::help::PTM_FIT)]
     Fit(FitArgs),
     /// Synthesize a larger PTM by block quilting over reflectance functions.
+    #[command(after_help = super::help::PTM_SYNTH)]
     Synth(SynthArgs),
     /// Render a PTM under a light (or a ring of lights: a contact sheet) as a PNG.
+    #[command(after_help = super::help::PTM_RELIGHT)]
     Relight(RelightArgs),
 }
 
@@ -37,6 +41,9 @@ pub struct CaptureArgs {
     /// Output directory (new or empty).
     #[arg(short, long)]
     pub output: PathBuf,
+    /// Print a JSON summary on stdout.
+    #[arg(long)]
+    pub json: bool,
 }
 
 #[derive(Args, Debug)]
@@ -110,6 +117,9 @@ pub struct RelightArgs {
     /// Output PNG.
     #[arg(short, long)]
     pub output: PathBuf,
+    /// Print a JSON summary on stdout.
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// Refuse an output path that names an input file (we never overwrite inputs).
@@ -163,7 +173,12 @@ fn capture_cmd(a: CaptureArgs, quiet: bool) -> anyhow::Result<()> {
     let staging = outputs.directory(out)?;
     capture::save(&cap, &staging)?;
     outputs.commit()?;
-    if !quiet {
+    if a.json {
+        super::output::print_json(serde_json::json!({
+            "output": out, "images": a.lights, "size": a.size, "seed": a.seed,
+            "seconds": start.elapsed().as_secs_f64(),
+        }));
+    } else if !quiet {
         eprintln!(
             "captured {} images of {}x{} in {:.2} s -> {}",
             a.lights,
@@ -188,7 +203,7 @@ fn fit_cmd(a: FitArgs, quiet: bool) -> anyhow::Result<()> {
     if a.json {
         println!(
             "{}",
-            serde_json::json!({"output": a.output, "images": cap.images.len(),
+            serde_json::json!({"schema": 1,"output": a.output, "images": cap.images.len(),
                 "width": ptm.width, "height": ptm.height, "format": ptm.format.header_name(),
                 "rms_error_levels": rms, "seconds": secs})
         );
@@ -246,7 +261,7 @@ fn synth_cmd(a: SynthArgs, quiet: bool) -> anyhow::Result<()> {
     if a.json {
         println!(
             "{}",
-            serde_json::json!({"output": a.output, "size": a.size, "blocks": report.blocks,
+            serde_json::json!({"schema": 1,"output": a.output, "size": a.size, "blocks": report.blocks,
                 "seconds": secs, "search": format!("{:?}", a.search),
                 "surviving_fraction_per_stage": survivors,
                 "exact_distances_per_query": st.exact as f64 / st.queries.max(1) as f64})
@@ -309,7 +324,7 @@ fn relight_cmd(a: RelightArgs, quiet: bool) -> anyhow::Result<()> {
         }
         None => {
             let lights = relight::ring(a.sweep.unwrap() as usize, a.elevation, a.specular);
-            let bar = super::progress_bar(quiet);
+            let bar = super::progress_bar(quiet || a.json);
             bar.set_message("relighting");
             let sheet = relight::contact_sheet(&compute, &ptm, &lights, &mut |done, total| {
                 bar.set_length(total as u64);
@@ -320,7 +335,13 @@ fn relight_cmd(a: RelightArgs, quiet: bool) -> anyhow::Result<()> {
         }
     };
     atomic::save_png(&a.output, &img)?;
-    if !quiet {
+    if a.json {
+        super::output::print_json(serde_json::json!({
+            "output": a.output, "width": img.width(), "height": img.height(),
+            "lights": a.sweep.unwrap_or(1), "seconds": start.elapsed().as_secs_f64(),
+            "backend": compute.describe(),
+        }));
+    } else if !quiet {
         eprintln!(
             "relit a {}x{} PTM in {:.3} s ({}) -> {}",
             ptm.width,

@@ -269,6 +269,7 @@ pub fn bench(args: BenchServeArgs) -> anyhow::Result<()> {
     let rt: Vec<f64> = ok.iter().map(|r| r.1).collect();
     let synth: Vec<f64> = ok.iter().map(|r| r.2).collect();
     let summary = serde_json::json!({
+        "schema": 1,
         "clients": args.clients, "requests_per_client": args.requests, "cut_size": size,
         "exemplar": args.exemplar, "backend": backend, "coarse_cache": config_cache,
         "setup_seconds": setup_s, "wall_seconds": wall,
@@ -510,7 +511,7 @@ fn print_mixed(
             .collect();
         println!(
             "{}",
-            serde_json::json!({"seconds": seconds, "clients": args.clients, "idle": args.idle,
+            serde_json::json!({"schema": 1,"seconds": seconds, "clients": args.clients, "idle": args.idle,
             "backend": backend, "setup_seconds": setup_s, "peak_rss_mib": rss, "kinds": rows})
         );
         return;

@@ -126,6 +126,7 @@ pub fn run(args: SurfaceArgs, quiet: bool) -> anyhow::Result<()> {
         println!(
             "{}",
             serde_json::json!({
+                "schema": 1,
                 "output": args.output, "triangles": mesh.triangles.len(), "resolution": args.resolution,
                 "texels": args.texels, "texel_size": plan.texel_size, "atlas": [atlas.width, atlas.height],
                 "max_texel_step_voxels": atlas.max_texel_step(&mesh, place),

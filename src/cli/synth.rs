@@ -40,6 +40,7 @@ pub struct RegionArgs {
 
 /// What defines the solid: shared by `synth`, `region` and `cut`.
 #[derive(Args, Debug)]
+#[command(next_help_heading = "Solid")]
 pub struct SolidParams {
     #[command(flatten)]
     pub input: InputArgs,
@@ -75,7 +76,12 @@ pub struct SolidParams {
     /// a box's a quarter more: their padding makes them a little larger); the output is
     /// the same whatever the grouping. Default: for boxes and surfaces 128 where the device's
     /// memory is the host's (the CPU backend, lavapipe, an integrated GPU), else 512.
-    #[arg(long, value_name = "VOXELS", value_parser = clap::value_parser!(u32).range(4..=512))]
+    #[arg(
+        long,
+        value_name = "VOXELS",
+        value_parser = clap::value_parser!(u32).range(4..=512),
+        help_heading = "Performance"
+    )]
     pub max_group: Option<u32>,
 }
 
@@ -124,6 +130,7 @@ impl SolidParams {
 
 /// The solid and the volume outputs: shared by `synth` and `region`.
 #[derive(Args, Debug)]
+#[command(next_help_heading = "Output")]
 pub struct SolidArgs {
     #[command(flatten)]
     pub solid: SolidParams,
@@ -149,7 +156,7 @@ pub struct SolidArgs {
     #[arg(long)]
     pub json: bool,
     /// Time each kernel (waits for the device after every kernel) and report the times.
-    #[arg(long)]
+    #[arg(long, help_heading = "Performance")]
     pub profile: bool,
 }
 
@@ -439,6 +446,7 @@ fn run_box(args: &SolidArgs, region: Box3, tileable: bool, quiet: bool) -> anyho
         println!(
             "{}",
             serde_json::json!({
+                "schema": 1,
                 "output": args.output, "box": [region.lo, region.hi], "seed": args.solid.seed, "jitter": args.solid.jitter,
                 "candidates": args.solid.candidates, "passes": args.solid.passes,
                 "analysis_seconds": analysis_s, "synthesis_seconds": synth_s,

@@ -8,8 +8,8 @@
 //! Gaussians would be a fraction of an l_start voxel, a perturbation the correction undoes (the
 //! paper: small-scale distortions are corrected by synthesis); --jitter scales the warp.
 //! All in fixed point, so GPU and CPU agree. Tileable solids' l_start periods are whole cells
-//! (`lazy::check_tileable_size`), so their cells repeat with the period. (Until session 25 a
-//! fine lattice of 2^3 cells served periods that were not.)
+//! (`lazy::check_tileable_size`), so their cells repeat with the period and one lattice serves
+//! every solid.
 
 use crate::util::hash::hash32;
 

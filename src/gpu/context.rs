@@ -131,9 +131,9 @@ fn render_safe_cpu_vectors() {
 
 /// llvmpipe's adapter name at the vector width whose render pipelines crash it: Mesa 22.3.6
 /// (LLVM 15) and 26.2.6 (LLVM 22) both segfault in LLVM compiling `lapped_render`'s pipeline
-/// at 512 bits on the development machine's AMD EPYC (session 32), while every compute kernel
-/// here compiles and runs there. Found only then: until Mesa's shader cache was empty, the
-/// render's pipeline had been compiled at 256 bits before session 29 and read from the cache.
+/// at 512 bits on an AMD EPYC development machine, while every compute kernel here compiles and
+/// runs there. A warm Mesa shader cache hides the crash: a pipeline compiled at 256 bits is read
+/// back at 512 (the cache's key seems not to include the width), so CI runs with it disabled.
 pub const RENDER_CRASHING_WIDTH: &str = "512 bits";
 
 impl GpuContext {
@@ -147,11 +147,11 @@ impl GpuContext {
 }
 
 /// Mesa's llvmpipe (lavapipe, the Vulkan device of GPU-less machines) runs a shader 8 lanes wide
-/// on an AVX-512 CPU unless `LP_NATIVE_VECTOR_WIDTH` says otherwise: Mesa chose 256 bits there
-/// for CPUs that slow their clock on 512-bit instructions. At 512 bits every kernel here ran the
-/// same bytes 1.3-1.4x faster on the development machine's AMD EPYC (BENCHMARKS.md, session 29:
-/// 256^3, the bunny's bake, warm cuts), so solidsynth asks for it on AVX-512 hosts; a value the
-/// user set is kept (256 restores Mesa's choice). Other drivers ignore the variable. Called once
+/// on an AVX-512 CPU unless `LP_NATIVE_VECTOR_WIDTH` says otherwise: Mesa chose 256 bits there for
+/// CPUs that slow their clock on 512-bit instructions. At 512 bits every kernel here ran the same
+/// bytes 1.3-1.4x faster on an AMD EPYC development machine (BENCHMARKS.md: 256^3, the bunny's
+/// bake, warm cuts), so solidsynth asks for it on AVX-512 hosts; a value the user set is kept (256
+/// restores Mesa's choice). Other drivers ignore the variable. Called once
 /// ([`prepare_driver_environment_for`]), before the first wgpu instance exists.
 fn prefer_full_width_cpu_vectors() {
     const VARIABLE: &str = "LP_NATIVE_VECTOR_WIDTH";

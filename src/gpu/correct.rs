@@ -34,9 +34,9 @@ pub const BLOCK_BRICKS_ENV: &str = "SOLIDSYNTH_BLOCK_BRICKS";
 
 /// Listed bricks per block of `correct`'s k-major threads (`class_voxel` in
 /// wgsl/lib/synth_common.wgsl): `SOLIDSYNTH_BLOCK_BRICKS` when it names a multiple of 8 up to 64;
-/// else a CPU device's SIMD width where it is 16 (lavapipe at 512 bits: the same bytes, `correct`
-/// 10% faster at 128^3 than blocks of 8, BENCHMARKS.md session 29), else 8, the layout measured on
-/// the H100 (session 24) and on lavapipe at 256 bits.
+/// else a CPU device's SIMD width where it is 16 (lavapipe at 512 bits on an AMD EPYC
+/// development machine: the same bytes, `correct` 10% faster at 128^3 than blocks of 8,
+/// BENCHMARKS.md), else 8, the layout measured on an NVIDIA H100 and on lavapipe at 256 bits.
 pub(super) fn block_bricks(info: &wgpu::AdapterInfo) -> u32 {
     if let Ok(v) = std::env::var(BLOCK_BRICKS_ENV) {
         match v.parse::<u32>() {
@@ -109,7 +109,8 @@ impl GpuSynth {
     /// Release the `correct` pipelines that only the levels above `level` use (their constants
     /// differ from every later level's): for when no coarser level will be corrected again (the
     /// coarse cache built, a request's shared coarse levels done). On lavapipe each compiled
-    /// variant keeps its compiler's memory, ~14-22 MB of the peak (BENCHMARKS.md, session 27).
+    /// variant keeps its compiler's memory, ~14-22 MB of the peak on an AMD EPYC development
+    /// machine (BENCHMARKS.md).
     pub fn release_coarse_pipelines(&self, level: usize) {
         let later = &self.correct_constants[level..];
         for (i, c) in self.correct_constants[..level].iter().enumerate() {

@@ -48,9 +48,8 @@ impl Drop for GpuState {
 pub(super) struct BufferPool(Arc<std::sync::Mutex<Vec<wgpu::Buffer>>>);
 
 const POOLED_BUFFERS: usize = 8;
-/// A 256^2 cut keeps about 45 MiB (a state, its pass-start copy, colours; measured with
-/// the correction records that session 27 removed, so less now), an oblique 512^2 one more;
-/// `serve` holds one pool per loaded solid, so the cap stays well below a device's memory.
+/// A 256^2 cut keeps under 45 MiB (a state, its pass-start copy, colours), an oblique 512^2 one
+/// more; `serve` holds one pool per loaded solid, so the cap stays well below a device's memory.
 const POOLED_BYTES: u64 = 256 << 20;
 
 impl BufferPool {
@@ -232,7 +231,8 @@ impl GpuSynth {
         // kernel a synthesis runs, `correct`'s variants (the long compiles) first. On a CPU
         // device `correct` is built at its first dispatch of each level, as the previous
         // levels run: its compiler shares the cores with them, and building the variants
-        // together held 18 MB more at once for no measurable gain (lavapipe, session 30).
+        // together held 18 MB more at once for no measurable gain (lavapipe on an AMD EPYC
+        // development machine).
         let mut kernels = Vec::new();
         if ctx.info.device_type != wgpu::DeviceType::Cpu {
             kernels.extend(correct_constants.iter().map(|c| ("correct", c.clone())));

@@ -1,13 +1,12 @@
 //! Usage balancing: a static, per-pixel penalty on exemplar pixels that the correction over-uses.
 //!
-//! Why. Measured on photographs (session 8, `stone_brick`, 64^3): without it, the correction at
-//! the second synthesized level collapses onto a handful of flat, mid-tone exemplar pixels whose
-//! triples are mutually consistent (the top 1% of pixels held 43% of all voxel coordinates). Such
-//! a region tiles itself into a bland solid that matches every neighbourhood a little, so the
-//! slices lose their contrast, dark features and histogram (sharpness 19x the exemplar's floor).
-//! This is the washing-out that Kopf et al. 2007 counter with histogram matching, and Chen and
-//! Wang 2010 with position-histogram matching: penalize the exemplar positions used more often
-//! than the others.
+//! Why. Measured on photographs (`stone_brick`, 64^3): without it, the correction at the second
+//! synthesized level collapses onto a handful of flat, mid-tone exemplar pixels whose triples are
+//! mutually consistent (the top 1% of pixels held 43% of all voxel coordinates). Such a region
+//! tiles itself into a bland solid that matches every neighbourhood a little, so the slices lose
+//! their contrast, dark features and histogram (sharpness 19x the exemplar's floor). This is the
+//! washing-out that Kopf et al. 2007 counter with histogram matching, and Chen and Wang 2010 with
+//! position-histogram matching: penalize the exemplar positions used more often than the others.
 //!
 //! How, keeping the solid lazy and spatially deterministic. Those methods re-weight with the
 //! histogram of the volume being synthesized, a global quantity a lazy synthesis never has. Here
@@ -104,9 +103,9 @@ pub fn balance(
             &format!("round {} of {rounds} ({size}^3)", round + 1),
             round as f32 / rounds as f32,
         );
-        // A new solid each round (until session 25 every round synthesized the same one, which
-        // made the penalties swing with that one solid: the built-in exemplar's grey cells were
-        // nearly half of one analysis' solids and absent from the next's).
+        // A new solid each round: with the same one every round the penalties swing with that
+        // one solid (the built-in exemplar's grey cells were nearly half of one analysis' solids
+        // and absent from the next's).
         let params = SynthParams {
             seed: CALIBRATION_SEED + round as u64,
             ..Default::default()

@@ -160,7 +160,7 @@ pub fn push_list(words: &mut Vec<u32>, list: &[Brick]) -> u32 {
 /// axis ORs a handful of shifted copies of whole rows, planes or the grid (contiguous bytes the
 /// compiler vectorizes): an oblique cut's plan dilates a sparse sheet in a large bounding box
 /// several times per level, and running sums along strided lines took most of its planning
-/// (BENCHMARKS.md, session 36).
+/// (BENCHMARKS.md).
 pub fn dilate(set: &[Brick], lo: [i32; 3], hi: [i32; 3]) -> Vec<Brick> {
     let Some((bmin, bmax)) = bounds(set) else {
         return Vec::new();
@@ -254,7 +254,7 @@ impl Presence {
         // The table as three running sums, along x, then y, then z: one addition per cell
         // and axis instead of the seven-term recurrence with a brick lookup per cell (an
         // oblique 256^2 cut's bounding box is ~190k cells: building this was 15% of its
-        // warm cut's main-thread CPU on lavapipe, session 37).
+        // warm cut's main-thread CPU on lavapipe on the 2-core Intel Xeon development machine).
         for row in sat.chunks_exact_mut(nx) {
             for x in 1..nx {
                 row[x] = row[x].wrapping_add(row[x - 1]);
@@ -564,8 +564,8 @@ fn subpass_in_box(class: usize, needed: Box3, storage: (Brick, [usize; 3])) -> S
 /// first. The finest level: the dense planner's boxes (`plan::plan` of `out`), stored in the
 /// bricks covering them; the coarser levels as for the box of those bricks' parents. Since
 /// passes compute whole bricks (brick-local sub-passes) this computes what the brick plan of
-/// `out`'s bricks does (until session 25 a one-voxel slice gained here: its padding surrounded
-/// one voxel layer instead of four). Delivers `out`'s voxels.
+/// `out`'s bricks does: a one-voxel slice gains nothing here, its padding surrounds its bricks'
+/// four voxel layers either way. Delivers `out`'s voxels.
 pub fn plan_voxel_box(out: Box3, passes: &[usize]) -> Vec<SparseLevel> {
     let (&finest, coarser) = passes.split_last().expect("at least one level");
     let dense = &plan(out, &[finest])[0];

@@ -95,7 +95,7 @@ impl Synthesizer {
     /// and of as many following ones as there are threads, within [`PLAN_AHEAD_BRICKS`]
     /// requested bricks, made in parallel: each group's plan is mostly serial work (its
     /// dilation and presence tables), and a surface's hundreds of small groups spent half
-    /// their time planning one after the other on an H100 (BENCHMARKS.md, session 30).
+    /// their time planning one after the other on an NVIDIA H100 (BENCHMARKS.md).
     /// The plans are of the levels from `first` (the finest only where a group reads the
     /// coarse cache or shared coarse levels).
     pub(super) fn plan_ahead(

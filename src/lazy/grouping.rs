@@ -99,8 +99,8 @@ pub fn group_sides(
 /// 488 voxels becomes eight cubes of 256, not one of 488 and seven slivers of 24 that each
 /// recompute a full padding, and 600 x 400 x 400 two boxes of 300 x 400 x 400. Equal groups
 /// also let a GPU synthesize one while the host takes the previous one's colours (the NRRD's
-/// slabs, a surface's atlas): on an H200, 512^3 took 1.71-1.74 s in groups of 256 against
-/// 2.0 s in the uneven ones, with shared coarse levels (session 32).
+/// slabs, a surface's atlas): on an NVIDIA H200, 512^3 took 1.71-1.74 s in groups of 256
+/// against 2.0 s in the uneven ones, with shared coarse levels (BENCHMARKS.md).
 fn even_sides(all: &[Brick], largest: u32) -> [u32; 3] {
     let most = cube_bricks(largest);
     let Some((lo, hi)) = bricks::bounds(all) else {
@@ -160,7 +160,8 @@ fn cube_bounds(all: &[Brick], sides: [u32; 3]) -> Vec<(Brick, Brick)> {
 
 /// Whether bricks within [lo, hi] (inclusive) make one box of `size` bricks from `lo`: then
 /// the splits need no per-brick key (a warm cut's request, a small box: grouping by keys in a
-/// hash map took ~0.45 ms of a warm 256^2 cut's host time, session 37).
+/// hash map took ~0.45 ms of a warm 256^2 cut's host time on the 2-core Intel Xeon development
+/// machine).
 fn in_one_cube(lo: Brick, hi: Brick, size: [i32; 3]) -> bool {
     (0..3).all(|i| hi[i] - lo[i] < size[i])
 }

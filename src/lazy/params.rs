@@ -279,8 +279,7 @@ pub(super) fn periods_below(n: u32, levels: usize) -> Vec<u32> {
 /// Refuse a tileable period `n` (finest-level voxels) that the pyramid cannot keep periodic:
 /// each level's period is half the next one's, and the correction's brick-local sub-passes
 /// (`plan`) need whole 4-voxel bricks in every level's period, so `n` must be a multiple of 32.
-/// (Until session 25 a multiple of 16 was enough, with a finer jitter lattice for l_start
-/// periods that were not multiples of 4.)
+/// The l_start period is then whole jitter cells too (`contract::jitter`).
 pub fn check_tileable_size(n: u32) -> Result<()> {
     let levels = 1u32 << (ANALYSED_LEVELS - 1);
     let step = 4 * levels;

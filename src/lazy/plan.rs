@@ -11,9 +11,9 @@
 //! The paper plans one dilation by the neighbourhood per pass in the same way (its Fig. 7); with
 //! every read taking the latest value, sub-pass after sub-pass, the dependencies would chain
 //! through the eight sub-passes (13 voxels of padding per level for two passes instead of 6 to 9
-//! here; BENCHMARKS.md, session 25). At the start of a level, the union of needed boxes is what
-//! upsampling (or the initialization) must provide, and half of it (rounded out) is what the
-//! coarser level must deliver. Boxes make this slightly conservative but never short.
+//! here; BENCHMARKS.md). At the start of a level, the union of needed boxes is what upsampling
+//! (or the initialization) must provide, and half of it (rounded out) is what the coarser level
+//! must deliver. Boxes make this slightly conservative but never short.
 
 use super::SUBPASS_ORDER;
 

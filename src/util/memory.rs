@@ -34,8 +34,9 @@ pub fn return_free_heap() {
 /// a thread frees stays in its arena: lavapipe's queue and compiler threads, wgpu's and rayon's
 /// workers each kept some resident. With 2, the bunny at 1024 on lavapipe (fast flags) peaked at
 /// 185-186 MB instead of 191-194 and `synth --size 256` at 385-391 MB instead of 393, in the
-/// same time; the CPU backend's times and memory did not move (BENCHMARKS.md, session 37). Call it
-/// first thing in `main`, before any thread exists. A no-op off glibc.
+/// same time, on the 2-core Intel Xeon development machine; the CPU backend's times and memory
+/// did not move (BENCHMARKS.md). Call it first thing in `main`, before any thread exists. A no-op
+/// off glibc.
 #[cfg(any(feature = "cli", feature = "internals"))]
 pub fn limit_heap_arenas() {
     let chosen = std::env::var_os("MALLOC_ARENA_MAX").is_some()

@@ -81,11 +81,12 @@ fn brick_at(list: u32, i: u32) -> vec3<i32> {
 // (thread t is voxel k = t / bricks of brick t % bricks), so the lanes of a SIMD group of up to
 // `bricks` lanes sit at the same position in neighbouring bricks (`bricks`: 8, or 16 on a CPU
 // device with 16-lane subgroups: `block_bricks` in src/gpu/synth.rs). A thin request needs some
-// of a brick's class voxels and not others (a slice's last sub-pass: the four on one z layer), mostly the same k in neighbouring bricks, so
-// the voxels the plan skips fill whole SIMD groups, which a driver skips. On lavapipe the warm
-// axis-aligned 256^2 and 512^2 cuts got 20-30% faster (99.5% of the lanes busy instead of 90%,
-// and the lanes' neighbour lookups agree); boxes, oblique cuts and surfaces are unchanged
-// within noise (BENCHMARKS.md, session 23). The grid's rows are whole workgroups
+// of a brick's class voxels and not others (a slice's last sub-pass: the four on one z layer),
+// mostly the same k in neighbouring bricks, so the voxels the plan skips fill whole SIMD groups,
+// which a driver skips. On lavapipe on the 2-core Intel Xeon development machine the warm
+// axis-aligned 256^2 and 512^2 cuts got 20-30% faster than with brick-major threads (99.5% of the
+// lanes busy instead of 90%, and the lanes' neighbour lookups agree); boxes, oblique cuts and
+// surfaces are unchanged within noise (BENCHMARKS.md). The grid's rows are whole workgroups
 // (`dispatch_grid`), the host dispatches whole blocks and takes the rows' stride from the same
 // thread count (`correct_dispatch`), so this is a bijection.
 fn class_voxel(thread: u32, bricks: u32) -> vec2<u32> {

@@ -99,9 +99,10 @@ pub enum SliceSearch {
     /// crossbar-consistent with E_x; E_z the nearest to s_z among the `n2` most consistent with
     /// both ([`crossbar`]: the sets are precomputed per level).
     Crossbar { n1: u32, n2: u32 },
-    /// The other way round (this crate's reading before session 15): E_y the most
-    /// crossbar-consistent with E_x among the `n1` nearest to s_y; E_z the most consistent
-    /// with both among the `n2` nearest to s_z. Two k-nearest searches per check point.
+    /// The other way round (another reading of the paper's sentence, kept for comparison): E_y
+    /// the most crossbar-consistent with E_x among the `n1` nearest to s_y; E_z the most
+    /// consistent with both among the `n2` nearest to s_z. Two k-nearest searches per check
+    /// point.
     CrossbarNearest { n1: u32, n2: u32 },
 }
 

@@ -1,0 +1,153 @@
+//! What the command line prints on stderr: progress (a bar on a terminal, one line per stage
+//! elsewhere), and log lines that go around the bar instead of breaking it, in colour only on a
+//! terminal without `NO_COLOR`.
+
+use std::io::{IsTerminal, Write};
+use std::sync::{Arc, Mutex};
+use std::time::Instant;
+
+/// Whether stderr is a terminal (bars, colour) or a file or pipe (plain lines).
+pub fn stderr_is_terminal() -> bool {
+    std::io::stderr().is_terminal()
+}
+
+/// ANSI colour in log lines: on a terminal, unless `NO_COLOR` is set to anything non-empty
+/// (<https://no-color.org>).
+pub fn use_color() -> bool {
+    stderr_is_terminal() && std::env::var_os("NO_COLOR").is_none_or(|v| v.is_empty())
+}
+
+/// Print a command's `--json` summary on stdout, with the summary format's version
+/// (`"schema": 1`) added.
+pub fn print_json(mut summary: serde_json::Value) {
+    summary["schema"] = 1.into();
+    println!("{summary}");
+}
+
+/// The progress bar on screen now, if any: log lines are printed around it.
+static ACTIVE_BAR: Mutex<Option<indicatif::ProgressBar>> = Mutex::new(None);
+
+/// A command's progress: a bar on a terminal; with stderr redirected, one line per stage
+/// (each new message, with the seconds since the start); nothing with `--quiet` or `--json`.
+#[derive(Clone)]
+pub struct Progress {
+    bar: indicatif::ProgressBar,
+    lines: Option<Arc<StageLines>>,
+}
+
+struct StageLines {
+    start: Instant,
+    /// The last message and when the last line was printed.
+    last: Mutex<(String, f64)>,
+}
+
+impl Progress {
+    pub fn new(quiet: bool) -> Progress {
+        if quiet {
+            return Progress {
+                bar: indicatif::ProgressBar::hidden(),
+                lines: None,
+            };
+        }
+        if !stderr_is_terminal() {
+            return Progress {
+                bar: indicatif::ProgressBar::hidden(),
+                lines: Some(Arc::new(StageLines {
+                    start: Instant::now(),
+                    last: Mutex::new((String::new(), f64::NEG_INFINITY)),
+                })),
+            };
+        }
+        let bar = indicatif::ProgressBar::new(1000);
+        bar.set_style(
+            indicatif::ProgressStyle::with_template("{elapsed:>4} [{bar:30}] {msg}")
+                .expect("a valid template")
+                .progress_chars("=> "),
+        );
+        *ACTIVE_BAR.lock().unwrap_or_else(|e| e.into_inner()) = Some(bar.clone());
+        Progress { bar, lines: None }
+    }
+
+    pub fn set_message(&self, message: impl Into<String>) {
+        let message = message.into();
+        if let Some(lines) = &self.lines {
+            let mut last = lines.last.lock().unwrap_or_else(|e| e.into_inner());
+            // Stages are reported many times over ("level 3: correction") and counters tick
+            // ("120/400 tets covered"): a line when the words before any number change, else at
+            // most one a second.
+            let words = |m: &str| m.split(|c: char| c.is_ascii_digit()).next().unwrap_or("").to_owned();
+            let now = lines.start.elapsed().as_secs_f64();
+            if message != last.0 && (words(&message) != words(&last.0) || now - last.1 >= 1.0) {
+                eprintln!("{now:>7.1} s  {message}");
+                last.1 = now;
+            }
+            last.0 = message;
+        } else {
+            self.bar.set_message(message);
+        }
+    }
+
+    pub fn set_position(&self, position: u64) {
+        self.bar.set_position(position);
+    }
+
+    pub fn set_length(&self, length: u64) {
+        self.bar.set_length(length);
+    }
+
+    /// Progress as a fraction with a stage message (the library's progress callbacks).
+    pub fn report(&self, stage: &str, fraction: f32) {
+        self.set_position((fraction.clamp(0.0, 1.0) * 1000.0) as u64);
+        self.set_message(stage);
+    }
+
+    pub fn finish_and_clear(&self) {
+        self.bar.finish_and_clear();
+        let mut active = ACTIVE_BAR.lock().unwrap_or_else(|e| e.into_inner());
+        if active.as_ref().is_some_and(|b| b.is_finished()) {
+            *active = None;
+        }
+    }
+}
+
+/// The log's writer: stderr, with the active progress bar (if any) cleared while a line is
+/// written and redrawn after it.
+pub struct LogWriter;
+
+impl<'a> tracing_subscriber::fmt::MakeWriter<'a> for LogWriter {
+    type Writer = LogLine;
+
+    fn make_writer(&'a self) -> LogLine {
+        LogLine(Vec::new())
+    }
+}
+
+/// One log line, written whole when dropped.
+pub struct LogLine(Vec<u8>);
+
+impl Write for LogLine {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        self.0.extend_from_slice(buf);
+        Ok(buf.len())
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        Ok(())
+    }
+}
+
+impl Drop for LogLine {
+    fn drop(&mut self) {
+        if self.0.is_empty() {
+            return;
+        }
+        let write = || {
+            let _ = std::io::stderr().write_all(&self.0);
+        };
+        let active = ACTIVE_BAR.lock().unwrap_or_else(|e| e.into_inner()).clone();
+        match active {
+            Some(bar) if !bar.is_finished() => bar.suspend(write),
+            _ => write(),
+        }
+    }
+}
