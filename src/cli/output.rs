@@ -75,7 +75,12 @@ impl Progress {
             // Stages are reported many times over ("level 3: correction") and counters tick
             // ("120/400 tets covered"): a line when the words before any number change, else at
             // most one a second.
-            let words = |m: &str| m.split(|c: char| c.is_ascii_digit()).next().unwrap_or("").to_owned();
+            let words = |m: &str| {
+                m.split(|c: char| c.is_ascii_digit())
+                    .next()
+                    .unwrap_or("")
+                    .to_owned()
+            };
             let now = lines.start.elapsed().as_secs_f64();
             if message != last.0 && (words(&message) != words(&last.0) || now - last.1 >= 1.0) {
                 eprintln!("{now:>7.1} s  {message}");

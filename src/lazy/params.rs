@@ -11,7 +11,7 @@ pub const MAX_PASSES: u32 = 8;
 /// Correction passes per level, coarsest (l_start) first. The paper runs 2 at every level;
 /// fewer passes at a level also shrink the dependency padding every coarser level must
 /// synthesize, so the finest level's passes weigh most on the time (BENCHMARKS.md, Quality).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct PassSchedule(pub [u32; ANALYSED_LEVELS]);
 
 impl PassSchedule {
@@ -60,15 +60,17 @@ impl std::fmt::Display for PassSchedule {
 pub enum CandidateMode {
     /// Precomputed 3D candidates, two-step search (the paper's method).
     #[cfg_attr(feature = "cli", value(name = "3d"))]
+    #[serde(rename = "3d")]
     ThreeD,
     /// Standard k-coherent 2D candidates, each direction searched independently (ablation).
     #[cfg_attr(feature = "cli", value(name = "2d"))]
+    #[serde(rename = "2d")]
     TwoD,
 }
 
 /// Where an output voxel's colour comes from (the solid itself, its triples, is the same): one
 /// source for every colour channel, or one per channel ([`ColorSource::PerChannel`]).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum ColorSource {
     /// The mean of the voxel's three exemplar pixels (the paper's rule).
     #[default]
@@ -293,4 +295,18 @@ pub fn check_tileable_size(n: u32) -> Result<()> {
         ));
     }
     Ok(())
+}
+
+/// Summaries spell the schedule as `--passes` does (`2`, `2,2,2,1`).
+impl serde::Serialize for PassSchedule {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        serializer.collect_str(self)
+    }
+}
+
+/// Summaries spell the colour rule as `--color` does (`average`, `x,y,z`).
+impl serde::Serialize for ColorSource {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        serializer.collect_str(self)
+    }
 }
