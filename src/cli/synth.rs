@@ -448,7 +448,7 @@ fn run_box(args: &SolidArgs, region: Box3, tileable: bool, quiet: bool) -> anyho
             serde_json::json!({
                 "schema": 1,
                 "output": args.output, "box": [region.lo, region.hi], "seed": args.solid.seed, "jitter": args.solid.jitter,
-                "candidates": args.solid.candidates, "passes": args.solid.passes,
+                "candidates": args.solid.candidates, "passes": args.solid.passes, "color": args.solid.color,
                 "analysis_seconds": analysis_s, "synthesis_seconds": synth_s,
                 "peak_rss_bytes": crate::util::memory::peak_rss_bytes(),
                 "backend": compute.describe(),
