@@ -25,9 +25,11 @@ ss synth "$repo/tests/fixtures/cc0_brick64.png" --size 64 --seed 5 --backend cpu
 # A cut at an angle, far from the origin: the infinite solid, synthesized on demand.
 ss cut --origin 1000,-500,77 --normal 1,2,3 --size 192 --seed 5 --backend cpu -o "$out/builtin-oblique-cut.png"
 ss cut "$repo/tests/fixtures/cc0_gravel64.png" --origin 0,0,0 --normal 1,1,1 --size 192 --seed 5 --backend cpu -o "$out/gravel-oblique-cut.png"
-# The bunny's surface baked into its atlas (the texture of the .glb).
-ss surface --mesh "$repo/assets/meshes/bunny.obj" --resolution 192 --seed 5 --backend cpu -o bunny.obj
-cp bunny.png "$out/bunny-surface-atlas.png"
+# The bunny's surface baked lazily into its atlas and rendered with it (the library example
+# does both: `surface` writes the same atlas into a .glb).
+echo "cargo run --release --example 06_render_surface -- bunny.obj bunny-surface.png 256" >&2
+(cd "$repo" && cargo run --release --locked --quiet --example 06_render_surface -- \
+  assets/meshes/bunny.obj "$out/bunny-surface.png" 256)
 # Lapped solid textures: the bunny filled with pasted copies of a tileable solid, rendered.
 ss synth --size 32 --tileable --seed 5 --backend cpu -o tile.nrrd
 ss lapped fill --mesh "$repo/assets/meshes/bunny.obj" --exemplar tile.nrrd --resolution 10 -o bunny.lst

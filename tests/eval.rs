@@ -130,3 +130,47 @@ fn volumes_smaller_than_a_patch_are_refused() {
     let err = evaluate(&Volume::new(8, 64, 64, 3), &[ex], &EvalParams::default()).unwrap_err();
     assert!(err.to_string().contains("at least 9"), "{err}");
 }
+
+#[test]
+fn multiscale_measures_separate_noise_blur_and_extrusion_from_a_real_solid() {
+    let (solid, ex) = control();
+    let params = EvalParams::default();
+    let ratios = |v: &Volume| {
+        evaluate(v, &[ex.clone()], &params)
+            .unwrap()
+            .multiscale
+            .worst_ratio
+    };
+    let good = ratios(&solid);
+    let shuf = ratios(&shuffled(&ex));
+    let extr = ratios(&extruded(&ex));
+    let blur = ratios(&blurred(&solid));
+    for (name, r) in [
+        ("solid", good),
+        ("shuffled", shuf),
+        ("extruded", extr),
+        ("blurred", blur),
+    ] {
+        eprintln!(
+            "{name:>9}: swd {:.2} {:.2} {:.2} spectrum {:.2}",
+            r.swd[0], r.swd[1], r.swd[2], r.spectrum
+        );
+    }
+    // A genuine solid stays near its floor at every scale.
+    assert!(
+        good.swd.iter().all(|&r| r < 2.0) && good.spectrum < 2.0,
+        "{good:?}"
+    );
+    // Noise: the wrong patches at every scale and a flat spectrum.
+    assert!(
+        shuf.swd[0] > 3.0 * good.swd[0] && shuf.spectrum > 3.0 * good.spectrum,
+        "{shuf:?}"
+    );
+    // Blur: the fine patches and the high frequencies are gone.
+    assert!(
+        blur.swd[0] > 2.0 * good.swd[0] && blur.spectrum > 2.0 * good.spectrum,
+        "{blur:?}"
+    );
+    // Extrusion: streaks in the x and y slices.
+    assert!(extr.swd[0] > 2.0 * good.swd[0], "{extr:?}");
+}

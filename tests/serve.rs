@@ -159,6 +159,31 @@ fn volumes_download_in_every_format_and_read_back_equal() {
         solidsynth::io::flipbook::from_image(&img, PREVIEW, v.channels).unwrap(),
         v
     );
+    // The command line's other writers: NumPy (its header, then the NRRD order), a TIFF stack
+    // (read back by the tiff crate, page by page) and a KTX2 3D texture.
+    let npy = get(addr, &format!("/api/solids/{solid}/volume?format=npy"));
+    assert_eq!(npy.status, 200);
+    assert!(npy.body.starts_with(b"\x93NUMPY"));
+    assert_eq!(&npy.body[npy.body.len() - v.data.len()..], &v.data[..]);
+    let tif = get(addr, &format!("/api/solids/{solid}/volume?format=tiff"));
+    assert_eq!(tif.status, 200);
+    let mut decoder = tiff::decoder::Decoder::new(std::io::Cursor::new(&tif.body)).unwrap();
+    let mut pages = Vec::new();
+    loop {
+        match decoder.read_image().unwrap() {
+            tiff::decoder::DecodingResult::U8(page) => pages.extend(page),
+            _ => panic!("8-bit pages"),
+        }
+        if !decoder.more_images() {
+            break;
+        }
+        decoder.next_image().unwrap();
+    }
+    assert_eq!(pages, v.data);
+    let ktx = get(addr, &format!("/api/solids/{solid}/volume?format=ktx2"));
+    assert_eq!(ktx.status, 200);
+    let reader = ktx2::Reader::new(&ktx.body[..]).unwrap();
+    assert_eq!(reader.header().pixel_depth, PREVIEW);
     // Another size is synthesized on demand: the same solid, so the preview is its corner.
     let big = get(
         addr,

@@ -124,7 +124,7 @@ async function loadSolid(solid) {
 function updateDownloads() {
   const id = view.solid && view.solid.id;
   const size = $("dl-size").value;
-  for (const [el, format, ext] of [["dl-nrrd", "nrrd", "nrrd"], ["dl-vti", "vti", "vti"], ["dl-flipbook", "flipbook", "png"]]) {
+  for (const [el, format, ext] of [["dl-nrrd", "nrrd", "nrrd"], ["dl-vti", "vti", "vti"], ["dl-flipbook", "flipbook", "png"], ["dl-npy", "npy", "npy"], ["dl-tiff", "tiff", "tif"], ["dl-ktx2", "ktx2", "ktx2"]]) {
     const a = $(el);
     a.href = id ? `/api/solids/${id}/volume?format=${format}&size=${size}` : "#";
     a.download = id ? `solid-${id}-${size}.${ext}` : "";

@@ -216,6 +216,7 @@ pub fn load_or_analyze(
 }
 
 #[derive(Args, Debug)]
+#[command(next_help_heading = "Output")]
 pub struct AnalyzeArgs {
     #[command(flatten)]
     pub input: InputArgs,
@@ -254,14 +255,16 @@ pub fn run(args: AnalyzeArgs, quiet: bool) -> anyhow::Result<()> {
     let seconds = start.elapsed().as_secs_f64();
     let finest = &result.exemplars[0].levels[0].image;
     if args.json {
-        let summary = serde_json::json!({
-            "schema": 1,
-            "output": args.output, "width": finest.width, "height": finest.height,
-            "shared": result.shared, "bytes": bytes.len(), "seconds": seconds,
-            "peak_rss_bytes": crate::util::memory::peak_rss_bytes(),
-            "backend": compute.describe(),
+        super::output::print_summary(&AnalyzeSummary {
+            output: &args.output,
+            width: finest.width,
+            height: finest.height,
+            shared: result.shared,
+            bytes: bytes.len(),
+            seconds,
+            peak_rss_bytes: crate::util::memory::peak_rss_bytes(),
+            backend: compute.describe(),
         });
-        println!("{summary}");
     } else if !quiet {
         eprintln!(
             "analysed {}x{} ({}) in {:.2} s -> {} ({:.1} MiB)",
@@ -278,4 +281,19 @@ pub fn run(args: AnalyzeArgs, quiet: bool) -> anyhow::Result<()> {
         );
     }
     Ok(())
+}
+
+/// `analyze --json`.
+#[derive(serde::Serialize)]
+struct AnalyzeSummary<'a> {
+    output: &'a std::path::Path,
+    /// The finest level's size.
+    width: u32,
+    height: u32,
+    /// One image analysed for all three axes.
+    shared: bool,
+    bytes: usize,
+    seconds: f64,
+    peak_rss_bytes: Option<u64>,
+    backend: String,
 }

@@ -1,5 +1,6 @@
 //! `solidsynth bench ...`: benchmark tables (the numbers recorded in BENCHMARKS.md).
 
+use super::output::BenchReport;
 use crate::exemplar::{self, procedural, Image};
 use clap::{Args, Subcommand};
 use std::path::PathBuf;
@@ -39,6 +40,7 @@ pub enum BenchCommand {
 }
 
 #[derive(Args, Debug)]
+#[command(next_help_heading = "Benchmark")]
 pub struct BenchGradientArgs {
     /// Exemplar image (default: the built-in exemplar).
     pub input: Option<PathBuf>,
@@ -51,9 +53,13 @@ pub struct BenchGradientArgs {
     /// Runs per size and backend; the median is reported.
     #[arg(long, default_value_t = 3)]
     pub runs: u32,
+    /// Print the results as JSON instead of a table.
+    #[arg(help_heading = "Output", long)]
+    pub json: bool,
 }
 
 #[derive(Args, Debug)]
+#[command(next_help_heading = "Benchmark")]
 pub struct BenchRenderArgs {
     /// Rendered volume edges (each from a random 3-channel solid of that extent).
     #[arg(long, value_delimiter = ',', default_values_t = vec![128u32, 256])]
@@ -67,9 +73,13 @@ pub struct BenchRenderArgs {
     /// Use the adapter whose name contains this (case-insensitive).
     #[arg(long, env = "SOLIDSYNTH_ADAPTER")]
     pub adapter: Option<String>,
+    /// Print the results as JSON instead of a table.
+    #[arg(help_heading = "Output", long)]
+    pub json: bool,
 }
 
 #[derive(Args, Debug)]
+#[command(next_help_heading = "Benchmark")]
 pub struct BenchSynthArgs {
     /// Exemplar image or .ssa (default: the built-in exemplar).
     pub input: Option<PathBuf>,
@@ -94,9 +104,13 @@ pub struct BenchSynthArgs {
     /// Largest group, as `synth --max-group`.
     #[arg(long, value_name = "VOXELS")]
     pub max_group: Option<u32>,
+    /// Print the results as JSON instead of a table.
+    #[arg(help_heading = "Output", long)]
+    pub json: bool,
 }
 
 #[derive(Args, Debug)]
+#[command(next_help_heading = "Benchmark")]
 pub struct BenchAnalyzeArgs {
     /// Exemplar sizes (square), comma-separated.
     #[arg(long, value_delimiter = ',', default_values_t = vec![64u32, 128, 256, 512])]
@@ -120,7 +134,7 @@ pub struct BenchAnalyzeArgs {
     #[arg(long, default_value = "paper", value_parser = ["paper", "cyclic"])]
     pub frame: String,
     /// Print JSON lines instead of a table.
-    #[arg(long)]
+    #[arg(help_heading = "Output", long)]
     pub json: bool,
     #[command(flatten)]
     pub backend: super::BackendArgs,
@@ -151,14 +165,20 @@ pub fn run(cmd: BenchCommand) -> anyhow::Result<()> {
 fn bench_gradient_synth(args: BenchGradientArgs) -> anyhow::Result<()> {
     let dir = tempfile::tempdir()?;
     let exe = std::env::current_exe()?;
-    println!(
+    let mut report = BenchReport::new(
+        "gradient-synth",
+        args.json,
+        serde_json::json!({"input": args.input, "sizes": args.sizes, "backends": args.backends,
+            "runs": args.runs}),
+    );
+    report.line(format!(
         "gradient synthesis benchmark: median of {} run(s) per size and backend",
         args.runs
-    );
-    println!(
+    ));
+    report.line(format!(
         "{:>6} {:>8} {:>10} {:>13} {:>28}",
         "size", "backend", "median s", "peak RSS MiB", "match / update s (median run)"
-    );
+    ));
     for &size in &args.sizes {
         for backend in &args.backends {
             let mut runs = Vec::new();
@@ -197,40 +217,67 @@ fn bench_gradient_synth(args: BenchGradientArgs) -> anyhow::Result<()> {
                     .map(|l| l.iter().filter_map(|x| x[key].as_f64()).sum())
                     .unwrap_or(0.0)
             };
-            println!(
-                "{:>6} {:>8} {:>10.2} {:>13.1} {:>28}",
+            let row = GradientSynthRow {
                 size,
-                backend,
-                median["seconds"].as_f64().unwrap_or(f64::NAN),
-                median["peak_rss_bytes"].as_f64().unwrap_or(f64::NAN) / (1 << 20) as f64,
-                format!("{:.2} / {:.2}", sum("match_seconds"), sum("update_seconds")),
+                backend: backend.clone(),
+                median_s: seconds(median),
+                peak_rss_mib: median["peak_rss_bytes"].as_f64().unwrap_or(f64::NAN)
+                    / (1 << 20) as f64,
+                match_s: sum("match_seconds"),
+                update_s: sum("update_seconds"),
+            };
+            let text = format!(
+                "{:>6} {:>8} {:>10.2} {:>13.1} {:>28}",
+                row.size,
+                row.backend,
+                row.median_s,
+                row.peak_rss_mib,
+                format!("{:.2} / {:.2}", row.match_s, row.update_s),
             );
+            report.row(row, text);
         }
     }
+    report.finish();
     Ok(())
+}
+
+/// One size and backend of `bench gradient-synth` (the median run).
+#[derive(serde::Serialize)]
+struct GradientSynthRow {
+    size: u32,
+    backend: String,
+    median_s: f64,
+    peak_rss_mib: f64,
+    match_s: f64,
+    update_s: f64,
 }
 
 fn bench_gradient_render(args: BenchRenderArgs) -> anyhow::Result<()> {
     use crate::backend::Compute;
     use crate::gradient::render::{random_solid, render_u8};
     use crate::gradient::Query;
+    let mut report = BenchReport::new(
+        "gradient-render",
+        args.json,
+        serde_json::json!({"sizes": args.sizes, "runs": args.runs, "gpu": !args.no_gpu}),
+    );
     let mut backends = vec![("cpu", Compute::Cpu)];
     if !args.no_gpu {
         let mut opts = crate::gpu::GpuOptions::from_env();
         opts.adapter_filter = args.adapter.clone().or(opts.adapter_filter);
         let ctx = crate::gpu::GpuContext::new(&opts)?;
-        println!("adapter: {}", ctx.describe());
+        report.note(format!("adapter: {}", ctx.describe()));
         backends.push(("gpu", Compute::Gpu(std::sync::Arc::new(ctx))));
     }
-    println!(
+    report.line(format!(
         "gradient render benchmark (3 channels, 8-bit output, read-back included): median of {} \
          warm run(s)",
         args.runs
-    );
-    println!(
+    ));
+    report.line(format!(
         "{:>6} {:>8} {:>10} {:>10}",
         "size", "backend", "median s", "Mvoxel/s"
-    );
+    ));
     for &size in &args.sizes {
         let solid = random_solid(size, 3, u64::from(size))?;
         let query = Query::volume([size; 3]);
@@ -246,13 +293,17 @@ fn bench_gradient_render(args: BenchRenderArgs) -> anyhow::Result<()> {
             }
             times.sort_by(f64::total_cmp);
             let median = times[times.len() / 2];
-            println!(
-                "{:>6} {:>8} {:>10.4} {:>10.1}",
+            let row = GradientRenderRow {
                 size,
-                name,
-                median,
-                query.len() as f64 / median / 1e6
+                backend: name.to_string(),
+                median_s: median,
+                mvoxels_per_s: query.len() as f64 / median / 1e6,
+            };
+            let text = format!(
+                "{:>6} {:>8} {:>10.4} {:>10.1}",
+                size, name, median, row.mvoxels_per_s
             );
+            report.row(row, text);
             medians.push(median);
             outputs.push(out);
         }
@@ -262,14 +313,24 @@ fn bench_gradient_render(args: BenchRenderArgs) -> anyhow::Result<()> {
                 .zip(&outputs[1])
                 .filter(|(a, b)| a != b)
                 .count();
-            println!(
+            report.note(format!(
                 "{size:>6}  cpu/gpu ratio {:.2}; bytes differing between the backends: {differing} of {}",
                 cpu / gpu,
                 outputs[0].len()
-            );
+            ));
         }
     }
+    report.finish();
     Ok(())
+}
+
+/// One size and backend of `bench gradient-render`.
+#[derive(serde::Serialize)]
+struct GradientRenderRow {
+    size: u32,
+    backend: String,
+    median_s: f64,
+    mvoxels_per_s: f64,
 }
 
 fn bench_synth(args: BenchSynthArgs) -> anyhow::Result<()> {
@@ -315,11 +376,18 @@ fn bench_synth(args: BenchSynthArgs) -> anyhow::Result<()> {
     };
     // Warm the analysis cache so the runs time synthesis only.
     child(16, "cpu", false)?;
-    println!("synthesis benchmark: median of {} run(s), analysis excluded; per-kernel times from one --profile run", args.runs);
-    println!(
+    let mut report = BenchReport::new(
+        "synth",
+        args.json,
+        serde_json::json!({"input": args.input, "sizes": args.sizes, "backends": args.backends,
+            "runs": args.runs, "passes": args.passes, "feature_mask": args.feature_mask,
+            "max_group": args.max_group, "periodic": args.periodic}),
+    );
+    report.line(format!("synthesis benchmark: median of {} run(s), analysis excluded; per-kernel times from one --profile run", args.runs));
+    report.line(format!(
         "{:>6}  {:>8}  {:>10}  {:>12}  kernels (s): init / upsample / correct / colorize",
         "size", "backend", "median s", "peak RSS MiB"
-    );
+    ));
     for &size in &args.sizes {
         let mut per_backend = Vec::new();
         for backend in &args.backends {
@@ -338,33 +406,69 @@ fn bench_synth(args: BenchSynthArgs) -> anyhow::Result<()> {
                     .as_f64()
                     .unwrap_or(f64::NAN)
             };
-            let kernels = [k("init"), k("upsample"), k("correct"), k("colorize")];
-            println!(
+            let kernels = KernelSeconds {
+                init: k("init"),
+                upsample: k("upsample"),
+                correct: k("correct"),
+                colorize: k("colorize"),
+            };
+            let text = format!(
                 "{:>6}  {:>8}  {:>10.3}  {:>12.1}  {:.3} / {:.3} / {:.3} / {:.3}",
                 size,
                 backend,
                 median,
                 peak as f64 / (1 << 20) as f64,
-                kernels[0],
-                kernels[1],
-                kernels[2],
-                kernels[3]
+                kernels.init,
+                kernels.upsample,
+                kernels.correct,
+                kernels.colorize
             );
-            per_backend.push((backend.clone(), median, kernels));
-        }
-        if let [(a, ta, ka), (b, tb, kb)] = per_backend.as_slice() {
-            println!(
-                "{:>6}  {a}/{b} ratio: end-to-end {:.2}; kernels {:.2} / {:.2} / {:.2} / {:.2}",
+            let row = SynthRow {
                 size,
-                ta / tb,
-                ka[0] / kb[0],
-                ka[1] / kb[1],
-                ka[2] / kb[2],
-                ka[3] / kb[3]
-            );
+                backend: backend.clone(),
+                median_s: median,
+                peak_rss_mib: peak as f64 / (1 << 20) as f64,
+                kernels,
+            };
+            report.row(&row, text);
+            per_backend.push(row);
+        }
+        if let [a, b] = per_backend.as_slice() {
+            let (ka, kb) = (&a.kernels, &b.kernels);
+            report.note(format!(
+                "{:>6}  {}/{} ratio: end-to-end {:.2}; kernels {:.2} / {:.2} / {:.2} / {:.2}",
+                size,
+                a.backend,
+                b.backend,
+                a.median_s / b.median_s,
+                ka.init / kb.init,
+                ka.upsample / kb.upsample,
+                ka.correct / kb.correct,
+                ka.colorize / kb.colorize
+            ));
         }
     }
+    report.finish();
     Ok(())
+}
+
+/// One size and backend of `bench synth`.
+#[derive(serde::Serialize)]
+struct SynthRow {
+    size: u32,
+    backend: String,
+    median_s: f64,
+    peak_rss_mib: f64,
+    /// From one `--profile` run.
+    kernels: KernelSeconds,
+}
+
+#[derive(serde::Serialize)]
+struct KernelSeconds {
+    init: f64,
+    upsample: f64,
+    correct: f64,
+    colorize: f64,
 }
 
 fn bench_analyze(args: BenchAnalyzeArgs) -> anyhow::Result<()> {
@@ -439,8 +543,14 @@ fn bench_analyze(args: BenchAnalyzeArgs) -> anyhow::Result<()> {
         if args.json {
             println!(
                 "{}",
-                serde_json::json!({"schema": 1,"size": size, "median_s": median, "min_s": times[0],
-                    "peak_rss_bytes": peak, "file_bytes": std::fs::metadata(&output)?.len()})
+                serde_json::to_value(AnalyzeRow {
+                    schema: super::output::SUMMARY_SCHEMA,
+                    size,
+                    median_s: median,
+                    min_s: times[0],
+                    peak_rss_bytes: peak,
+                    file_bytes: std::fs::metadata(&output)?.len(),
+                })?
             );
         } else {
             println!(
@@ -454,4 +564,15 @@ fn bench_analyze(args: BenchAnalyzeArgs) -> anyhow::Result<()> {
         }
     }
     Ok(())
+}
+
+/// One exemplar size of `bench analyze --json` (a JSON line per size).
+#[derive(serde::Serialize)]
+struct AnalyzeRow {
+    schema: u32,
+    size: u32,
+    median_s: f64,
+    min_s: f64,
+    peak_rss_bytes: u64,
+    file_bytes: u64,
 }

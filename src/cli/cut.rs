@@ -11,6 +11,7 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 #[derive(Args, Debug)]
+#[command(next_help_heading = "Cut")]
 pub struct CutArgs {
     #[command(flatten)]
     pub solid: SolidParams,
@@ -33,14 +34,14 @@ pub struct CutArgs {
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=10000))]
     pub repeat: u32,
     /// Output PNG.
-    #[arg(short, long)]
+    #[arg(help_heading = "Output", short, long)]
     pub output: PathBuf,
     /// Print a JSON summary on stdout.
-    #[arg(long)]
+    #[arg(help_heading = "Output", long)]
     pub json: bool,
     /// Time every kernel, waiting for the device after each (so each cut takes longer), and
     /// print each kernel's mean time per warm cut (the first is left out when repeating).
-    #[arg(long)]
+    #[arg(help_heading = "Performance", long)]
     pub profile: bool,
 }
 
@@ -113,30 +114,34 @@ pub fn run(args: CutArgs, quiet: bool) -> anyhow::Result<()> {
     let p95 = sorted[((sorted.len() as f64 * 0.95).ceil() as usize).clamp(1, sorted.len()) - 1];
     // Per warm cut (all but the first, unless there is only one).
     let profiled = args.repeat.saturating_sub(1).max(1) as f64;
-    let kernels: serde_json::Map<String, serde_json::Value> = session
+    let kernels: std::collections::BTreeMap<String, CutKernelTime> = session
         .synthesizer()
         .kernel_times()
         .map(|t| {
             t.iter()
                 .map(|(k, (d, n))| {
-                    let per_cut = d.as_secs_f64() * 1000.0 / profiled;
-                    let calls = *n as f64 / profiled;
-                    (
-                        k.to_string(),
-                        serde_json::json!({"ms_per_cut": per_cut, "calls_per_cut": calls}),
-                    )
+                    let time = CutKernelTime {
+                        ms_per_cut: d.as_secs_f64() * 1000.0 / profiled,
+                        calls_per_cut: *n as f64 / profiled,
+                    };
+                    (k.to_string(), time)
                 })
                 .collect()
         })
         .unwrap_or_default();
     if args.json {
-        println!(
-            "{}",
-            serde_json::json!({"schema": 1,"output": args.output, "size": args.size, "repeat": args.repeat,
-                "median_ms": median, "p95_ms": p95, "first_ms": latencies[0], "kernels": kernels,
-                "stats": session.synthesizer().last_stats(),
-                "peak_rss_bytes": crate::util::memory::peak_rss_bytes(), "backend": compute.describe()})
-        );
+        super::output::print_summary(&CutSummary {
+            output: &args.output,
+            size: args.size,
+            repeat: args.repeat,
+            median_ms: median,
+            p95_ms: p95,
+            first_ms: latencies[0],
+            kernels,
+            stats: session.synthesizer().last_stats(),
+            peak_rss_bytes: crate::util::memory::peak_rss_bytes(),
+            backend: compute.describe(),
+        });
     } else if !quiet {
         eprintln!(
             "cut {0}x{0} -> {1}: median {median:.1} ms, p95 {p95:.1} ms over {2} run(s) (first {3:.1} ms)",
@@ -155,10 +160,31 @@ pub fn run(args: CutArgs, quiet: bool) -> anyhow::Result<()> {
         for (kernel, t) in &kernels {
             eprintln!(
                 "  {kernel}: {:.1} ms per cut ({} calls)",
-                t["ms_per_cut"].as_f64().unwrap_or(0.0),
-                t["calls_per_cut"].as_f64().unwrap_or(0.0)
+                t.ms_per_cut, t.calls_per_cut
             );
         }
     }
     Ok(())
+}
+
+/// `cut --json`.
+#[derive(serde::Serialize)]
+struct CutSummary<'a> {
+    output: &'a std::path::Path,
+    size: u32,
+    repeat: u32,
+    median_ms: f64,
+    p95_ms: f64,
+    first_ms: f64,
+    /// Per kernel and warm cut, with `--profile`.
+    kernels: std::collections::BTreeMap<String, CutKernelTime>,
+    stats: Option<&'a crate::lazy::SynthStats>,
+    peak_rss_bytes: Option<u64>,
+    backend: String,
+}
+
+#[derive(serde::Serialize)]
+struct CutKernelTime {
+    ms_per_cut: f64,
+    calls_per_cut: f64,
 }

@@ -3,12 +3,14 @@
 use crate::analysis::frame::InputFrame;
 use crate::exemplar;
 use crate::io::{atomic, nrrd};
+use crate::metrics::multiscale::MultiScale;
 use crate::metrics::{self, sheet, EvalParams, Scores};
 use clap::Args;
 use std::path::PathBuf;
 use std::time::Instant;
 
 #[derive(Args, Debug)]
+#[command(next_help_heading = "Evaluation")]
 pub struct EvalArgs {
     /// The exemplar the volume was made from (for all three axes unless --ey/--ez are given).
     pub exemplar: PathBuf,
@@ -33,10 +35,10 @@ pub struct EvalArgs {
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// Print JSON instead of a table.
-    #[arg(long)]
+    #[arg(help_heading = "Output", long)]
     pub json: bool,
     /// Write a contact sheet (exemplar beside orthogonal slices) to this PNG.
-    #[arg(long)]
+    #[arg(help_heading = "Output", long)]
     pub sheet: Option<PathBuf>,
 }
 
@@ -105,6 +107,26 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
             get(&report.worst_ratio)
         );
     }
+    let m = &report.multiscale;
+    let multi_rows: [(&str, fn(&MultiScale) -> f64); 4] = [
+        ("swd full", |s| s.swd[0]),
+        ("swd 1/2", |s| s.swd[1]),
+        ("swd 1/4", |s| s.swd[2]),
+        ("spectrum", |s| s.spectrum),
+    ];
+    for (name, get) in multi_rows {
+        println!(
+            "{:<13} {:>8.3} {:>8.3} {:>8.3} {:>8.3} {:>8.3} {:>8.2}",
+            name,
+            get(&m.per_axis[0]),
+            get(&m.per_axis[1]),
+            get(&m.per_axis[2]),
+            get(&m.worst_axis),
+            get(&m.floor),
+            get(&m.worst_ratio)
+        );
+    }
     println!("lower is better; floor = one half of the exemplar scored against the other; ratio = worst / floor");
+    println!("swd: sliced Wasserstein distance of 5x5 patches at full, half and quarter resolution; spectrum: radially averaged log power spectrum");
     Ok(())
 }

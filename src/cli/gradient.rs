@@ -4,6 +4,7 @@
 //! Length: about 720 lines of the gradient subcommands' arguments, checks and reports (no engine
 //! logic).
 
+use super::output::print_summary;
 use crate::backend::Compute;
 use crate::gradient::file::GradientFile;
 use crate::gradient::regions::{self, Blend, RegionSolid};
@@ -46,6 +47,7 @@ pub enum SearchArg {
 }
 
 #[derive(Args, Debug)]
+#[command(next_help_heading = "Gradient synthesis")]
 pub struct SynthArgs {
     /// Exemplar image (PNG, JPEG, ...); without it, the built-in exemplar.
     pub input: Option<PathBuf>,
@@ -94,19 +96,20 @@ pub struct SynthArgs {
     #[arg(long)]
     pub mask: Option<PathBuf>,
     /// Stored precision of the control values.
-    #[arg(long, value_enum, default_value = "u8")]
+    #[arg(help_heading = "Output", long, value_enum, default_value = "u8")]
     pub encoding: format::Encoding,
     #[command(flatten)]
     pub backend: super::BackendArgs,
     /// Output .gsolid.
-    #[arg(short, long)]
+    #[arg(help_heading = "Output", short, long)]
     pub output: PathBuf,
     /// Print a JSON summary on stdout.
-    #[arg(long)]
+    #[arg(help_heading = "Output", long)]
     pub json: bool,
 }
 
 #[derive(Args, Debug)]
+#[command(next_help_heading = "Editing")]
 pub struct EditArgs {
     /// Input .gsolid.
     pub input: PathBuf,
@@ -123,22 +126,23 @@ pub struct EditArgs {
     #[arg(long, default_value_t = edit::BETA)]
     pub beta: f64,
     /// Stored precision of the output.
-    #[arg(long, value_enum, default_value = "u8")]
+    #[arg(help_heading = "Output", long, value_enum, default_value = "u8")]
     pub encoding: format::Encoding,
     /// Output .gsolid.
-    #[arg(short, long)]
+    #[arg(help_heading = "Output", short, long)]
     pub output: PathBuf,
     /// Print a JSON summary on stdout.
-    #[arg(long)]
+    #[arg(help_heading = "Output", long)]
     pub json: bool,
 }
 
 #[derive(Args, Debug)]
+#[command(next_help_heading = "Vectorization")]
 pub struct VectorizeArgs {
     /// Input volume (NRRD as written by `synth`).
     pub input: PathBuf,
     /// Stored precision of the control values.
-    #[arg(long, value_enum, default_value = "u8")]
+    #[arg(help_heading = "Output", long, value_enum, default_value = "u8")]
     pub encoding: format::Encoding,
     /// Then optimize all control values together (eq. 3: least squares against every voxel).
     #[arg(long)]
@@ -157,14 +161,15 @@ pub struct VectorizeArgs {
     #[arg(long)]
     pub detail: bool,
     /// Output .gsolid.
-    #[arg(short, long)]
+    #[arg(help_heading = "Output", short, long)]
     pub output: PathBuf,
     /// Print a JSON summary on stdout.
-    #[arg(long)]
+    #[arg(help_heading = "Output", long)]
     pub json: bool,
 }
 
 #[derive(Args, Debug)]
+#[command(next_help_heading = "Rendering")]
 pub struct RenderArgs {
     /// Input .gsolid.
     pub input: PathBuf,
@@ -193,11 +198,15 @@ pub struct RenderArgs {
     pub no_detail: bool,
     #[command(flatten)]
     pub backend: super::BackendArgs,
-    /// Output NRRD volume.
-    #[arg(short, long)]
+    /// Output: a volume, its extension picking the format as `synth -o` (.nrrd, .npy, .tif,
+    /// .ktx2, .vti, .png flipbook); with --normal a PNG slice.
+    #[arg(help_heading = "Output", short, long)]
     pub output: PathBuf,
+    /// The volume's format, whatever the extension.
+    #[arg(help_heading = "Output", long, value_enum)]
+    pub format: Option<crate::io::volume_file::VolumeFormat>,
     /// Print a JSON summary on stdout.
-    #[arg(long)]
+    #[arg(help_heading = "Output", long)]
     pub json: bool,
 }
 
@@ -357,30 +366,31 @@ fn synth(a: SynthArgs, quiet: bool) -> anyhow::Result<()> {
         let levels: Vec<_> = report
             .levels
             .iter()
-            .map(|l| {
-                serde_json::json!({"spacing": l.spec.spacing, "size": l.spec.size,
-                    "candidates": l.candidates, "pca_energy": l.pca_energy,
-                    "prepare_seconds": l.prepare_seconds, "match_seconds": l.match_seconds,
-                    "update_seconds": l.update_seconds, "refitted": l.refitted})
+            .map(|l| GradientLevelSummary {
+                spacing: l.spec.spacing,
+                size: l.spec.size,
+                candidates: l.candidates,
+                pca_energy: l.pca_energy,
+                prepare_seconds: l.prepare_seconds,
+                match_seconds: l.match_seconds,
+                update_seconds: l.update_seconds,
+                refitted: l.refitted,
             })
             .collect();
-        let regions = report.regions.as_ref().map(|r| {
-            serde_json::json!({"split_points": r.split_points, "points": r.points,
-                "positive_fraction": r.positive_fraction,
-                "exemplar_positive_fraction": r.exemplar_positive_fraction,
-                "empty_buckets": r.empty_buckets, "seconds": r.seconds})
+        print_summary(&GradientSynthSummary {
+            output: &a.output,
+            grid,
+            period,
+            seconds: report.seconds,
+            bytes: bytes.len(),
+            fraction_of_volume: fraction,
+            levels,
+            optimize_seconds: report.optimize_seconds,
+            optimize_rms: [report.optimize_rms.0, report.optimize_rms.1],
+            regions: report.regions.as_ref(),
+            backend: compute.describe(),
+            peak_rss_bytes: crate::util::memory::peak_rss_bytes(),
         });
-        println!(
-            "{}",
-            serde_json::json!({"schema": 1,"output": a.output, "grid": grid, "period": period,
-                "seconds": report.seconds, "bytes": bytes.len(),
-                "fraction_of_volume": fraction, "levels": levels,
-                "optimize_seconds": report.optimize_seconds,
-                "optimize_rms": [report.optimize_rms.0, report.optimize_rms.1],
-                "regions": regions,
-                "backend": compute.describe(),
-                "peak_rss_bytes": crate::util::memory::peak_rss_bytes()})
-        );
     } else if !quiet {
         for l in &report.levels {
             eprintln!(
@@ -468,13 +478,17 @@ fn vectorize_with_mask(
     let fraction = bytes.len() as f64 / volume.data.len() as f64;
     atomic::write_file(&a.output, &bytes)?;
     if a.json {
-        println!(
-            "{}",
-            serde_json::json!({"schema": 1,"output": a.output, "grid": rs.positive.dims,
-                "split_points": rs.split_points(), "rms": exact, "rms_antialiased": aa,
-                "rms_without_regions": plain, "seconds": fit_s, "bytes": bytes.len(),
-                "fraction_of_volume": fraction})
-        );
+        print_summary(&VectorizeSummary {
+            output: &a.output,
+            grid: rs.positive.dims,
+            split_points: Some(rs.split_points()),
+            rms: exact,
+            rms_antialiased: Some(aa),
+            rms_without_regions: Some(plain),
+            seconds: fit_s,
+            bytes: bytes.len(),
+            fraction_of_volume: fraction,
+        });
     } else if !quiet {
         eprintln!(
             "vectorized {}x{}x{} with regions into a {:?} control grid ({} split points) in \
@@ -526,11 +540,17 @@ pub fn run(cmd: GradientCommand, quiet: bool) -> anyhow::Result<()> {
             let fraction = bytes.len() as f64 / volume.data.len() as f64;
             atomic::write_file(&a.output, &bytes)?;
             if a.json {
-                println!(
-                    "{}",
-                    serde_json::json!({"schema": 1,"output": a.output, "grid": solid.dims, "rms": rms,
-                        "seconds": fit_s, "bytes": bytes.len(), "fraction_of_volume": fraction})
-                );
+                print_summary(&VectorizeSummary {
+                    output: &a.output,
+                    grid: solid.dims,
+                    split_points: None,
+                    rms,
+                    rms_antialiased: None,
+                    rms_without_regions: None,
+                    seconds: fit_s,
+                    bytes: bytes.len(),
+                    fraction_of_volume: fraction,
+                });
             } else if !quiet {
                 eprintln!(
                     "vectorized {}x{}x{} into a {:?} control grid in {fit_s:.2} s: RMS error {rms:.2}, \
@@ -580,11 +600,13 @@ pub fn run(cmd: GradientCommand, quiet: bool) -> anyhow::Result<()> {
             let seconds = start.elapsed().as_secs_f64();
             atomic::write_file(&a.output, &format::to_bytes(&solid, a.encoding))?;
             if a.json {
-                super::output::print_json(serde_json::json!({
-                    "output": a.output, "strokes": strokes.len(), "seconds": seconds,
-                    "strength_fit_rms": residual,
-                    "control_points": solid.data.len() / (solid.channels as usize * 4),
-                }));
+                print_summary(&EditSummary {
+                    output: &a.output,
+                    strokes: strokes.len(),
+                    seconds,
+                    strength_fit_rms: residual,
+                    control_points: solid.data.len() / (solid.channels as usize * 4),
+                });
             } else if !quiet {
                 eprintln!(
                     "edited {} control points with {} strokes in {seconds:.3} s (strength fit RMS \
@@ -597,6 +619,20 @@ pub fn run(cmd: GradientCommand, quiet: bool) -> anyhow::Result<()> {
         }
         GradientCommand::Render(a) => {
             atomic::check_output_path(&a.output, "-o")?;
+            // A volume's format is known (or refused) before anything is read.
+            let output = match a.normal {
+                None => crate::io::volume_file::VolumeOutput::resolve(
+                    &a.output,
+                    "-o",
+                    a.format,
+                    Default::default(),
+                )?,
+                Some(_) => crate::io::volume_file::VolumeOutput {
+                    format: crate::io::volume_file::VolumeFormat::Png,
+                    texture: Default::default(),
+                    vdb: Default::default(),
+                },
+            };
             let solid = GradientFile::load(&a.input)?;
             if let Some(normal) = &a.normal {
                 return render_slice(&a, &solid, normal, quiet);
@@ -609,18 +645,22 @@ pub fn run(cmd: GradientCommand, quiet: bool) -> anyhow::Result<()> {
                 )
                 .into());
             }
+            output.check(&a.output, n)?;
             solid.check_render_memory(n)?;
             let compute = a.backend.open()?;
             let start = Instant::now();
             let query = Query::volume(n);
             let mut v = crate::volume::Volume::new(n[0], n[1], n[2], solid.channels());
             v.data = solid.eval_u8(&query, &compute, blend_of(&a), !a.no_detail)?;
-            nrrd::save(&v, &a.output)?;
+            crate::io::volume_file::save(&v, &a.output, output)?;
             if a.json {
-                super::output::print_json(serde_json::json!({
-                    "output": a.output, "size": n, "channels": v.channels,
-                    "seconds": start.elapsed().as_secs_f64(), "backend": compute.describe(),
-                }));
+                print_summary(&RenderSummary {
+                    output: &a.output,
+                    size: n,
+                    channels: v.channels,
+                    seconds: start.elapsed().as_secs_f64(),
+                    backend: compute.describe(),
+                });
             } else if !quiet {
                 eprintln!(
                     "rendered {}x{}x{} in {:.2} s ({}) -> {}",
@@ -635,4 +675,70 @@ pub fn run(cmd: GradientCommand, quiet: bool) -> anyhow::Result<()> {
         }
     }
     Ok(())
+}
+
+/// `gradient synth --json`.
+#[derive(serde::Serialize)]
+struct GradientSynthSummary<'a> {
+    output: &'a Path,
+    grid: [u32; 3],
+    period: u32,
+    seconds: f64,
+    bytes: usize,
+    fraction_of_volume: f64,
+    levels: Vec<GradientLevelSummary>,
+    optimize_seconds: f64,
+    optimize_rms: [f64; 2],
+    regions: Option<&'a crate::gradient::synth::RegionReport>,
+    backend: String,
+    peak_rss_bytes: Option<u64>,
+}
+
+#[derive(serde::Serialize)]
+struct GradientLevelSummary {
+    spacing: u32,
+    size: u32,
+    candidates: usize,
+    pca_energy: f64,
+    prepare_seconds: f64,
+    match_seconds: f64,
+    update_seconds: f64,
+    refitted: f64,
+}
+
+/// `gradient vectorize --json` (the region fields with `--mask` only).
+#[derive(serde::Serialize)]
+struct VectorizeSummary<'a> {
+    output: &'a Path,
+    grid: [u32; 3],
+    #[serde(skip_serializing_if = "Option::is_none")]
+    split_points: Option<usize>,
+    rms: f64,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    rms_antialiased: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    rms_without_regions: Option<f64>,
+    seconds: f64,
+    bytes: usize,
+    fraction_of_volume: f64,
+}
+
+/// `gradient edit --json`.
+#[derive(serde::Serialize)]
+struct EditSummary<'a> {
+    output: &'a Path,
+    strokes: usize,
+    seconds: f64,
+    strength_fit_rms: f64,
+    control_points: usize,
+}
+
+/// `gradient render --json` (a volume).
+#[derive(serde::Serialize)]
+struct RenderSummary<'a> {
+    output: &'a Path,
+    size: [u32; 3],
+    channels: u32,
+    seconds: f64,
+    backend: String,
 }

@@ -48,7 +48,7 @@ Examples:
 pub const REGION: &str = "\
 Examples:
   solidsynth region --box=-16,-16,100,16,16,132 -o block.nrrd
-  solidsynth region --box 0,0,0,64,64,8 --seed 3 -o slab.nrrd --vti slab.vti";
+  solidsynth region --box 0,0,0,64,64,8 --seed 3 -o slab.tif --vti slab.vti";
 
 pub const CUT: &str = "\
 Examples:

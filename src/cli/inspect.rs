@@ -6,6 +6,7 @@ use clap::Args;
 use std::path::PathBuf;
 
 #[derive(Args, Debug)]
+#[command(next_help_heading = "Output")]
 pub struct InspectArgs {
     /// The .ssa file.
     pub file: PathBuf,
@@ -71,27 +72,32 @@ pub fn run(args: InspectArgs) -> anyhow::Result<()> {
                 max_penalty,
             ));
             let axis = ["x", "y", "z"][ax];
-            levels_json.push(serde_json::json!({
-                "level": level, "exemplar": axis,
-                "width": l.image.width, "height": l.image.height,
-                "pca_dims": l.pca.output_dims, "pca_energy_kept": l.pca.energy_kept(),
-                "candidates_3d": s, "k2d": a.params.k2d[level],
-                "mean_best_crossbar_error": l.stats.mean_best_cb,
-                "filter_rounds": l.stats.filter_rounds,
-                "penalized_fraction": penalized, "max_penalty_sixteenths": max_penalty,
-            }));
+            levels_json.push(LevelSummary {
+                level,
+                exemplar: axis,
+                width: l.image.width,
+                height: l.image.height,
+                pca_dims: l.pca.output_dims,
+                pca_energy_kept: l.pca.energy_kept(),
+                candidates_3d: s,
+                k2d: a.params.k2d[level],
+                mean_best_crossbar_error: l.stats.mean_best_cb,
+                filter_rounds: l.stats.filter_rounds,
+                penalized_fraction: penalized,
+                max_penalty_sixteenths: max_penalty,
+            });
         }
     }
     atomic::save_png(&slab_path, &slab::slab_sheet(&a, 0))?;
     if args.json {
-        println!(
-            "{}",
-            serde_json::json!({
-                "schema": 1,
-                "file": args.file, "shared": a.shared, "color_channels": a.color_channels,
-                "feature_channel": a.has_feature, "levels": levels_json, "slab_png": slab_path,
-            })
-        );
+        super::output::print_summary(&InspectSummary {
+            file: &args.file,
+            shared: a.shared,
+            color_channels: a.color_channels,
+            feature_channel: a.has_feature,
+            levels: levels_json,
+            slab_png: &slab_path,
+        });
     } else {
         print!("{table}");
         println!(
@@ -108,4 +114,32 @@ pub fn run(args: InspectArgs) -> anyhow::Result<()> {
         );
     }
     Ok(())
+}
+
+/// `inspect --json`.
+#[derive(serde::Serialize)]
+struct InspectSummary<'a> {
+    file: &'a std::path::Path,
+    shared: bool,
+    color_channels: u32,
+    feature_channel: bool,
+    levels: Vec<LevelSummary>,
+    slab_png: &'a std::path::Path,
+}
+
+/// One exemplar's level in `inspect --json`.
+#[derive(serde::Serialize)]
+struct LevelSummary {
+    level: usize,
+    exemplar: &'static str,
+    width: u32,
+    height: u32,
+    pca_dims: u32,
+    pca_energy_kept: f64,
+    candidates_3d: crate::analysis::CandidateStats,
+    k2d: u32,
+    mean_best_crossbar_error: f64,
+    filter_rounds: u32,
+    penalized_fraction: f64,
+    max_penalty_sixteenths: u8,
 }

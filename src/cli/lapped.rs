@@ -2,6 +2,7 @@
 //! cut, render or bake the model.
 
 use super::cut::triple;
+use super::output::print_summary;
 use super::{progress_bar, BackendArgs};
 use crate::backend::{BackendChoice, Compute};
 use crate::io::{atomic, nrrd};
@@ -14,7 +15,7 @@ use crate::lazy::cut::CutSpec;
 use crate::mesh::{self, bake as mesh_bake};
 use crate::Error;
 use clap::{Args, Subcommand};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 #[derive(Subcommand, Debug)]
@@ -38,20 +39,27 @@ pub enum LappedCommand {
 }
 
 #[derive(Args, Debug)]
+#[command(next_help_heading = "Exemplar")]
 pub struct ExemplarArgs {
     /// The procedural exemplar (only `kiwi` so far).
     #[arg(long, default_value = "kiwi")]
     pub kind: String,
     #[arg(long, default_value_t = 64, value_parser = clap::value_parser!(u32).range(8..=256))]
     pub size: u32,
-    #[arg(short, long)]
+    /// The exemplar volume; the extension picks the format, as `synth -o` (`lapped fill` reads
+    /// NRRD).
+    #[arg(help_heading = "Output", short, long)]
     pub output: PathBuf,
+    /// The output's format, whatever its extension.
+    #[arg(help_heading = "Output", long, value_enum)]
+    pub format: Option<crate::io::volume_file::VolumeFormat>,
     /// Print a JSON summary on stdout.
-    #[arg(long)]
+    #[arg(help_heading = "Output", long)]
     pub json: bool,
 }
 
 #[derive(Args, Debug)]
+#[command(next_help_heading = "Fill")]
 pub struct FillArgs {
     /// Closed (or nearly closed) triangle mesh: .obj, .ply or .ply.gz, or a built-in shape:
     /// `builtin:sphere` (unit sphere) or `builtin:bent-cylinder` (radius 0.3 around a quarter
@@ -74,14 +82,15 @@ pub struct FillArgs {
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// Output model (.lst).
-    #[arg(short, long)]
+    #[arg(help_heading = "Output", short, long)]
     pub output: PathBuf,
     /// Print a JSON summary on stdout.
-    #[arg(long)]
+    #[arg(help_heading = "Output", long)]
     pub json: bool,
 }
 
 #[derive(Args, Debug)]
+#[command(next_help_heading = "Cut")]
 pub struct CutArgs {
     /// The model (.lst).
     pub model: PathBuf,
@@ -104,13 +113,14 @@ pub struct CutArgs {
     /// Cut K times and print the median and p95 latency.
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=10000))]
     pub repeat: u32,
-    #[arg(short, long)]
+    #[arg(help_heading = "Output", short, long)]
     pub output: PathBuf,
-    #[arg(long)]
+    #[arg(help_heading = "Output", long)]
     pub json: bool,
 }
 
 #[derive(Args, Debug)]
+#[command(next_help_heading = "Camera")]
 pub struct RenderArgs {
     /// The model (.lst).
     pub model: PathBuf,
@@ -123,13 +133,14 @@ pub struct RenderArgs {
     pub size: u32,
     #[command(flatten)]
     pub backend: BackendArgs,
-    #[arg(short, long)]
+    #[arg(help_heading = "Output", short, long)]
     pub output: PathBuf,
-    #[arg(long)]
+    #[arg(help_heading = "Output", long)]
     pub json: bool,
 }
 
 #[derive(Args, Debug)]
+#[command(next_help_heading = "Bake")]
 pub struct BakeArgs {
     /// The model (.lst).
     pub model: PathBuf,
@@ -137,9 +148,9 @@ pub struct BakeArgs {
     #[arg(long)]
     pub texels: Option<u32>,
     /// Output: .glb.
-    #[arg(short, long)]
+    #[arg(help_heading = "Output", short, long)]
     pub output: PathBuf,
-    #[arg(long)]
+    #[arg(help_heading = "Output", long)]
     pub json: bool,
 }
 
@@ -158,13 +169,21 @@ pub fn run(cmd: LappedCommand, quiet: bool) -> anyhow::Result<()> {
                 )
                 .into());
             }
+            let output = crate::io::volume_file::VolumeOutput::resolve(
+                &a.output,
+                "-o",
+                a.format,
+                Default::default(),
+            )?;
             let volume = lapped::exemplar::kiwi(a.size).to_volume();
-            nrrd::save(&volume, &a.output)?;
+            crate::io::volume_file::save(&volume, &a.output, output)?;
             if a.json {
-                super::output::print_json(serde_json::json!({
-                    "output": a.output, "kind": a.kind,
-                    "size": [volume.nx, volume.ny, volume.nz], "channels": volume.channels,
-                }));
+                print_summary(&ExemplarSummary {
+                    output: &a.output,
+                    kind: &a.kind,
+                    size: [volume.nx, volume.ny, volume.nz],
+                    channels: volume.channels,
+                });
             }
             Ok(())
         }
@@ -212,24 +231,27 @@ fn fill(args: FillArgs, quiet: bool) -> anyhow::Result<()> {
     atomic::write_file(&args.output, &bytes)?;
     let q = &report.quality;
     if args.json {
-        println!(
-            "{}",
-            serde_json::json!({
-                "schema": 1,
-                "output": args.output, "texture_type": model.kind.name(),
-                "tets": q.tets, "vertices": q.vertices,
-                "min_dihedral_degrees": q.min_dihedral, "max_dihedral_degrees": q.max_dihedral,
-                "inverted_tets": q.inverted, "volume": q.volume,
-                "patches": report.fill.patches, "forced_tets": report.fill.forced,
-                "mean_layers_per_tet": model.mean_layers(),
-                "mean_clump_tets": report.fill.mean_clump_tets,
-                "default_scale": report.default_scale,
-                "mesh_seconds": report.mesh_seconds, "field_seconds": report.field_seconds,
-                "fill_seconds": report.fill_seconds, "total_seconds": seconds,
-                "model_bytes": bytes.len(),
-                "peak_rss_bytes": crate::util::memory::peak_rss_bytes(),
-            })
-        );
+        print_summary(&FillSummary {
+            output: &args.output,
+            texture_type: model.kind.name(),
+            tets: q.tets,
+            vertices: q.vertices,
+            min_dihedral_degrees: q.min_dihedral,
+            max_dihedral_degrees: q.max_dihedral,
+            inverted_tets: q.inverted,
+            volume: q.volume,
+            patches: report.fill.patches,
+            forced_tets: report.fill.forced,
+            mean_layers_per_tet: model.mean_layers(),
+            mean_clump_tets: report.fill.mean_clump_tets,
+            default_scale: report.default_scale,
+            mesh_seconds: report.mesh_seconds,
+            field_seconds: report.field_seconds,
+            fill_seconds: report.fill_seconds,
+            total_seconds: seconds,
+            model_bytes: bytes.len(),
+            peak_rss_bytes: crate::util::memory::peak_rss_bytes(),
+        });
     } else if !quiet {
         if report.fill.forced > 0 {
             eprintln!(
@@ -314,13 +336,16 @@ fn cut(args: CutArgs, quiet: bool) -> anyhow::Result<()> {
     let p95 = sorted[((sorted.len() as f64 * 0.95).ceil() as usize).clamp(1, sorted.len()) - 1];
     let inside = image.pixels().filter(|p| p[3] > 0).count();
     if args.json {
-        println!(
-            "{}",
-            serde_json::json!({"schema": 1,"output": args.output, "size": args.size, "repeat": args.repeat,
-                "median_ms": median, "p95_ms": p95, "first_ms": latencies[0],
-                "pixels_inside": inside,
-                "peak_rss_bytes": crate::util::memory::peak_rss_bytes()})
-        );
+        print_summary(&LappedCutSummary {
+            output: &args.output,
+            size: args.size,
+            repeat: args.repeat,
+            median_ms: median,
+            p95_ms: p95,
+            first_ms: latencies[0],
+            pixels_inside: inside,
+            peak_rss_bytes: crate::util::memory::peak_rss_bytes(),
+        });
     } else if !quiet {
         eprintln!(
             "cut {0}x{0} ({inside} pixels inside the model) -> {1}: median {median:.2} ms, p95 \
@@ -357,11 +382,12 @@ fn render(args: RenderArgs, quiet: bool) -> anyhow::Result<()> {
     let ms = start.elapsed().as_secs_f64() * 1000.0;
     atomic::save_png(&args.output, &image)?;
     if args.json {
-        println!(
-            "{}",
-            serde_json::json!({"schema": 1,"output": args.output, "size": args.size, "render_ms": ms,
-                "adapter": gpu.describe()})
-        );
+        print_summary(&LappedRenderSummary {
+            output: &args.output,
+            size: args.size,
+            render_ms: ms,
+            adapter: gpu.describe(),
+        });
     } else if !quiet {
         eprintln!(
             "rendered {0}x{0} in {ms:.1} ms on {1} -> {2}",
@@ -404,11 +430,13 @@ fn bake(args: BakeArgs, quiet: bool) -> anyhow::Result<()> {
     })?;
     let seconds = start.elapsed().as_secs_f64();
     if args.json {
-        println!(
-            "{}",
-            serde_json::json!({"schema": 1,"output": args.output, "triangles": surface.triangles.len(),
-                "texels": texels, "atlas": [atlas.width, atlas.height], "seconds": seconds})
-        );
+        print_summary(&BakeSummary {
+            output: &args.output,
+            triangles: surface.triangles.len(),
+            texels,
+            atlas: [atlas.width, atlas.height],
+            seconds,
+        });
     } else if !quiet {
         eprintln!(
             "baked {} surface triangles into a {}x{} atlas ({texels} texels per cell) in \
@@ -442,4 +470,69 @@ fn layer_scale(model: &LstModel, t: usize) -> f64 {
     } else {
         1.0
     }
+}
+
+/// `lapped fill --json`.
+#[derive(serde::Serialize)]
+struct FillSummary<'a> {
+    output: &'a Path,
+    texture_type: &'static str,
+    tets: usize,
+    vertices: usize,
+    min_dihedral_degrees: f64,
+    max_dihedral_degrees: f64,
+    inverted_tets: usize,
+    volume: f64,
+    patches: usize,
+    forced_tets: usize,
+    mean_layers_per_tet: f64,
+    mean_clump_tets: f64,
+    default_scale: f64,
+    mesh_seconds: f64,
+    field_seconds: f64,
+    fill_seconds: f64,
+    total_seconds: f64,
+    model_bytes: usize,
+    peak_rss_bytes: Option<u64>,
+}
+
+/// `lapped cut --json`.
+#[derive(serde::Serialize)]
+struct LappedCutSummary<'a> {
+    output: &'a Path,
+    size: u32,
+    repeat: u32,
+    median_ms: f64,
+    p95_ms: f64,
+    first_ms: f64,
+    pixels_inside: usize,
+    peak_rss_bytes: Option<u64>,
+}
+
+/// `lapped render --json`.
+#[derive(serde::Serialize)]
+struct LappedRenderSummary<'a> {
+    output: &'a Path,
+    size: u32,
+    render_ms: f64,
+    adapter: String,
+}
+
+/// `lapped bake --json`.
+#[derive(serde::Serialize)]
+struct BakeSummary<'a> {
+    output: &'a Path,
+    triangles: usize,
+    texels: u32,
+    atlas: [u32; 2],
+    seconds: f64,
+}
+
+/// `lapped exemplar --json`.
+#[derive(serde::Serialize)]
+struct ExemplarSummary<'a> {
+    output: &'a Path,
+    kind: &'a str,
+    size: [u32; 3],
+    channels: u32,
 }

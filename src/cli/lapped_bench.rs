@@ -1,11 +1,13 @@
 //! `solidsynth bench lapped`: fill time and memory of a lapped model (each run in a fresh
 //! process), warm cut latency, and the GPU render time.
 
+use super::output::BenchReport;
 use clap::Args;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
 #[derive(Args, Debug)]
+#[command(next_help_heading = "Benchmark")]
 pub struct BenchLappedArgs {
     /// Mesh to fill (a file, or builtin:sphere / builtin:bent-cylinder).
     #[arg(long, default_value = "builtin:sphere")]
@@ -28,6 +30,37 @@ pub struct BenchLappedArgs {
     /// Also time a 1024x1024 GPU render (`--backend gpu`).
     #[arg(long)]
     pub render: bool,
+    /// Print the results as JSON instead of a table.
+    #[arg(help_heading = "Output", long)]
+    pub json: bool,
+}
+
+/// One measurement of `bench lapped`: the median fill, the warm cuts, the render.
+#[derive(serde::Serialize)]
+#[serde(tag = "job", rename_all = "lowercase")]
+enum LappedRow {
+    Fill {
+        tets: u64,
+        patches: u64,
+        total_s: f64,
+        mesh_s: f64,
+        field_s: f64,
+        fill_s: f64,
+        peak_rss_mib: f64,
+        model_mib: f64,
+    },
+    Cut {
+        size: u32,
+        cuts: u32,
+        median_ms: f64,
+        p95_ms: f64,
+        peak_rss_mib: f64,
+    },
+    Render {
+        size: u32,
+        render_ms: f64,
+        adapter: String,
+    },
 }
 
 fn child(exe: &Path, args: &[&str]) -> anyhow::Result<serde_json::Value> {
@@ -88,13 +121,21 @@ pub fn run(args: BenchLappedArgs) -> anyhow::Result<()> {
     runs.sort_by(|a, b| total(a).total_cmp(&total(b)));
     let m = &runs[runs.len() / 2];
     let f = |k: &str| m[k].as_f64().unwrap_or(f64::NAN);
-    println!(
+    let mib = |bytes: f64| bytes / (1 << 20) as f64;
+    let mut report = BenchReport::new(
+        "lapped",
+        args.json,
+        serde_json::json!({"mesh": args.mesh, "resolution": args.resolution,
+            "exemplar": args.exemplar, "field": args.field, "runs": args.runs,
+            "cuts": args.cuts, "render": args.render}),
+    );
+    report.line(format!(
         "lapped fill of {} at resolution {}: median of {} run(s)",
         args.mesh.display(),
         args.resolution,
         runs.len()
-    );
-    println!(
+    ));
+    report.line(format!(
         "  {} tets ({} vertices, dihedral {:.1}..{:.1} deg, {} inverted), {} patches, {:.1} \
          layers/tet",
         m["tets"],
@@ -104,16 +145,29 @@ pub fn run(args: BenchLappedArgs) -> anyhow::Result<()> {
         m["inverted_tets"],
         m["patches"],
         f("mean_layers_per_tet")
-    );
-    println!(
-        "  total {:.3} s = mesh {:.3} s + field {:.3} s + fill {:.3} s; peak RSS {:.1} MiB; \
-         model {:.1} MiB",
-        f("total_seconds"),
-        f("mesh_seconds"),
-        f("field_seconds"),
-        f("fill_seconds"),
-        f("peak_rss_bytes") / (1 << 20) as f64,
-        f("model_bytes") / (1 << 20) as f64
+    ));
+    let fill = LappedRow::Fill {
+        tets: m["tets"].as_u64().unwrap_or(0),
+        patches: m["patches"].as_u64().unwrap_or(0),
+        total_s: f("total_seconds"),
+        mesh_s: f("mesh_seconds"),
+        field_s: f("field_seconds"),
+        fill_s: f("fill_seconds"),
+        peak_rss_mib: mib(f("peak_rss_bytes")),
+        model_mib: mib(f("model_bytes")),
+    };
+    report.row(
+        fill,
+        format!(
+            "  total {:.3} s = mesh {:.3} s + field {:.3} s + fill {:.3} s; peak RSS {:.1} MiB; \
+             model {:.1} MiB",
+            f("total_seconds"),
+            f("mesh_seconds"),
+            f("field_seconds"),
+            f("fill_seconds"),
+            mib(f("peak_rss_bytes")),
+            mib(f("model_bytes"))
+        ),
     );
     // The cut through the model's centre, warm: the first cut is included in the median only
     // as one sample of `cuts`.
@@ -137,14 +191,25 @@ pub fn run(args: BenchLappedArgs) -> anyhow::Result<()> {
             &s(&dir.path().join("cut.png")),
         ],
     )?;
-    println!(
-        "  cut 512x512 ({} pixels inside): median {:.2} ms, p95 {:.2} ms over {} cuts; peak RSS \
-         {:.1} MiB",
-        v["pixels_inside"],
-        v["median_ms"].as_f64().unwrap_or(f64::NAN),
-        v["p95_ms"].as_f64().unwrap_or(f64::NAN),
-        args.cuts.max(1),
-        v["peak_rss_bytes"].as_f64().unwrap_or(f64::NAN) / (1 << 20) as f64
+    let number = |v: &serde_json::Value, k: &str| v[k].as_f64().unwrap_or(f64::NAN);
+    let cut = LappedRow::Cut {
+        size: 512,
+        cuts: args.cuts.max(1),
+        median_ms: number(&v, "median_ms"),
+        p95_ms: number(&v, "p95_ms"),
+        peak_rss_mib: mib(number(&v, "peak_rss_bytes")),
+    };
+    report.row(
+        cut,
+        format!(
+            "  cut 512x512 ({} pixels inside): median {:.2} ms, p95 {:.2} ms over {} cuts; peak \
+             RSS {:.1} MiB",
+            v["pixels_inside"],
+            number(&v, "median_ms"),
+            number(&v, "p95_ms"),
+            args.cuts.max(1),
+            mib(number(&v, "peak_rss_bytes"))
+        ),
     );
     if args.render {
         let v = child(
@@ -163,11 +228,18 @@ pub fn run(args: BenchLappedArgs) -> anyhow::Result<()> {
                 &s(&dir.path().join("view.png")),
             ],
         )?;
-        println!(
-            "  render 1024x1024: {:.1} ms on {}",
-            v["render_ms"].as_f64().unwrap_or(f64::NAN),
-            v["adapter"].as_str().unwrap_or("?")
+        let adapter = v["adapter"].as_str().unwrap_or("?").to_string();
+        let text = format!(
+            "  render 1024x1024: {:.1} ms on {adapter}",
+            number(&v, "render_ms")
         );
+        let render = LappedRow::Render {
+            size: 1024,
+            render_ms: number(&v, "render_ms"),
+            adapter,
+        };
+        report.row(render, text);
     }
+    report.finish();
     Ok(())
 }

@@ -194,20 +194,17 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
 fn adapters(args: AdaptersArgs) -> anyhow::Result<()> {
     let list = crate::gpu::context::list_adapters();
     if args.json {
-        let adapters: Vec<_> = list
+        let adapters: Vec<AdapterSummary> = list
             .iter()
-            .map(|a| {
-                serde_json::json!({
-                    "name": a.name,
-                    "device_type": format!("{:?}", a.device_type).to_lowercase(),
-                    "backend": format!("{:?}", a.backend).to_lowercase(),
-                    "driver": a.driver,
-                    "driver_info": a.driver_info,
-                })
+            .map(|a| AdapterSummary {
+                name: &a.name,
+                device_type: format!("{:?}", a.device_type).to_lowercase(),
+                backend: format!("{:?}", a.backend).to_lowercase(),
+                driver: &a.driver,
+                driver_info: &a.driver_info,
             })
             .collect();
-        let report = serde_json::json!({"schema": 1, "adapters": adapters});
-        println!("{}", serde_json::to_string_pretty(&report)?);
+        output::print_summary(&AdaptersSummary { adapters });
         return Ok(());
     }
     if list.is_empty() {
@@ -235,4 +232,21 @@ fn man_pages(dir: &std::path::Path) -> anyhow::Result<()> {
 /// otherwise, nothing when `quiet`).
 pub fn progress_bar(quiet: bool) -> output::Progress {
     output::Progress::new(quiet)
+}
+
+/// `adapters --json`.
+#[derive(serde::Serialize)]
+struct AdaptersSummary<'a> {
+    adapters: Vec<AdapterSummary<'a>>,
+}
+
+#[derive(serde::Serialize)]
+struct AdapterSummary<'a> {
+    name: &'a str,
+    /// `discretegpu`, `integratedgpu`, `virtualgpu`, `cpu` or `other`.
+    device_type: String,
+    /// `vulkan`, ...
+    backend: String,
+    driver: &'a str,
+    driver_info: &'a str,
 }

@@ -17,11 +17,27 @@ pub fn use_color() -> bool {
     stderr_is_terminal() && std::env::var_os("NO_COLOR").is_none_or(|v| v.is_empty())
 }
 
+/// The version of the `--json` summaries' layout, in every summary as `"schema"`: raised when a
+/// key is removed or changes meaning (new keys keep it).
+pub const SUMMARY_SCHEMA: u32 = 1;
+
 /// Print a command's `--json` summary on stdout, with the summary format's version
-/// (`"schema": 1`) added.
+/// ([`SUMMARY_SCHEMA`]) added.
 pub fn print_json(mut summary: serde_json::Value) {
-    summary["schema"] = 1.into();
+    summary["schema"] = SUMMARY_SCHEMA.into();
     println!("{summary}");
+}
+
+/// Print a command's typed `--json` summary ([`print_json`]).
+pub fn print_summary(summary: &impl serde::Serialize) {
+    print_json(serde_json::to_value(summary).expect("summaries serialize"));
+}
+
+/// A kernel's time in a summary (`--profile`).
+#[derive(serde::Serialize)]
+pub struct KernelTime {
+    pub seconds: f64,
+    pub calls: u64,
 }
 
 /// The progress bar on screen now, if any: log lines are printed around it.
@@ -153,6 +169,59 @@ impl Drop for LogLine {
         match active {
             Some(bar) if !bar.is_finished() => bar.suspend(write),
             _ => write(),
+        }
+    }
+}
+
+/// A benchmark's results: its table on stdout, or with `--json` one JSON document holding the
+/// same rows (typed, as `row` receives them), the benchmark's name and its settings.
+pub struct BenchReport {
+    json: bool,
+    bench: &'static str,
+    settings: serde_json::Value,
+    rows: Vec<serde_json::Value>,
+    notes: Vec<String>,
+}
+
+impl BenchReport {
+    pub fn new(bench: &'static str, json: bool, settings: impl serde::Serialize) -> BenchReport {
+        BenchReport {
+            json,
+            bench,
+            settings: serde_json::to_value(settings).expect("settings serialize"),
+            rows: Vec::new(),
+            notes: Vec::new(),
+        }
+    }
+
+    /// A line of the table (printed now, unless the report is JSON).
+    pub fn line(&self, text: impl AsRef<str>) {
+        if !self.json {
+            println!("{}", text.as_ref());
+        }
+    }
+
+    /// One measured row, with its table line.
+    pub fn row(&mut self, row: impl serde::Serialize, text: impl AsRef<str>) {
+        self.line(text);
+        self.rows
+            .push(serde_json::to_value(row).expect("benchmark rows serialize"));
+    }
+
+    /// A remark that belongs to the results (an adapter, a mismatch), in both forms.
+    pub fn note(&mut self, text: impl Into<String>) {
+        let text = text.into();
+        self.line(&text);
+        self.notes.push(text);
+    }
+
+    /// Print the JSON document (with `--json`; the table is already out otherwise).
+    pub fn finish(self) {
+        if self.json {
+            print_json(serde_json::json!({
+                "bench": self.bench, "settings": self.settings, "rows": self.rows,
+                "notes": self.notes,
+            }));
         }
     }
 }

@@ -1,6 +1,7 @@
 //! `solidsynth ptm ...`: relightable texture synthesis with polynomial texture maps (capture,
 //! fit, synthesize, relight).
 
+use super::output::print_summary;
 use crate::io::atomic;
 use crate::ptm::quilt::{Boundary, QuiltParams, SearchMethod};
 use crate::ptm::search::Tolerance;
@@ -28,6 +29,7 @@ pub enum PtmCommand {
 }
 
 #[derive(Args, Debug)]
+#[command(next_help_heading = "Capture")]
 pub struct CaptureArgs {
     /// Image side in pixels.
     #[arg(long, default_value_t = 128, value_parser = clap::value_parser!(u32).range(16..=2048))]
@@ -39,14 +41,15 @@ pub struct CaptureArgs {
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
     /// Output directory (new or empty).
-    #[arg(short, long)]
+    #[arg(help_heading = "Output", short, long)]
     pub output: PathBuf,
     /// Print a JSON summary on stdout.
-    #[arg(long)]
+    #[arg(help_heading = "Output", long)]
     pub json: bool,
 }
 
 #[derive(Args, Debug)]
+#[command(next_help_heading = "Fit")]
 pub struct FitArgs {
     /// Capture directory: images and a light file (lights.lp, lights.json or one *.lp).
     pub dir: PathBuf,
@@ -57,14 +60,15 @@ pub struct FitArgs {
     #[arg(long, value_enum, default_value = "lrgb")]
     pub format: PtmFormat,
     /// Output .ptm.
-    #[arg(short, long)]
+    #[arg(help_heading = "Output", short, long)]
     pub output: PathBuf,
     /// Print a JSON summary on stdout.
-    #[arg(long)]
+    #[arg(help_heading = "Output", long)]
     pub json: bool,
 }
 
 #[derive(Args, Debug)]
+#[command(next_help_heading = "Quilting")]
 pub struct SynthArgs {
     /// Source .ptm.
     pub input: PathBuf,
@@ -89,14 +93,15 @@ pub struct SynthArgs {
     #[arg(long, value_enum, default_value = "exact-projection")]
     pub search: SearchMethod,
     /// Output .ptm.
-    #[arg(short, long)]
+    #[arg(help_heading = "Output", short, long)]
     pub output: PathBuf,
     /// Print a JSON summary on stdout.
-    #[arg(long)]
+    #[arg(help_heading = "Output", long)]
     pub json: bool,
 }
 
 #[derive(Args, Debug)]
+#[command(next_help_heading = "Lighting")]
 pub struct RelightArgs {
     /// Input .ptm.
     pub input: PathBuf,
@@ -115,10 +120,10 @@ pub struct RelightArgs {
     #[command(flatten)]
     pub backend: super::BackendArgs,
     /// Output PNG.
-    #[arg(short, long)]
+    #[arg(help_heading = "Output", short, long)]
     pub output: PathBuf,
     /// Print a JSON summary on stdout.
-    #[arg(long)]
+    #[arg(help_heading = "Output", long)]
     pub json: bool,
 }
 
@@ -174,10 +179,13 @@ fn capture_cmd(a: CaptureArgs, quiet: bool) -> anyhow::Result<()> {
     capture::save(&cap, &staging)?;
     outputs.commit()?;
     if a.json {
-        super::output::print_json(serde_json::json!({
-            "output": out, "images": a.lights, "size": a.size, "seed": a.seed,
-            "seconds": start.elapsed().as_secs_f64(),
-        }));
+        print_summary(&CaptureSummary {
+            output: out,
+            images: a.lights,
+            size: a.size,
+            seed: a.seed,
+            seconds: start.elapsed().as_secs_f64(),
+        });
     } else if !quiet {
         eprintln!(
             "captured {} images of {}x{} in {:.2} s -> {}",
@@ -201,12 +209,15 @@ fn fit_cmd(a: FitArgs, quiet: bool) -> anyhow::Result<()> {
     format::save(&a.output, &ptm)?;
     let secs = start.elapsed().as_secs_f64();
     if a.json {
-        println!(
-            "{}",
-            serde_json::json!({"schema": 1,"output": a.output, "images": cap.images.len(),
-                "width": ptm.width, "height": ptm.height, "format": ptm.format.header_name(),
-                "rms_error_levels": rms, "seconds": secs})
-        );
+        print_summary(&FitSummary {
+            output: &a.output,
+            images: cap.images.len(),
+            width: ptm.width,
+            height: ptm.height,
+            format: ptm.format.header_name(),
+            rms_error_levels: rms,
+            seconds: secs,
+        });
     } else if !quiet {
         eprintln!(
             "fitted a {}x{} {} to {} images in {secs:.2} s: RMS error {rms:.2} levels -> {}",
@@ -259,13 +270,20 @@ fn synth_cmd(a: SynthArgs, quiet: bool) -> anyhow::Result<()> {
         .map(|&s| s as f64 / st.candidates.max(1) as f64)
         .collect();
     if a.json {
-        println!(
-            "{}",
-            serde_json::json!({"schema": 1,"output": a.output, "size": a.size, "blocks": report.blocks,
-                "seconds": secs, "search": format!("{:?}", a.search),
-                "surviving_fraction_per_stage": survivors,
-                "exact_distances_per_query": st.exact as f64 / st.queries.max(1) as f64})
-        );
+        use clap::ValueEnum;
+        let search = a
+            .search
+            .to_possible_value()
+            .expect("every method has a flag name");
+        print_summary(&QuiltSummary {
+            output: &a.output,
+            size: a.size,
+            blocks: [report.blocks.0, report.blocks.1],
+            seconds: secs,
+            search: search.get_name(),
+            surviving_fraction_per_stage: survivors,
+            exact_distances_per_query: st.exact as f64 / st.queries.max(1) as f64,
+        });
     } else if !quiet {
         eprintln!(
             "synthesized {0}x{0} from {1}x{2} ({3}x{4} blocks of {5}) in {secs:.2} s -> {6}",
@@ -336,11 +354,14 @@ fn relight_cmd(a: RelightArgs, quiet: bool) -> anyhow::Result<()> {
     };
     atomic::save_png(&a.output, &img)?;
     if a.json {
-        super::output::print_json(serde_json::json!({
-            "output": a.output, "width": img.width(), "height": img.height(),
-            "lights": a.sweep.unwrap_or(1), "seconds": start.elapsed().as_secs_f64(),
-            "backend": compute.describe(),
-        }));
+        print_summary(&RelightSummary {
+            output: &a.output,
+            width: img.width(),
+            height: img.height(),
+            lights: a.sweep.unwrap_or(1),
+            seconds: start.elapsed().as_secs_f64(),
+            backend: compute.describe(),
+        });
     } else if !quiet {
         eprintln!(
             "relit a {}x{} PTM in {:.3} s ({}) -> {}",
@@ -361,4 +382,50 @@ pub fn run(cmd: PtmCommand, quiet: bool) -> anyhow::Result<()> {
         PtmCommand::Synth(a) => synth_cmd(a, quiet),
         PtmCommand::Relight(a) => relight_cmd(a, quiet),
     }
+}
+
+/// `ptm capture --json`.
+#[derive(serde::Serialize)]
+struct CaptureSummary<'a> {
+    output: &'a std::path::Path,
+    images: u32,
+    size: u32,
+    seed: u64,
+    seconds: f64,
+}
+
+/// `ptm fit --json`.
+#[derive(serde::Serialize)]
+struct FitSummary<'a> {
+    output: &'a std::path::Path,
+    images: usize,
+    width: u32,
+    height: u32,
+    format: &'static str,
+    rms_error_levels: f64,
+    seconds: f64,
+}
+
+/// `ptm synth --json`.
+#[derive(serde::Serialize)]
+struct QuiltSummary<'a> {
+    output: &'a std::path::Path,
+    size: u32,
+    blocks: [u32; 2],
+    seconds: f64,
+    /// As `--search` names it.
+    search: &'a str,
+    surviving_fraction_per_stage: Vec<f64>,
+    exact_distances_per_query: f64,
+}
+
+/// `ptm relight --json`.
+#[derive(serde::Serialize)]
+struct RelightSummary<'a> {
+    output: &'a std::path::Path,
+    width: u32,
+    height: u32,
+    lights: u32,
+    seconds: f64,
+    backend: String,
 }

@@ -2,6 +2,7 @@
 //! (medians, ratio, and a check that the outputs are byte-identical), and relighting on the CPU
 //! and the GPU.
 
+use super::output::BenchReport;
 use crate::backend::{BackendChoice, Compute};
 use crate::ptm::quilt::{self, QuiltParams, SearchMethod};
 use crate::ptm::Lighting;
@@ -10,6 +11,7 @@ use clap::Args;
 use std::time::Instant;
 
 #[derive(Args, Debug)]
+#[command(next_help_heading = "Benchmark")]
 pub struct BenchPtmArgs {
     /// Side of the synthetic source capture (and its fitted PTM).
     #[arg(long, default_value_t = 128)]
@@ -33,6 +35,21 @@ pub struct BenchPtmArgs {
     /// Skip the GPU relight.
     #[arg(long)]
     pub no_gpu: bool,
+    /// Print the results as JSON instead of a table.
+    #[arg(help_heading = "Output", long)]
+    pub json: bool,
+}
+
+/// One timed measurement of `bench ptm`.
+#[derive(serde::Serialize)]
+struct PtmRow {
+    /// `synthesis` or `relight`.
+    job: &'static str,
+    /// The search method, or the relight backend and step.
+    method: &'static str,
+    /// Side of the synthesized or relit PTM.
+    size: u32,
+    median_ms: f64,
 }
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -71,13 +88,21 @@ fn tiled(src: &Ptm, size: u32) -> Ptm {
 pub fn run(a: BenchPtmArgs) -> anyhow::Result<()> {
     let cap = capture::synthetic(a.source, 24, 0);
     let src = fit::fit(&cap, a.format, "synthetic capture")?;
-    println!(
+    let mut out = BenchReport::new(
+        "ptm",
+        a.json,
+        serde_json::json!({"source": a.source, "size": a.size, "block": a.block,
+            "overlap": a.overlap, "format": a.format.header_name(),
+            "relight_size": a.relight_size, "runs": a.runs,
+            "threads": rayon::current_num_threads()}),
+    );
+    out.line(format!(
         "PTM benchmark: {0}x{0} {1} source (synthetic capture, 24 lights), median of {2} run(s), {3} rayon threads",
         a.source,
         a.format.header_name(),
         a.runs,
         rayon::current_num_threads()
-    );
+    ));
     let mut params = QuiltParams::new(a.size);
     params.block = a.block;
     params.overlap = a.overlap;
@@ -89,7 +114,7 @@ pub fn run(a: BenchPtmArgs) -> anyhow::Result<()> {
     let (t_proj, (out_proj, report)) = run_search(SearchMethod::ExactProjection)?;
     let (t_brute, (out_brute, _)) = run_search(SearchMethod::Brute)?;
     let st = &report.stats;
-    println!(
+    out.line(format!(
         "synthesis {0}x{0}, blocks {1} overlap {2} ({3}x{4} blocks, {5} candidates per query):",
         a.size,
         a.block,
@@ -97,15 +122,22 @@ pub fn run(a: BenchPtmArgs) -> anyhow::Result<()> {
         report.blocks.0,
         report.blocks.1,
         st.candidates / st.queries.max(1)
-    );
-    println!("  {:<18} {:>10.3} s", "exact-projection", t_proj);
-    println!("  {:<18} {:>10.3} s", "brute", t_brute);
-    println!(
+    ));
+    for (method, t) in [("exact-projection", t_proj), ("brute", t_brute)] {
+        let row = PtmRow {
+            job: "synthesis",
+            method,
+            size: a.size,
+            median_ms: t * 1e3,
+        };
+        out.row(row, format!("  {method:<18} {t:>10.3} s"));
+    }
+    out.note(format!(
         "  brute/projection ratio {:.1}x; outputs byte-identical: {}",
         t_brute / t_proj,
         if out_proj == out_brute { "yes" } else { "NO" }
-    );
-    println!(
+    ));
+    out.note(format!(
         "  candidates left after projection stages ({:?} kernels): {}; exact distances per query: {:.1}",
         &crate::ptm::search::STAGES[..st.survivors.len()],
         st.survivors
@@ -114,7 +146,7 @@ pub fn run(a: BenchPtmArgs) -> anyhow::Result<()> {
             .collect::<Vec<_>>()
             .join(", "),
         st.exact as f64 / st.queries.max(1) as f64
-    );
+    ));
     if out_proj != out_brute {
         anyhow::bail!("the projection search and brute force disagree");
     }
@@ -125,30 +157,49 @@ pub fn run(a: BenchPtmArgs) -> anyhow::Result<()> {
         lv: 0.3,
         specular: 0.0,
     };
-    println!("relight {0}x{0} (one light, no specular):", a.relight_size);
+    out.line(format!(
+        "relight {0}x{0} (one light, no specular):",
+        a.relight_size
+    ));
     let (t_cpu, cpu) = timed(
         a.runs.max(5),
         || Ok(Compute::Cpu.ptm_relight(&big, &light)?),
     )?;
-    println!("  {:<34} {:>10.2} ms", "cpu", t_cpu * 1e3);
+    let relight = |method, seconds: f64| PtmRow {
+        job: "relight",
+        method,
+        size: a.relight_size,
+        median_ms: seconds * 1e3,
+    };
+    out.row(
+        relight("cpu", t_cpu),
+        format!("  {:<34} {:>10.2} ms", "cpu", t_cpu * 1e3),
+    );
     if !a.no_gpu {
         let gpu = Compute::open(BackendChoice::Gpu, &crate::gpu::GpuOptions::from_env())?;
         let (t_up, resident) = timed(a.runs, || Ok(gpu.resident_ptm(&big)))?;
         resident.relight(&light)?; // warm the pipeline
-        let (t_gpu, out) = timed(a.runs.max(5), || Ok(resident.relight(&light)?))?;
+        let (t_gpu, relit) = timed(a.runs.max(5), || Ok(resident.relight(&light)?))?;
         let worst = cpu
             .iter()
-            .zip(&out)
+            .zip(&relit)
             .map(|(c, g)| (c - g).abs())
             .fold(0f32, f32::max);
-        println!("  adapter: {}", gpu.describe());
-        println!("  {:<34} {:>10.2} ms", "gpu upload (once)", t_up * 1e3);
-        println!(
-            "  {:<34} {:>10.2} ms",
-            "gpu relight (dispatch + readback)",
-            t_gpu * 1e3
+        out.note(format!("  adapter: {}", gpu.describe()));
+        out.row(
+            relight("gpu upload (once)", t_up),
+            format!("  {:<34} {:>10.2} ms", "gpu upload (once)", t_up * 1e3),
         );
-        println!("  largest |gpu - cpu|: {worst:.2e}");
+        out.row(
+            relight("gpu relight (dispatch + readback)", t_gpu),
+            format!(
+                "  {:<34} {:>10.2} ms",
+                "gpu relight (dispatch + readback)",
+                t_gpu * 1e3
+            ),
+        );
+        out.note(format!("  largest |gpu - cpu|: {worst:.2e}"));
     }
+    out.finish();
     Ok(())
 }

@@ -11,6 +11,7 @@ use std::net::IpAddr;
 use std::time::{Duration, Instant};
 
 #[derive(Args, Debug)]
+#[command(next_help_heading = "Server")]
 pub struct ServeArgs {
     /// Port to listen on (0: any free port; the address is printed).
     #[arg(long, default_value_t = 8080)]
@@ -117,6 +118,7 @@ pub fn run(args: ServeArgs, quiet: bool) -> anyhow::Result<()> {
 }
 
 #[derive(Args, Debug)]
+#[command(next_help_heading = "Load")]
 pub struct BenchServeArgs {
     /// Concurrent clients.
     #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u32).range(1..=12))]
@@ -131,7 +133,7 @@ pub struct BenchServeArgs {
     #[arg(long, default_value = "cells")]
     pub exemplar: String,
     /// Print a JSON summary instead of a table.
-    #[arg(long)]
+    #[arg(help_heading = "Output", long)]
     pub json: bool,
     #[command(flatten)]
     pub backend: super::BackendArgs,
@@ -268,18 +270,25 @@ pub fn bench(args: BenchServeArgs) -> anyhow::Result<()> {
     };
     let rt: Vec<f64> = ok.iter().map(|r| r.1).collect();
     let synth: Vec<f64> = ok.iter().map(|r| r.2).collect();
-    let summary = serde_json::json!({
-        "schema": 1,
-        "clients": args.clients, "requests_per_client": args.requests, "cut_size": size,
-        "exemplar": args.exemplar, "backend": backend, "coarse_cache": config_cache,
-        "setup_seconds": setup_s, "wall_seconds": wall,
-        "ok": ok.len(), "failed": failed,
-        "throughput_per_s": ok.len() as f64 / wall,
-        "latency_p50_ms": pct(rt.clone(), 0.5), "latency_p95_ms": pct(rt, 0.95),
-        "synthesis_p50_ms": pct(synth.clone(), 0.5), "synthesis_p95_ms": pct(synth, 0.95),
-    });
+    let summary = LoadSummary {
+        clients: args.clients,
+        requests_per_client: args.requests,
+        cut_size: size,
+        exemplar: &args.exemplar,
+        backend: &backend,
+        coarse_cache: config_cache,
+        setup_seconds: setup_s,
+        wall_seconds: wall,
+        ok: ok.len(),
+        failed,
+        throughput_per_s: ok.len() as f64 / wall,
+        latency_p50_ms: pct(rt.clone(), 0.5),
+        latency_p95_ms: pct(rt, 0.95),
+        synthesis_p50_ms: pct(synth.clone(), 0.5),
+        synthesis_p95_ms: pct(synth, 0.95),
+    };
     if args.json {
-        println!("{summary}");
+        super::output::print_summary(&summary);
     } else {
         println!(
             "serve load test: {} clients x {} cuts of {size}x{size} ({}), backend {backend}",
@@ -292,14 +301,14 @@ pub fn bench(args: BenchServeArgs) -> anyhow::Result<()> {
         println!(
             "  {} ok, {failed} failed in {wall:.1} s: {:.2} cuts/s",
             ok.len(),
-            summary["throughput_per_s"].as_f64().unwrap_or(0.0)
+            summary.throughput_per_s
         );
         println!(
             "  round trip p50 {:.0} ms, p95 {:.0} ms; synthesis p50 {:.0} ms, p95 {:.0} ms",
-            summary["latency_p50_ms"].as_f64().unwrap_or(f64::NAN),
-            summary["latency_p95_ms"].as_f64().unwrap_or(f64::NAN),
-            summary["synthesis_p50_ms"].as_f64().unwrap_or(f64::NAN),
-            summary["synthesis_p95_ms"].as_f64().unwrap_or(f64::NAN)
+            summary.latency_p50_ms,
+            summary.latency_p95_ms,
+            summary.synthesis_p50_ms,
+            summary.synthesis_p95_ms
         );
     }
     if failed > 0 {
@@ -500,20 +509,25 @@ fn print_mixed(
     if args.json {
         let rows: Vec<_> = table
             .iter()
-            .map(|(kind, r)| {
-                serde_json::json!({
-                    "kind": kind, "as_expected": r.latencies_ms.len(), "unexpected": r.unexpected,
-                    "per_s": r.latencies_ms.len() as f64 / seconds as f64,
-                    "p50_ms": pct(&r.latencies_ms, 0.5), "p95_ms": pct(&r.latencies_ms, 0.95),
-                    "p99_ms": pct(&r.latencies_ms, 0.99),
-                })
+            .map(|(kind, r)| MixedKindSummary {
+                kind,
+                as_expected: r.latencies_ms.len(),
+                unexpected: r.unexpected.clone(),
+                per_s: r.latencies_ms.len() as f64 / seconds as f64,
+                p50_ms: pct(&r.latencies_ms, 0.5),
+                p95_ms: pct(&r.latencies_ms, 0.95),
+                p99_ms: pct(&r.latencies_ms, 0.99),
             })
             .collect();
-        println!(
-            "{}",
-            serde_json::json!({"schema": 1,"seconds": seconds, "clients": args.clients, "idle": args.idle,
-            "backend": backend, "setup_seconds": setup_s, "peak_rss_mib": rss, "kinds": rows})
-        );
+        super::output::print_summary(&MixedSummary {
+            seconds,
+            clients: args.clients,
+            idle: args.idle,
+            backend,
+            setup_seconds: setup_s,
+            peak_rss_mib: rss,
+            kinds: rows,
+        });
         return;
     }
     println!(
@@ -540,4 +554,49 @@ fn print_mixed(
         }
     }
     println!("peak RSS of the process (server and clients): {rss:.0} MiB");
+}
+
+/// `bench serve --json`.
+#[derive(serde::Serialize)]
+struct LoadSummary<'a> {
+    clients: u32,
+    requests_per_client: u32,
+    cut_size: u32,
+    exemplar: &'a str,
+    backend: &'a str,
+    coarse_cache: Option<u32>,
+    setup_seconds: f64,
+    wall_seconds: f64,
+    ok: usize,
+    failed: usize,
+    throughput_per_s: f64,
+    latency_p50_ms: f64,
+    latency_p95_ms: f64,
+    synthesis_p50_ms: f64,
+    synthesis_p95_ms: f64,
+}
+
+/// `bench serve --mixed SECONDS --json`.
+#[derive(serde::Serialize)]
+struct MixedSummary<'a> {
+    seconds: u32,
+    clients: u32,
+    idle: u32,
+    backend: &'a str,
+    setup_seconds: f64,
+    peak_rss_mib: f64,
+    kinds: Vec<MixedKindSummary>,
+}
+
+/// One kind of request in [`MixedSummary`].
+#[derive(serde::Serialize)]
+struct MixedKindSummary {
+    kind: &'static str,
+    as_expected: usize,
+    /// What each unexpected answer was.
+    unexpected: Vec<String>,
+    per_s: f64,
+    p50_ms: f64,
+    p95_ms: f64,
+    p99_ms: f64,
 }

@@ -11,6 +11,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 #[derive(Args, Debug)]
+#[command(next_help_heading = "Surface")]
 pub struct SurfaceArgs {
     #[command(flatten)]
     pub solid: SolidParams,
@@ -29,10 +30,10 @@ pub struct SurfaceArgs {
     #[arg(long)]
     pub texels: Option<u32>,
     /// Output: .glb (texture embedded) or .obj (writes .mtl and .png beside it).
-    #[arg(short, long)]
+    #[arg(help_heading = "Output", short, long)]
     pub output: PathBuf,
     /// Print a JSON summary on stdout.
-    #[arg(long)]
+    #[arg(help_heading = "Output", long)]
     pub json: bool,
 }
 
@@ -123,19 +124,21 @@ pub fn run(args: SurfaceArgs, quiet: bool) -> anyhow::Result<()> {
     let finest = stats.voxels_per_level.last().copied().unwrap_or(0);
     let fraction = finest as f64 / (args.resolution as f64).powi(3);
     if args.json {
-        println!(
-            "{}",
-            serde_json::json!({
-                "schema": 1,
-                "output": args.output, "triangles": mesh.triangles.len(), "resolution": args.resolution,
-                "texels": args.texels, "texel_size": plan.texel_size, "atlas": [atlas.width, atlas.height],
-                "max_texel_step_voxels": atlas.max_texel_step(&mesh, place),
-                "synthesis_seconds": seconds, "stats": stats,
-                "finest_fraction_of_volume": fraction,
-                "peak_rss_bytes": crate::util::memory::peak_rss_bytes(),
-                "backend": compute.describe(),
-            })
-        );
+        super::output::print_summary(&SurfaceSummary {
+            output: &args.output,
+            triangles: mesh.triangles.len(),
+            resolution: args.resolution,
+            texels: args.texels,
+            texel_size: plan.texel_size,
+            atlas: [atlas.width, atlas.height],
+            max_texel_step_voxels: atlas.max_texel_step(&mesh, place),
+            placement: PlacementSummary::of(&mesh, place),
+            synthesis_seconds: seconds,
+            stats: &stats,
+            finest_fraction_of_volume: fraction,
+            peak_rss_bytes: crate::util::memory::peak_rss_bytes(),
+            backend: compute.describe(),
+        });
     } else if !quiet {
         eprintln!(
             "surface of {} triangles at {}^3: atlas {}x{} ({}, longest texel step {:.2} \
@@ -155,4 +158,53 @@ pub fn run(args: SurfaceArgs, quiet: bool) -> anyhow::Result<()> {
         );
     }
     Ok(())
+}
+
+/// `surface --json`.
+#[derive(serde::Serialize)]
+struct SurfaceSummary<'a> {
+    output: &'a Path,
+    triangles: usize,
+    resolution: u32,
+    texels: Option<u32>,
+    texel_size: Option<f64>,
+    atlas: [u32; 2],
+    max_texel_step_voxels: f64,
+    /// Where the mesh lies in the solid: `region --box` with `voxel_box` gives the volume the
+    /// surface was cut from.
+    placement: PlacementSummary,
+    synthesis_seconds: f64,
+    stats: &'a crate::lazy::SynthStats,
+    finest_fraction_of_volume: f64,
+    peak_rss_bytes: Option<u64>,
+    backend: String,
+}
+
+/// The mesh-to-voxel transform of a bake: voxel = (vertex - origin) * scale.
+#[derive(serde::Serialize)]
+struct PlacementSummary {
+    /// Mesh coordinates that land on voxel (0, 0, 0).
+    origin: [f64; 3],
+    /// Voxels per mesh unit.
+    scale: f64,
+    /// The half-open voxel box [lo, hi) holding the mesh, as `region --box` takes it.
+    voxel_box: [[i64; 3]; 2],
+}
+
+impl PlacementSummary {
+    fn of(mesh: &crate::mesh::Mesh, place: &crate::mesh::Placement) -> PlacementSummary {
+        let (lo, hi) = mesh.bounds();
+        let (lo, hi) = (
+            place.to_voxels(lo.as_vec3().to_array()),
+            place.to_voxels(hi.as_vec3().to_array()),
+        );
+        PlacementSummary {
+            origin: place.origin.into(),
+            scale: place.scale,
+            voxel_box: [
+                [lo.x, lo.y, lo.z].map(|c| c.floor() as i64),
+                [hi.x, hi.y, hi.z].map(|c| c.floor() as i64 + 1),
+            ],
+        }
+    }
 }

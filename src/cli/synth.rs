@@ -1,7 +1,9 @@
 //! `solidsynth synth`: a full volume, the box [0, N)^3 of the infinite solid.
 
 use super::analyze::{load_or_analyze, InputArgs};
-use crate::io::{atomic, nrrd};
+use super::output::{print_summary, KernelTime};
+use crate::io::atomic;
+use crate::io::volume_file::{VolumeOutput, VolumeWriter};
 use crate::lazy::{Box3, CandidateMode, ColorSource, SynthOptions, SynthParams};
 use crate::metrics::sheet::contact_sheet;
 use crate::volume::Volume;
@@ -134,9 +136,24 @@ impl SolidParams {
 pub struct SolidArgs {
     #[command(flatten)]
     pub solid: SolidParams,
-    /// Output NRRD volume.
+    /// Output volume; its extension picks the format: .nrrd, .npy (NumPy, shape Z,Y,X,C), .tif
+    /// or .tiff (a page per z slice, an ImageJ stack), .ktx2 (a 3D texture), .vdb (OpenVDB
+    /// density and color grids), .vti (ParaView), .png (a flipbook of all z slices).
     #[arg(short, long)]
     pub output: PathBuf,
+    /// The output's format, whatever its extension.
+    #[arg(long, value_enum)]
+    pub format: Option<crate::io::volume_file::VolumeFormat>,
+    /// KTX2 only: sRGB-encoded colour (the `_SRGB` formats).
+    #[arg(long)]
+    pub srgb: bool,
+    /// KTX2 only: write the full mip chain (2x2x2 box filter).
+    #[arg(long)]
+    pub mips: bool,
+    /// OpenVDB only: the world size of a voxel (the grids are placed at the box's position in
+    /// the solid times this).
+    #[arg(long, value_name = "SIZE", default_value_t = 1.0)]
+    pub voxel_size: f64,
     /// Also write one PNG per z slice into this (new or empty) directory.
     #[arg(long)]
     pub slices: Option<PathBuf>,
@@ -158,6 +175,35 @@ pub struct SolidArgs {
     /// Time each kernel (waits for the device after every kernel) and report the times.
     #[arg(long, help_heading = "Performance")]
     pub profile: bool,
+}
+
+impl SolidArgs {
+    /// The volume output `-o` names (by extension or `--format`) for the box `region`, with
+    /// its texture and OpenVDB options.
+    pub fn volume_output(&self, region: Box3) -> crate::Result<VolumeOutput> {
+        let texture = crate::io::ktx2::TextureOptions {
+            srgb: self.srgb,
+            mips: self.mips,
+        };
+        let mut output = VolumeOutput::resolve(&self.output, "-o", self.format, texture)?;
+        if !(self.voxel_size.is_finite() && self.voxel_size > 0.0) {
+            return Err(Error::invalid(
+                format!("--voxel-size {}", self.voxel_size),
+                "must be a positive number",
+            ));
+        }
+        if output.format != crate::io::volume_file::VolumeFormat::Vdb && self.voxel_size != 1.0 {
+            return Err(Error::invalid(
+                "--voxel-size",
+                "only OpenVDB volumes (.vdb) are placed in world units",
+            ));
+        }
+        output.vdb = crate::io::vdb::VdbOptions {
+            voxel_size: self.voxel_size,
+            origin: region.lo.map(|c| c as f64 * self.voxel_size),
+        };
+        Ok(output)
+    }
 }
 
 /// Magic of the `--triples` file: then version (1), nx, ny, nz, exemplar width and height (u32
@@ -213,6 +259,8 @@ pub fn check_size(size: u32) -> crate::Result<()> {
 /// Refuse a box whose synthesis would not fit in memory, before allocating anything for it:
 /// the engine's working set and this command's outputs (`what` names the request in the error).
 pub fn check_memory(what: &str, b: Box3, args: &SolidArgs) -> crate::Result<u64> {
+    let output = args.volume_output(b)?;
+    output.check(&args.output, b.size())?;
     let size = b.size().map(|d| d as u64);
     let group = args.solid.planned_group();
     // The outputs this command holds: slabs of the volume (four bytes a voxel cover up to four
@@ -223,7 +271,7 @@ pub fn check_memory(what: &str, b: Box3, args: &SolidArgs) -> crate::Result<u64>
         || args.flipbook.is_some()
         || args.sheet.is_some()
         || args.slices.is_some();
-    let whole = if keeps_volume { b.voxels() * 4 } else { 0 };
+    let whole = b.voxels() * 4 * (keeps_volume as u64 + output.format.holds_whole_volume() as u64);
     crate::solid::memory::check_box(what, size, group, args.solid.coarse_cache, slab + whole)
 }
 
@@ -364,7 +412,8 @@ fn run_box(args: &SolidArgs, region: Box3, tileable: bool, quiet: bool) -> anyho
     // memory with --max-group); it is kept whole only for the outputs that need all of it.
     let dims = region.size();
     let channels = synth.color_channels();
-    let mut nrrd_out = nrrd::SlabWriter::create(&args.output, dims, channels)?;
+    let mut volume_out =
+        VolumeWriter::create(&args.output, args.volume_output(region)?, dims, channels)?;
     // Triples cost memory (and a read-back): only when asked for.
     let mut triples_out = args
         .triples
@@ -379,7 +428,7 @@ fn run_box(args: &SolidArgs, region: Box3, tileable: bool, quiet: bool) -> anyho
     let mut kept = keep_volume.then(|| Volume::new(dims[0], dims[1], 0, channels));
     let mut take = |slab: &Volume, triples: &[u32]| -> crate::Result<()> {
         let timer = Instant::now();
-        nrrd_out.write_slab(slab)?;
+        volume_out.write_slab(slab)?;
         tracing::debug!(
             "slab of {} z slices written in {:.1} ms",
             slab.nz,
@@ -405,7 +454,7 @@ fn run_box(args: &SolidArgs, region: Box3, tileable: bool, quiet: bool) -> anyho
     // Every output is staged and they appear together at the end: a failure on the way (the
     // flipbook's disk full, an interrupt) leaves none of them.
     let mut outputs = atomic::Outputs::new();
-    outputs.stage(nrrd_out.finish());
+    outputs.stage(volume_out.finish()?);
     if let Some(t) = triples_out {
         outputs.stage(t.finish());
     }
@@ -429,40 +478,39 @@ fn run_box(args: &SolidArgs, region: Box3, tileable: bool, quiet: bool) -> anyho
         }
     }
     outputs.commit()?;
-    let kernels: serde_json::Map<String, serde_json::Value> = synth
+    let kernels: std::collections::BTreeMap<String, KernelTime> = synth
         .kernel_times()
         .map(|t| {
             t.iter()
                 .map(|(k, (d, n))| {
-                    (
-                        k.to_string(),
-                        serde_json::json!({"seconds": d.as_secs_f64(), "calls": n}),
-                    )
+                    let time = KernelTime {
+                        seconds: d.as_secs_f64(),
+                        calls: *n as u64,
+                    };
+                    (k.to_string(), time)
                 })
                 .collect()
         })
         .unwrap_or_default();
     if args.json {
-        println!(
-            "{}",
-            serde_json::json!({
-                "schema": 1,
-                "output": args.output, "box": [region.lo, region.hi], "seed": args.solid.seed, "jitter": args.solid.jitter,
-                "candidates": args.solid.candidates, "passes": args.solid.passes, "color": args.solid.color,
-                "analysis_seconds": analysis_s, "synthesis_seconds": synth_s,
-                "peak_rss_bytes": crate::util::memory::peak_rss_bytes(),
-                "backend": compute.describe(),
-                "kernels": kernels,
-                "stats": synth.last_stats(),
-            })
-        );
+        print_summary(&BoxSummary {
+            output: &args.output,
+            r#box: [region.lo, region.hi],
+            seed: args.solid.seed,
+            jitter: args.solid.jitter,
+            candidates: args.solid.candidates,
+            passes: args.solid.passes,
+            color: args.solid.color,
+            analysis_seconds: analysis_s,
+            synthesis_seconds: synth_s,
+            peak_rss_bytes: crate::util::memory::peak_rss_bytes(),
+            backend: compute.describe(),
+            kernels: &kernels,
+            stats: synth.last_stats(),
+        });
     } else if !quiet {
         for (k, v) in &kernels {
-            eprintln!(
-                "  kernel {k:<9} {:>8.3} s in {} calls",
-                v["seconds"].as_f64().unwrap_or(0.0),
-                v["calls"]
-            );
+            eprintln!("  kernel {k:<9} {:>8.3} s in {} calls", v.seconds, v.calls);
         }
         if let Some(st) = synth.last_stats() {
             eprintln!(
@@ -482,4 +530,24 @@ fn run_box(args: &SolidArgs, region: Box3, tileable: bool, quiet: bool) -> anyho
         );
     }
     Ok(())
+}
+
+/// `synth --json` and `region --json`.
+#[derive(serde::Serialize)]
+struct BoxSummary<'a> {
+    output: &'a Path,
+    /// The half-open box, [lo, hi].
+    r#box: [[i32; 3]; 2],
+    seed: u64,
+    jitter: f32,
+    candidates: CandidateMode,
+    passes: crate::lazy::PassSchedule,
+    color: ColorSource,
+    analysis_seconds: f64,
+    synthesis_seconds: f64,
+    peak_rss_bytes: Option<u64>,
+    backend: String,
+    /// Per kernel, with `--profile`.
+    kernels: &'a std::collections::BTreeMap<String, KernelTime>,
+    stats: Option<&'a crate::lazy::SynthStats>,
 }

@@ -2,6 +2,11 @@
 
 pub mod atomic;
 pub mod flipbook;
+pub mod ktx2;
+pub mod npy;
 pub mod nrrd;
 pub mod ssa;
+pub mod tiff_stack;
+pub mod vdb;
+pub mod volume_file;
 pub mod vti;

@@ -456,17 +456,23 @@ pub fn obj_text(mesh: &Mesh, atlas: &Atlas, mtl_name: &str) -> String {
             writeln!(s, "vt {} {}", c[0], 1.0 - c[1]).unwrap();
         }
     }
+    for n in mesh.vertex_normals() {
+        writeln!(s, "vn {} {} {}", n[0], n[1], n[2]).unwrap();
+    }
     for (k, t) in mesh.triangles.iter().enumerate() {
         let vt = 3 * k + 1;
         writeln!(
             s,
-            "f {}/{} {}/{} {}/{}",
+            "f {}/{}/{} {}/{}/{} {}/{}/{}",
             t[0] + 1,
             vt,
+            t[0] + 1,
             t[1] + 1,
             vt + 1,
+            t[1] + 1,
             t[2] + 1,
-            vt + 2
+            vt + 2,
+            t[2] + 1
         )
         .unwrap();
     }

@@ -1,5 +1,6 @@
 //! Binary glTF 2.0 (`.glb`) of a textured triangle mesh: one primitive, unindexed (each
-//! triangle corner has its own texture coordinate in the atlas), the atlas PNG embedded.
+//! triangle corner has its own texture coordinate in the atlas), with smooth normals
+//! ([`Mesh::vertex_normals`]), the atlas PNG embedded.
 
 use super::bake::Atlas;
 use super::Mesh;
@@ -22,7 +23,7 @@ pub fn write_glb(
 ) -> std::io::Result<()> {
     let corners = mesh.triangles.len() * 3;
     // The binary chunk: positions, texture coordinates, the PNG, zeros to a whole word.
-    let mut geometry = Vec::with_capacity(corners * 20);
+    let mut geometry = Vec::with_capacity(corners * 32);
     let mut lo = [f32::INFINITY; 3];
     let mut hi = [f32::NEG_INFINITY; 3];
     for t in &mesh.triangles {
@@ -32,6 +33,15 @@ pub fn write_glb(
                 lo[k] = lo[k].min(p[k]);
                 hi[k] = hi[k].max(p[k]);
                 geometry.extend_from_slice(&p[k].to_le_bytes());
+            }
+        }
+    }
+    let normal_offset = geometry.len();
+    let normals = mesh.vertex_normals();
+    for t in &mesh.triangles {
+        for &i in t {
+            for c in normals[i as usize] {
+                geometry.extend_from_slice(&c.to_le_bytes());
             }
         }
     }
@@ -51,7 +61,7 @@ pub fn write_glb(
         "scenes": [{"nodes": [0]}],
         "nodes": [{"mesh": 0}],
         "meshes": [{"primitives": [{
-            "attributes": {"POSITION": 0, "TEXCOORD_0": 1},
+            "attributes": {"POSITION": 0, "NORMAL": 2, "TEXCOORD_0": 1},
             "material": 0,
             "mode": 4
         }]}],
@@ -69,14 +79,16 @@ pub fn write_glb(
         "images": [{"bufferView": 2, "mimeType": "image/png"}],
         "buffers": [{"byteLength": bin_len}],
         "bufferViews": [
-            {"buffer": 0, "byteOffset": 0, "byteLength": uv_offset, "target": 34962},
+            {"buffer": 0, "byteOffset": 0, "byteLength": normal_offset, "target": 34962},
             {"buffer": 0, "byteOffset": uv_offset, "byteLength": png_offset - uv_offset, "target": 34962},
-            {"buffer": 0, "byteOffset": png_offset, "byteLength": png.len()}
+            {"buffer": 0, "byteOffset": png_offset, "byteLength": png.len()},
+            {"buffer": 0, "byteOffset": normal_offset, "byteLength": uv_offset - normal_offset, "target": 34962}
         ],
         "accessors": [
             {"bufferView": 0, "componentType": 5126, "count": corners, "type": "VEC3",
              "min": lo, "max": hi},
-            {"bufferView": 1, "componentType": 5126, "count": corners, "type": "VEC2"}
+            {"bufferView": 1, "componentType": 5126, "count": corners, "type": "VEC2"},
+            {"bufferView": 3, "componentType": 5126, "count": corners, "type": "VEC3"}
         ]
     });
     let mut json_bytes = serde_json::to_vec(&doc).expect("serializable");
@@ -118,6 +130,7 @@ mod tests {
         let jlen = u32::from_le_bytes(b[12..16].try_into().unwrap()) as usize;
         let doc: serde_json::Value = serde_json::from_slice(&b[20..20 + jlen]).unwrap();
         assert_eq!(doc["accessors"][0]["count"], 3);
+        assert_eq!(doc["meshes"][0]["primitives"][0]["attributes"]["NORMAL"], 2);
         let blen = u32::from_le_bytes(b[20 + jlen..24 + jlen].try_into().unwrap()) as usize;
         assert_eq!(&b[24 + jlen..28 + jlen], b"BIN\0");
         assert_eq!(28 + jlen + blen, b.len());

@@ -7,6 +7,7 @@
 
 pub mod bake;
 pub mod glb;
+pub mod gltf_in;
 
 use crate::error::{Error, Result};
 use glam::DVec3;
@@ -47,6 +48,30 @@ impl Mesh {
             ));
         }
         Ok(())
+    }
+
+    /// Smooth unit normals per vertex: the sum of the normals of the triangles around it
+    /// weighted by their areas (the unnormalized cross products), in the triangles' winding.
+    /// A vertex whose triangles cancel out or have no area gets +z, so every normal is a unit
+    /// vector (glTF requires it).
+    pub fn vertex_normals(&self) -> Vec<[f32; 3]> {
+        let mut sums = vec![DVec3::ZERO; self.positions.len()];
+        let at = |i: u32| {
+            let p = self.positions[i as usize];
+            DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64)
+        };
+        for t in &self.triangles {
+            let weighted = (at(t[1]) - at(t[0])).cross(at(t[2]) - at(t[0]));
+            for &i in t {
+                sums[i as usize] += weighted;
+            }
+        }
+        sums.into_iter()
+            .map(|n| {
+                let n = n.try_normalize().unwrap_or(DVec3::Z);
+                [n.x as f32, n.y as f32, n.z as f32]
+            })
+            .collect()
     }
 
     /// Axis-aligned bounds.
@@ -90,7 +115,7 @@ impl Placement {
     }
 }
 
-/// Load an OBJ, PLY or gzipped PLY (by extension).
+/// Load an OBJ, PLY, gzipped PLY or glTF (`.glb`, `.gltf`) mesh (by extension).
 pub fn load(path: &Path) -> Result<Mesh> {
     let name = path.display().to_string();
     let lower = name.to_ascii_lowercase();
@@ -105,10 +130,12 @@ pub fn load(path: &Path) -> Result<Mesh> {
             .read_to_end(&mut raw)
             .map_err(|e| Error::invalid(&name, format!("not a valid gzip file: {e}")))?;
         parse_ply(&raw, &name)?
+    } else if lower.ends_with(".glb") || lower.ends_with(".gltf") {
+        gltf_in::parse_gltf(&bytes, &name, path.parent())?
     } else {
         return Err(Error::invalid(
             &name,
-            "unknown mesh format: expected .obj, .ply or .ply.gz",
+            "unknown mesh format: expected .obj, .ply, .ply.gz, .glb or .gltf",
         ));
     };
     mesh.validate(&name)?;
@@ -211,6 +238,25 @@ mod tests {
 
     const TETRA_OBJ: &str =
         "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n";
+
+    #[test]
+    fn vertex_normals_are_unit_area_weighted_and_point_out() {
+        let mesh = parse_obj(TETRA_OBJ.as_bytes(), "tetra").unwrap();
+        let normals = mesh.vertex_normals();
+        for n in &normals {
+            let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+            assert!((len - 1.0).abs() < 1e-6);
+        }
+        // The corner at the origin: its three faces' outward normals (-x, -y, -z) of equal area.
+        let k = -1.0 / 3f32.sqrt();
+        for c in normals[0] {
+            assert!((c - k).abs() < 1e-6, "{:?}", normals[0]);
+        }
+        // A vertex on no triangle gets +z, still a unit vector.
+        let mut lonely = mesh.clone();
+        lonely.positions.push([5.0, 5.0, 5.0]);
+        assert_eq!(lonely.vertex_normals()[4], [0.0, 0.0, 1.0]);
+    }
 
     #[test]
     fn obj_and_ply_give_the_same_mesh() {

@@ -2,6 +2,7 @@
 //! look like new pieces of the exemplar. See [`evaluate`].
 
 pub mod measures;
+pub mod multiscale;
 pub mod patches;
 pub mod sheet;
 pub mod slices;
@@ -102,7 +103,19 @@ pub struct Report {
     pub worst_ratio: Scores,
     /// per_axis / floor.
     pub per_axis_ratio: [Scores; 3],
+    /// The multi-scale measures, laid out as the others.
+    pub multiscale: MultiScaleReport,
     pub slices_per_axis: u32,
+}
+
+/// The multi-scale measures ([`multiscale::MultiScale`]) per axis, worst, floor and ratios.
+#[derive(Clone, Debug, Serialize)]
+pub struct MultiScaleReport {
+    pub per_axis: [multiscale::MultiScale; 3],
+    pub worst_axis: multiscale::MultiScale,
+    pub floor: multiscale::MultiScale,
+    pub worst_ratio: multiscale::MultiScale,
+    pub per_axis_ratio: [multiscale::MultiScale; 3],
 }
 
 /// The exemplars as a caller gave them (one image, or the X, Y and Z images in `frame`; None:
@@ -152,16 +165,39 @@ pub fn evaluate(volume: &Volume, exemplars: &[Image], params: &EvalParams) -> Re
     }
     let exemplar_for = |a: usize| &ex[if ex.len() == 3 { a } else { 0 }];
     let mut per_axis = [Scores::default(); 3];
+    let mut multi = [multiscale::MultiScale::default(); 3];
     let mut floors = Vec::new();
+    let mut multi_floors = Vec::new();
     for a in 0..3 {
         let reference = exemplar_for(a);
         let slices = slices::axis_slices(volume, a, params.slices_per_axis);
         per_axis[a] = score_images(&slices, reference, params, a as u64);
+        multi[a] = multiscale::score(&slices, reference);
         if a == 0 || ex.len() == 3 {
             let (left, right) = slices::halves(reference);
-            floors.push(score_images(&[right], &left, params, 100 + a as u64));
+            floors.push(score_images(
+                &[right.clone()],
+                &left,
+                params,
+                100 + a as u64,
+            ));
+            multi_floors.push(multiscale::score(&[right], &left));
         }
     }
+    let multi_floor = multi_floors.iter().skip(1).fold(multi_floors[0], |acc, f| {
+        multiscale::MultiScale::worst(&acc, f)
+    });
+    let multi_worst = multiscale::MultiScale::worst(
+        &multiscale::MultiScale::worst(&multi[0], &multi[1]),
+        &multi[2],
+    );
+    let multiscale = MultiScaleReport {
+        per_axis: multi,
+        worst_axis: multi_worst,
+        floor: multi_floor,
+        worst_ratio: multi_worst.ratio_to(&multi_floor),
+        per_axis_ratio: multi.map(|m| m.ratio_to(&multi_floor)),
+    };
     let floor = floors
         .iter()
         .skip(1)
@@ -173,6 +209,7 @@ pub fn evaluate(volume: &Volume, exemplars: &[Image], params: &EvalParams) -> Re
         floor,
         worst_ratio: worst_axis.ratio_to(&floor),
         per_axis_ratio: per_axis.map(|s| s.ratio_to(&floor)),
+        multiscale,
         slices_per_axis: params.slices_per_axis,
     })
 }

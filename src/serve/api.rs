@@ -367,37 +367,58 @@ fn cut(state: &State, solid: &jobs::Solid, q: &Query) -> Answer {
 /// client that sends a wrong vector learns about it instead of getting another plane.
 pub const NORMAL_TOLERANCE: f64 = 1e-3;
 
-/// GET /api/solids/ID/volume: the box [0, size)^3 as NRRD, VTI, flipbook PNG or raw RGBA.
+/// GET /api/solids/ID/volume: the box [0, size)^3 in one of the formats the command line
+/// writes (`nrrd`, `npy`, `tiff`, `ktx2`, `vdb`, `vti`, `flipbook` PNG), or `raw` RGBA bytes.
 fn volume(state: &State, solid: &jobs::Solid, q: &Query) -> Answer {
+    use crate::io::volume_file::{VolumeFormat, VolumeOutput};
     q.only(&["size", "format"])?;
     let max = state.config.max_volume_size;
     let size = q
         .u64_in("size", 8, max as u64)?
         .unwrap_or(state.config.preview_size as u64) as u32;
     let format = q.get("format").unwrap_or("nrrd");
-    if !["nrrd", "vti", "flipbook", "raw"].contains(&format) {
-        return Err((
-            400,
-            format!("invalid format {format:?}: nrrd, vti, flipbook or raw"),
-        ));
-    }
+    let file_format = match format {
+        "nrrd" => Some(VolumeFormat::Nrrd),
+        "npy" => Some(VolumeFormat::Npy),
+        "tiff" => Some(VolumeFormat::Tiff),
+        "ktx2" => Some(VolumeFormat::Ktx2),
+        "vdb" => Some(VolumeFormat::Vdb),
+        "vti" => Some(VolumeFormat::Vti),
+        "flipbook" => Some(VolumeFormat::Png),
+        "raw" => None,
+        _ => {
+            return Err((
+                400,
+                format!(
+                    "invalid format {format:?}: nrrd, npy, tiff, ktx2, vdb, vti, flipbook or raw"
+                ),
+            ))
+        }
+    };
     let ticket = state.enqueue().map_err(|jobs::Busy(m)| (503, m))?;
     let v = state.volume(&ticket, solid, size).map_err(from_error)?;
     drop(ticket);
     let name = format!("solid-{}-{size}", solid.id);
-    let (content_type, body, ext) = match format {
-        "nrrd" => {
-            let mut b = crate::io::nrrd::header(&v).into_bytes();
-            b.extend_from_slice(&v.data);
-            ("application/octet-stream", b, "nrrd")
+    let (content_type, body, ext) = match file_format {
+        Some(format) => {
+            let output = VolumeOutput {
+                format,
+                texture: Default::default(),
+                vdb: Default::default(),
+            };
+            let body = crate::io::volume_file::to_bytes(&v, output).map_err(from_error)?;
+            let (content_type, ext) = match format {
+                VolumeFormat::Nrrd => ("application/octet-stream", "nrrd"),
+                VolumeFormat::Npy => ("application/octet-stream", "npy"),
+                VolumeFormat::Tiff => ("image/tiff", "tif"),
+                VolumeFormat::Ktx2 => ("image/ktx2", "ktx2"),
+                VolumeFormat::Vdb => ("application/octet-stream", "vdb"),
+                VolumeFormat::Vti => ("application/xml", "vti"),
+                VolumeFormat::Png => ("image/png", "png"),
+            };
+            (content_type, body, ext)
         }
-        "vti" => ("application/xml", crate::io::vti::to_bytes(&v), "vti"),
-        "flipbook" => (
-            "image/png",
-            crate::io::atomic::png_bytes(&crate::io::flipbook::to_image(&v)).map_err(from_error)?,
-            "png",
-        ),
-        _ => (
+        None => (
             "application/octet-stream",
             crate::io::flipbook::rgba_bytes(&v),
             "rgba",

@@ -406,7 +406,7 @@ pub struct SynthReport {
 }
 
 /// The final region separation of a synthesis with a mask.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, serde::Serialize)]
 pub struct RegionReport {
     /// Control points carrying two feature sets, of all points.
     pub split_points: usize,
