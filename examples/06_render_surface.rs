@@ -10,9 +10,11 @@ const SIZE: usize = 384;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut args = std::env::args().skip(1);
+    let octahedron = concat!(env!("CARGO_MANIFEST_DIR"), "/examples/octahedron.obj");
     let path = args
         .next()
-        .unwrap_or_else(|| "examples/octahedron.obj".into());
+        .filter(|p| !p.is_empty())
+        .unwrap_or_else(|| octahedron.into());
     let out = args.next().unwrap_or_else(|| "render.png".into());
     let resolution: u32 = args.next().map(|r| r.parse()).transpose()?.unwrap_or(96);
     let mesh = solidsynth::mesh::load(path.as_ref())?;

@@ -108,10 +108,8 @@ pub fn run(args: CutArgs, quiet: bool) -> anyhow::Result<()> {
         latencies.push(start.elapsed().as_secs_f64() * 1000.0);
     }
     atomic::save_png(&args.output, &image.expect("repeat >= 1").to_rgba8())?;
-    let mut sorted = latencies.clone();
-    sorted.sort_by(f64::total_cmp);
-    let median = sorted[sorted.len() / 2];
-    let p95 = sorted[((sorted.len() as f64 * 0.95).ceil() as usize).clamp(1, sorted.len()) - 1];
+    let times = super::output::Latencies::of(&latencies);
+    let (median, p95) = (times.median_ms, times.p95_ms);
     // Per warm cut (all but the first, unless there is only one).
     let profiled = args.repeat.saturating_sub(1).max(1) as f64;
     let kernels: std::collections::BTreeMap<String, CutKernelTime> = session
@@ -134,9 +132,7 @@ pub fn run(args: CutArgs, quiet: bool) -> anyhow::Result<()> {
             output: &args.output,
             size: args.size,
             repeat: args.repeat,
-            median_ms: median,
-            p95_ms: p95,
-            first_ms: latencies[0],
+            latencies: times,
             kernels,
             stats: session.synthesizer().last_stats(),
             peak_rss_bytes: crate::util::memory::peak_rss_bytes(),
@@ -173,9 +169,8 @@ struct CutSummary<'a> {
     output: &'a std::path::Path,
     size: u32,
     repeat: u32,
-    median_ms: f64,
-    p95_ms: f64,
-    first_ms: f64,
+    #[serde(flatten)]
+    latencies: super::output::Latencies,
     /// Per kernel and warm cut, with `--profile`.
     kernels: std::collections::BTreeMap<String, CutKernelTime>,
     stats: Option<&'a crate::lazy::SynthStats>,

@@ -330,19 +330,15 @@ fn cut(args: CutArgs, quiet: bool) -> anyhow::Result<()> {
     }
     let image = image.expect("repeat >= 1");
     atomic::save_png(&args.output, &image)?;
-    let mut sorted = latencies.clone();
-    sorted.sort_by(f64::total_cmp);
-    let median = sorted[sorted.len() / 2];
-    let p95 = sorted[((sorted.len() as f64 * 0.95).ceil() as usize).clamp(1, sorted.len()) - 1];
+    let times = super::output::Latencies::of(&latencies);
+    let (median, p95) = (times.median_ms, times.p95_ms);
     let inside = image.pixels().filter(|p| p[3] > 0).count();
     if args.json {
         print_summary(&LappedCutSummary {
             output: &args.output,
             size: args.size,
             repeat: args.repeat,
-            median_ms: median,
-            p95_ms: p95,
-            first_ms: latencies[0],
+            latencies: times,
             pixels_inside: inside,
             peak_rss_bytes: crate::util::memory::peak_rss_bytes(),
         });
@@ -502,9 +498,8 @@ struct LappedCutSummary<'a> {
     output: &'a Path,
     size: u32,
     repeat: u32,
-    median_ms: f64,
-    p95_ms: f64,
-    first_ms: f64,
+    #[serde(flatten)]
+    latencies: super::output::Latencies,
     pixels_inside: usize,
     peak_rss_bytes: Option<u64>,
 }

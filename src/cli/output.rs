@@ -33,6 +33,29 @@ pub fn print_summary(summary: &impl serde::Serialize) {
     print_json(serde_json::to_value(summary).expect("summaries serialize"));
 }
 
+/// Repeated requests' latencies in a summary (`--repeat`): the median, the 95th percentile
+/// (nearest rank) and the first (cold) one.
+#[derive(Clone, Copy, serde::Serialize)]
+pub struct Latencies {
+    pub median_ms: f64,
+    pub p95_ms: f64,
+    pub first_ms: f64,
+}
+
+impl Latencies {
+    /// Of `ms`, in request order (at least one).
+    pub fn of(ms: &[f64]) -> Latencies {
+        let mut sorted = ms.to_vec();
+        sorted.sort_by(f64::total_cmp);
+        let rank = ((sorted.len() as f64 * 0.95).ceil() as usize).clamp(1, sorted.len());
+        Latencies {
+            median_ms: sorted[sorted.len() / 2],
+            p95_ms: sorted[rank - 1],
+            first_ms: ms[0],
+        }
+    }
+}
+
 /// A kernel's time in a summary (`--profile`).
 #[derive(serde::Serialize)]
 pub struct KernelTime {

@@ -5,6 +5,7 @@ pub mod flipbook;
 pub mod ktx2;
 pub mod npy;
 pub mod nrrd;
+pub mod slab_order;
 pub mod ssa;
 pub mod tiff_stack;
 pub mod vdb;

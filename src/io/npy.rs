@@ -8,6 +8,7 @@
 
 use crate::error::Result;
 use crate::io::atomic::PendingFile;
+use crate::io::slab_order::SlabOrder;
 use crate::volume::Volume;
 use std::path::Path;
 
@@ -31,9 +32,7 @@ pub fn header(dims: [u32; 3], channels: u32) -> Vec<u8> {
 /// A volume written slab by slab along z; atomic as [`crate::io::nrrd::SlabWriter`].
 pub struct SlabWriter {
     file: PendingFile,
-    dims: [u32; 3],
-    channels: u32,
-    slices_written: u32,
+    order: SlabOrder,
 }
 
 impl SlabWriter {
@@ -42,28 +41,18 @@ impl SlabWriter {
         file.write_all(&header(dims, channels))?;
         Ok(SlabWriter {
             file,
-            dims,
-            channels,
-            slices_written: 0,
+            order: SlabOrder::new(dims, channels),
         })
     }
 
     /// The next `slab.nz` z slices.
     pub fn write_slab(&mut self, slab: &Volume) -> Result<()> {
-        assert!(
-            slab.nx == self.dims[0]
-                && slab.ny == self.dims[1]
-                && slab.channels == self.channels
-                && self.slices_written + slab.nz <= self.dims[2],
-            "slab does not continue the volume"
-        );
-        self.file.write_all(&slab.data)?;
-        self.slices_written += slab.nz;
-        Ok(())
+        self.order.advance(slab);
+        self.file.write_all(&slab.data)
     }
 
     pub fn finish(self) -> PendingFile {
-        assert_eq!(self.slices_written, self.dims[2], "volume incomplete");
+        self.order.finish();
         self.file
     }
 }

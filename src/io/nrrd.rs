@@ -45,9 +45,7 @@ pub fn save(v: &Volume, path: &Path) -> Result<()> {
 /// checks that every slice arrived; dropped before, the partial file is deleted.
 pub struct SlabWriter {
     file: crate::io::atomic::PendingFile,
-    dims: [u32; 3],
-    channels: u32,
-    slices_written: u32,
+    order: crate::io::slab_order::SlabOrder,
 }
 
 impl SlabWriter {
@@ -56,35 +54,20 @@ impl SlabWriter {
         file.write_all(header_of(dims, channels).as_bytes())?;
         Ok(SlabWriter {
             file,
-            dims,
-            channels,
-            slices_written: 0,
+            order: crate::io::slab_order::SlabOrder::new(dims, channels),
         })
     }
 
     /// The next `slab.nz` z slices (x and y extents and channels those of the volume).
     pub fn write_slab(&mut self, slab: &Volume) -> Result<()> {
-        assert!(
-            slab.nx == self.dims[0]
-                && slab.ny == self.dims[1]
-                && slab.channels == self.channels
-                && self.slices_written + slab.nz <= self.dims[2],
-            "slab {:?} x {} does not continue a volume {:?} x {} at z {}",
-            slab.dims(),
-            slab.channels,
-            self.dims,
-            self.channels,
-            self.slices_written
-        );
-        self.file.write_all(&slab.data)?;
-        self.slices_written += slab.nz;
-        Ok(())
+        self.order.advance(slab);
+        self.file.write_all(&slab.data)
     }
 
     /// The complete file, to commit or to stage with a command's other outputs
     /// ([`crate::io::atomic::Outputs`]).
     pub fn finish(self) -> crate::io::atomic::PendingFile {
-        assert_eq!(self.slices_written, self.dims[2], "volume incomplete");
+        self.order.finish();
         self.file
     }
 }

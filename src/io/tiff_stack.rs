@@ -5,6 +5,7 @@
 
 use crate::error::{Error, Result};
 use crate::io::atomic::PendingFile;
+use crate::io::slab_order::SlabOrder;
 use crate::volume::Volume;
 use std::path::{Path, PathBuf};
 use tiff::encoder::{colortype, TiffEncoder, TiffKind, TiffKindBig, TiffKindStandard};
@@ -25,7 +26,7 @@ pub struct SlabWriter {
     path: PathBuf,
     dims: [u32; 3],
     channels: u32,
-    slices_written: u32,
+    order: SlabOrder,
 }
 
 /// ImageJ's description of a z stack of `slices` pages.
@@ -70,22 +71,17 @@ impl SlabWriter {
             path: path.to_path_buf(),
             dims,
             channels,
-            slices_written: 0,
+            order: SlabOrder::new(dims, channels),
         })
     }
 
     /// The next `slab.nz` z slices, a page each.
     pub fn write_slab(&mut self, slab: &Volume) -> Result<()> {
-        assert!(
-            slab.nx == self.dims[0]
-                && slab.ny == self.dims[1]
-                && slab.channels == self.channels
-                && self.slices_written + slab.nz <= self.dims[2],
-            "slab does not continue the volume"
-        );
+        let first_slice = self.order.slices_written();
+        self.order.advance(slab);
         let slice_len = (slab.nx * slab.ny * slab.channels) as usize;
-        for page in slab.data.chunks_exact(slice_len) {
-            let first = self.slices_written == 0;
+        for (k, page) in slab.data.chunks_exact(slice_len).enumerate() {
+            let first = first_slice + k as u32 == 0;
             let description = first.then(|| imagej_description(self.dims[2]));
             let [w, h, _] = self.dims;
             let result = match &mut self.encoder {
@@ -93,13 +89,12 @@ impl SlabWriter {
                 Encoder::Big(e) => write_page(e, w, h, self.channels, page, description),
             };
             result.map_err(|e| tiff_error(&self.path, e))?;
-            self.slices_written += 1;
         }
         Ok(())
     }
 
     pub fn finish(self) -> PendingFile {
-        assert_eq!(self.slices_written, self.dims[2], "volume incomplete");
+        self.order.finish();
         drop(self.encoder);
         self.file
     }
