@@ -133,6 +133,21 @@ fn every_subcommand_help_ends_with_examples_that_run() {
             !help.contains("[`"),
             "`solidsynth {name} --help` shows rustdoc link syntax"
         );
+        // Headings hold their own options: a flattened group's heading must not run on over the
+        // options declared after it.
+        let backend_section: Vec<&str> = help
+            .lines()
+            .skip_while(|l| *l != "Backend and GPU:")
+            .skip(1)
+            .take_while(|l| !l.ends_with(':') || l.starts_with(' '))
+            .filter_map(|l| l.trim_start().strip_prefix("--"))
+            .collect();
+        assert!(
+            backend_section
+                .iter()
+                .all(|o| o.starts_with("backend") || o.starts_with("adapter")),
+            "`solidsynth {name} --help` lists other options under Backend and GPU: {backend_section:?}"
+        );
         run_block(
             &format!("solidsynth {name} --help"),
             &examples,

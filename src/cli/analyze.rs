@@ -20,10 +20,10 @@ pub struct InputArgs {
     /// unless --ey and --ez are given; or an .ssa analysis file. Without it, the built-in exemplar.
     pub input: Option<PathBuf>,
     /// Exemplar for the plane orthogonal to y.
-    #[arg(long, requires = "ez")]
+    #[arg(help_heading = "Input and analysis", long, requires = "ez")]
     pub ey: Option<PathBuf>,
     /// Exemplar for the plane orthogonal to z.
-    #[arg(long, requires = "ey")]
+    #[arg(help_heading = "Input and analysis", long, requires = "ey")]
     pub ez: Option<PathBuf>,
     /// How the exemplars lie in the three planes, as (column axis, row axis) for x, y, z.
     /// `paper` (default): (y, z), (x, z), (x, y), the paper's coordinate inheritance: the
@@ -31,7 +31,7 @@ pub struct InputArgs {
     /// lighting agree in two of them (better scores, see BENCHMARKS.md); one image is analysed
     /// as three exemplars (about twice the analysis time). `cyclic`: (y, z), (z, x), (x, y),
     /// one image with one shared candidate set.
-    #[arg(long, value_enum)]
+    #[arg(help_heading = "Input and analysis", long, value_enum)]
     pub frame: Option<InputFrame>,
     /// The feature channel's mask: `auto` (each exemplar's luminance split in two by Otsu's
     /// threshold), `edges` (its strong edges: gradient magnitude above Otsu's threshold; for
@@ -39,28 +39,28 @@ pub struct InputArgs {
     /// image the size of the exemplar (white inside). The signed distance to the mask's
     /// boundary becomes one more channel of the neighbourhoods, so matching keeps the shapes it
     /// outlines (a file named like a keyword is written ./auto).
-    #[arg(long, default_value = "auto", value_parser = parse_feature_mask)]
+    #[arg(help_heading = "Input and analysis", long, default_value = "auto", value_parser = parse_feature_mask)]
     pub feature_mask: FeatureMask,
     /// Feature mask of --ey (required with --ey when --feature-mask is an image).
-    #[arg(long)]
+    #[arg(help_heading = "Input and analysis", long)]
     pub ey_feature_mask: Option<PathBuf>,
     /// Feature mask of --ez.
-    #[arg(long)]
+    #[arg(help_heading = "Input and analysis", long)]
     pub ez_feature_mask: Option<PathBuf>,
     /// Weight of the feature channel relative to one colour channel.
-    #[arg(long, default_value_t = crate::analysis::DEFAULT_FEATURE_WEIGHT)]
+    #[arg(help_heading = "Input and analysis", long, default_value_t = crate::analysis::DEFAULT_FEATURE_WEIGHT)]
     pub feature_weight: f32,
     /// The exemplars tile (wrap around at the edges). Without it, edges are mirrored so no
     /// neighbourhood straddles the seam of a non-tileable image. The built-in exemplar tiles.
-    #[arg(long)]
+    #[arg(help_heading = "Input and analysis", long)]
     pub periodic: bool,
     /// Usage-balancing rounds of the analysis: small calibration solids that find the exemplar
     /// pixels the correction over-uses, which it then penalizes (keeps photographs from washing
     /// out to a few flat pixels). 0: the paper's unmodified search.
-    #[arg(long, default_value_t = crate::analysis::balance::DEFAULT_ROUNDS)]
+    #[arg(help_heading = "Input and analysis", long, default_value_t = crate::analysis::balance::DEFAULT_ROUNDS)]
     pub balance_rounds: u32,
     /// Strength of the usage penalty (0..=8).
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(help_heading = "Input and analysis", long, default_value_t = 1.0)]
     pub balance_strength: f32,
     #[command(flatten)]
     pub backend: super::BackendArgs,
@@ -221,10 +221,10 @@ pub struct AnalyzeArgs {
     #[command(flatten)]
     pub input: InputArgs,
     /// Output .ssa file.
-    #[arg(short, long)]
+    #[arg(help_heading = "Output", short, long)]
     pub output: PathBuf,
     /// Print a JSON summary on stdout.
-    #[arg(long)]
+    #[arg(help_heading = "Output", long)]
     pub json: bool,
 }
 

@@ -117,14 +117,14 @@ pub struct BenchAnalyzeArgs {
     pub sizes: Vec<u32>,
     /// Crop the exemplars from this image (top-left corner; it must be at least as large as the
     /// biggest size). Default: procedural cobblestones generated at each size.
-    #[arg(long)]
+    #[arg(help_heading = "Benchmark", long)]
     pub exemplar: Option<PathBuf>,
     /// Runs per size; the median is reported.
-    #[arg(long, default_value_t = 3)]
+    #[arg(help_heading = "Benchmark", long, default_value_t = 3)]
     pub runs: u32,
     /// Usage-balancing rounds of each analysis (see `analyze --balance-rounds`; 0 times the
     /// paper's precomputation alone).
-    #[arg(long, default_value_t = crate::analysis::balance::DEFAULT_ROUNDS)]
+    #[arg(help_heading = "Benchmark", long, default_value_t = crate::analysis::balance::DEFAULT_ROUNDS)]
     pub balance_rounds: u32,
     /// The feature channel, as `analyze --feature-mask` (auto, edges or none).
     #[arg(long, default_value = "auto", value_parser = ["auto", "edges", "none"])]

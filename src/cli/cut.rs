@@ -16,22 +16,27 @@ pub struct CutArgs {
     #[command(flatten)]
     pub solid: SolidParams,
     /// Centre of the cut, X,Y,Z in finest-level voxels.
-    #[arg(long, allow_hyphen_values = true)]
+    #[arg(help_heading = "Cut", long, allow_hyphen_values = true)]
     pub origin: String,
     /// Normal of the cut plane, NX,NY,NZ (any length but zero).
-    #[arg(long, allow_hyphen_values = true)]
+    #[arg(help_heading = "Cut", long, allow_hyphen_values = true)]
     pub normal: String,
     /// Up direction, projected onto the plane (default +y, or +z when the normal is along y).
-    #[arg(long, allow_hyphen_values = true)]
+    #[arg(help_heading = "Cut", long, allow_hyphen_values = true)]
     pub up: Option<String>,
     /// Pixels per side of the (square) cut.
-    #[arg(long, default_value_t = 256)]
+    #[arg(help_heading = "Cut", long, default_value_t = 256)]
     pub size: u32,
     /// Voxels per pixel.
-    #[arg(long, default_value_t = 1.0, allow_hyphen_values = true)]
+    #[arg(
+        help_heading = "Cut",
+        long,
+        default_value_t = 1.0,
+        allow_hyphen_values = true
+    )]
     pub spacing: f64,
     /// Run the cut K times through one warm session and print the median and p95 latency.
-    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=10000))]
+    #[arg(help_heading = "Cut", long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=10000))]
     pub repeat: u32,
     /// Output PNG.
     #[arg(help_heading = "Output", short, long)]

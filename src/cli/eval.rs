@@ -127,6 +127,6 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
         );
     }
     println!("lower is better; floor = one half of the exemplar scored against the other; ratio = worst / floor");
-    println!("swd: sliced Wasserstein distance of 5x5 patches at full, half and quarter resolution; spectrum: radially averaged log power spectrum");
+    println!("swd: sliced Wasserstein distance of mean-removed 5x5 patches at full, half and quarter resolution; spectrum: radially averaged log power spectrum");
     Ok(())
 }

@@ -52,48 +52,53 @@ pub struct SynthArgs {
     /// Exemplar image (PNG, JPEG, ...); without it, the built-in exemplar.
     pub input: Option<PathBuf>,
     /// Period of the solid in voxels (its edge); rounded up to a multiple of 4.
-    #[arg(long)]
+    #[arg(help_heading = "Gradient synthesis", long)]
     pub size: u32,
-    #[arg(long, default_value_t = 0)]
+    #[arg(help_heading = "Gradient synthesis", long, default_value_t = 0)]
     pub seed: u64,
     /// Direction field orienting the slices: none, constant:X,Y,Z (local z along it) or
     /// cylinder:X,Y,Z (around that axis through the centre; rings, vases).
-    #[arg(long, default_value = "none")]
+    #[arg(help_heading = "Gradient synthesis", long, default_value = "none")]
     pub field: String,
     /// How the three slices of a check point are matched.
-    #[arg(long, value_enum, default_value = "crossbar")]
+    #[arg(
+        help_heading = "Gradient synthesis",
+        long,
+        value_enum,
+        default_value = "crossbar"
+    )]
     pub search: SearchArg,
     /// Nearest-patch search: P > 0 approximate (the paper's ANN step), scanning the P lists (of
     /// about sqrt(candidates), k-means of the patches' projections) nearest to each query; 0
     /// exact (exhaustive, about 3x slower; the same quality by `eval`).
-    #[arg(long, default_value_t = crate::gradient::synth::DEFAULT_PROBES)]
+    #[arg(help_heading = "Gradient synthesis", long, default_value_t = crate::gradient::synth::DEFAULT_PROBES)]
     pub probes: u32,
     /// Slices matched per check point: 3, or 2 (orthogonal to x and y only) for anisotropic
     /// exemplars such as brick walls or strata.
-    #[arg(long, default_value_t = 3)]
+    #[arg(help_heading = "Gradient synthesis", long, default_value_t = 3)]
     pub slices: u32,
     /// Optimization iterations per level (N_O).
-    #[arg(long, default_value_t = 3)]
+    #[arg(help_heading = "Gradient synthesis", long, default_value_t = 3)]
     pub iterations: u32,
     /// Check points per control cube (N_C).
-    #[arg(long, default_value_t = 3)]
+    #[arg(help_heading = "Gradient synthesis", long, default_value_t = 3)]
     pub check_points: u32,
     /// Colour clusters of the finest level's buckets (N_T).
-    #[arg(long, default_value_t = 12)]
+    #[arg(help_heading = "Gradient synthesis", long, default_value_t = 12)]
     pub clusters: u32,
     /// Finish with the control-point optimization of eq. 3 (all points fitted at once to the
     /// last samples; sizes up to 256).
-    #[arg(long)]
+    #[arg(help_heading = "Gradient synthesis", long)]
     pub optimize: bool,
     /// Conjugate-gradient steps of --optimize.
-    #[arg(long, default_value_t = 20, value_parser = clap::value_parser!(u32).range(1..=1000))]
+    #[arg(help_heading = "Gradient synthesis", long, default_value_t = 20, value_parser = clap::value_parser!(u32).range(1..=1000))]
     pub optimize_iterations: u32,
     /// Region separation (paper 3.2, 4.3): a binary mask image of the exemplar's size (set
     /// where its first channel >= 128, both regions present). Its signed distance is
     /// synthesized as a fourth feature channel, the colour clusters are allocated per region,
     /// and the output is a region solid (sharp boundaries; `gradient render` reads it). Sizes up
     /// to 256; with --optimize, eq. 3 refines both feature sets.
-    #[arg(long)]
+    #[arg(help_heading = "Gradient synthesis", long)]
     pub mask: Option<PathBuf>,
     /// Stored precision of the control values.
     #[arg(help_heading = "Output", long, value_enum, default_value = "u8")]
@@ -175,26 +180,26 @@ pub struct RenderArgs {
     pub input: PathBuf,
     /// Edge of the rendered cube [0, N)^3 (default: the solid's extent); with --normal, the
     /// side of the slice in pixels (default 256).
-    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=4096))]
+    #[arg(help_heading = "Rendering", long, value_parser = clap::value_parser!(u32).range(1..=4096))]
     pub size: Option<u32>,
     /// Render a planar slice instead (PNG): its normal NX,NY,NZ, with the conventions of `cut`.
-    #[arg(long, allow_hyphen_values = true)]
+    #[arg(help_heading = "Rendering", long, allow_hyphen_values = true)]
     pub normal: Option<String>,
     /// Slice centre X,Y,Z (voxels; default the solid's centre).
-    #[arg(long, allow_hyphen_values = true)]
+    #[arg(help_heading = "Rendering", long, allow_hyphen_values = true)]
     pub origin: Option<String>,
     /// Slice up direction (default +y, or +z when the normal is along y).
-    #[arg(long, allow_hyphen_values = true)]
+    #[arg(help_heading = "Rendering", long, allow_hyphen_values = true)]
     pub up: Option<String>,
     /// Voxels per slice pixel.
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(help_heading = "Rendering", long, default_value_t = 1.0)]
     pub spacing: f64,
     /// Region solids: colour each sample with its own region's set only (no anti-aliasing
     /// blend within half a voxel of the boundary).
-    #[arg(long)]
+    #[arg(help_heading = "Rendering", long)]
     pub no_antialias: bool,
     /// Solids with a detail residual: render the smooth part only (no grain).
-    #[arg(long)]
+    #[arg(help_heading = "Rendering", long)]
     pub no_detail: bool,
     #[command(flatten)]
     pub backend: super::BackendArgs,

@@ -126,10 +126,15 @@ pub struct RenderArgs {
     pub model: PathBuf,
     /// Orbit camera: AZ,EL[,DIST]: azimuth about +y from +z and elevation (degrees), distance
     /// in bounding radii (default 2.6).
-    #[arg(long, default_value = "30,20", allow_hyphen_values = true)]
+    #[arg(
+        help_heading = "Camera",
+        long,
+        default_value = "30,20",
+        allow_hyphen_values = true
+    )]
     pub camera: String,
     /// Pixels per side.
-    #[arg(long, default_value_t = 1024)]
+    #[arg(help_heading = "Camera", long, default_value_t = 1024)]
     pub size: u32,
     #[command(flatten)]
     pub backend: BackendArgs,

@@ -106,16 +106,21 @@ pub struct RelightArgs {
     /// Input .ptm.
     pub input: PathBuf,
     /// Light direction LU,LV (its projection on the image plane; LU^2 + LV^2 <= 1).
-    #[arg(long, allow_hyphen_values = true, conflicts_with = "sweep")]
+    #[arg(
+        help_heading = "Lighting",
+        long,
+        allow_hyphen_values = true,
+        conflicts_with = "sweep"
+    )]
     pub light: Option<String>,
     /// Instead: a contact sheet of N lights in a ring at --elevation.
-    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=256))]
+    #[arg(help_heading = "Lighting", long, value_parser = clap::value_parser!(u32).range(1..=256))]
     pub sweep: Option<u32>,
     /// Elevation of the --sweep ring above the surface, degrees.
-    #[arg(long, default_value_t = 35.0)]
+    #[arg(help_heading = "Lighting", long, default_value_t = 35.0)]
     pub elevation: f64,
     /// Strength of a Blinn-Phong highlight around the PTM's normals (0: none).
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(help_heading = "Lighting", long, default_value_t = 0.0)]
     pub specular: f32,
     #[command(flatten)]
     pub backend: super::BackendArgs,

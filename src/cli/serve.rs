@@ -14,29 +14,29 @@ use std::time::{Duration, Instant};
 #[command(next_help_heading = "Server")]
 pub struct ServeArgs {
     /// Port to listen on (0: any free port; the address is printed).
-    #[arg(long, default_value_t = 8080)]
+    #[arg(help_heading = "Server", long, default_value_t = 8080)]
     pub port: u16,
     /// Address to bind. The default answers this machine only; anything else exposes the
     /// viewer (and its CPU/GPU time) to the network.
-    #[arg(long, default_value = "127.0.0.1")]
+    #[arg(help_heading = "Server", long, default_value = "127.0.0.1")]
     pub bind: IpAddr,
     /// A host name (optionally NAME:PORT) requests may name in their Host header besides the
     /// bound address (and `localhost` on a loopback address); repeatable. Requests naming any
     /// other host are refused (421): a web page cannot reach the server through a name it
     /// controls (DNS rebinding).
-    #[arg(long = "allow-host", value_name = "NAME")]
+    #[arg(help_heading = "Server", long = "allow-host", value_name = "NAME")]
     pub allow_hosts: Vec<String>,
     /// Edge of the volume synthesized with every solid (the page's 3D texture), a multiple of 4.
-    #[arg(long, default_value_t = 64)]
+    #[arg(help_heading = "Server", long, default_value_t = 64)]
     pub preview_size: u32,
     /// Largest cut accepted (pixels per side, and voxels spanned per side).
-    #[arg(long, default_value_t = 512, value_parser = clap::value_parser!(u32).range(16..=1024))]
+    #[arg(help_heading = "Server", long, default_value_t = 512, value_parser = clap::value_parser!(u32).range(16..=1024))]
     pub max_cut_size: u32,
     /// Synthesize every level for each request instead of reading the coarse levels from the
     /// coarse-level cache (period 64) that `serve` uses by default: cuts then cost 3-5x more
     /// (measured in BENCHMARKS.md), and the solid is the one `synth` makes without
     /// `--coarse-cache`.
-    #[arg(long, conflicts_with = "coarse_cache")]
+    #[arg(help_heading = "Server", long, conflicts_with = "coarse_cache")]
     pub full_levels: bool,
     /// The solid: INPUT (image or .ssa; default the built-in exemplar) and its flags, as for
     /// `synth`. `--seed` is the first solid's; the page picks others.
@@ -121,16 +121,16 @@ pub fn run(args: ServeArgs, quiet: bool) -> anyhow::Result<()> {
 #[command(next_help_heading = "Load")]
 pub struct BenchServeArgs {
     /// Concurrent clients.
-    #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u32).range(1..=12))]
+    #[arg(help_heading = "Load", long, default_value_t = 4, value_parser = clap::value_parser!(u32).range(1..=12))]
     pub clients: u32,
     /// Cut requests per client.
-    #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u32).range(1..=1000))]
+    #[arg(help_heading = "Load", long, default_value_t = 10, value_parser = clap::value_parser!(u32).range(1..=1000))]
     pub requests: u32,
     /// Cut size (pixels per side).
-    #[arg(long, default_value_t = 128, value_parser = clap::value_parser!(u32).range(8..=512))]
+    #[arg(help_heading = "Load", long, default_value_t = 128, value_parser = clap::value_parser!(u32).range(8..=512))]
     pub size: u32,
     /// Built-in exemplar of the solid.
-    #[arg(long, default_value = "cells")]
+    #[arg(help_heading = "Load", long, default_value = "cells")]
     pub exemplar: String,
     /// Print a JSON summary instead of a table.
     #[arg(help_heading = "Output", long)]
@@ -138,20 +138,20 @@ pub struct BenchServeArgs {
     #[command(flatten)]
     pub backend: super::BackendArgs,
     /// Coarse-level cache period for the solid (as `serve`, default 64).
-    #[arg(long, value_name = "N", default_value_t = DEFAULT_COARSE_CACHE)]
+    #[arg(help_heading = "Load", long, value_name = "N", default_value_t = DEFAULT_COARSE_CACHE)]
     pub coarse_cache: u32,
     /// No coarse-level cache (as `serve --full-levels`).
-    #[arg(long)]
+    #[arg(help_heading = "Load", long)]
     pub full_levels: bool,
     /// Mixed traffic for this many seconds instead of `--requests` cuts: the clients send cuts,
     /// volume downloads and good uploads; one more sends hostile requests (random bodies as
     /// PNG, claimed gigabytes, bad Host and Origin, text uploads, garbage); `--idle` more hold
     /// slow connections open (a byte a second). Every answer is checked against what it should
     /// be; failures of valid requests must be 0.
-    #[arg(long, value_name = "SECONDS", value_parser = clap::value_parser!(u32).range(1..=600))]
+    #[arg(help_heading = "Load", long, value_name = "SECONDS", value_parser = clap::value_parser!(u32).range(1..=600))]
     pub mixed: Option<u32>,
     /// Slow ("slowloris") connections held open during `--mixed`.
-    #[arg(long, default_value_t = 6, value_parser = clap::value_parser!(u32).range(0..=12))]
+    #[arg(help_heading = "Load", long, default_value_t = 6, value_parser = clap::value_parser!(u32).range(0..=12))]
     pub idle: u32,
 }
 

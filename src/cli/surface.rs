@@ -16,18 +16,18 @@ pub struct SurfaceArgs {
     #[command(flatten)]
     pub solid: SolidParams,
     /// Mesh (.obj, .ply or .ply.gz); open or non-manifold meshes are fine.
-    #[arg(long)]
+    #[arg(help_heading = "Surface", long)]
     pub mesh: PathBuf,
     /// The mesh is scaled so its longest side spans this many finest-level voxels.
-    #[arg(long, default_value_t = 256, value_parser = clap::value_parser!(u32).range(1..=1048576))]
+    #[arg(help_heading = "Surface", long, default_value_t = 256, value_parser = clap::value_parser!(u32).range(1..=1048576))]
     pub resolution: u32,
     /// Voxels per texel step along a triangle's edges: each triangle's atlas cell is sized to
     /// the triangle (default 1, grown only when the atlas would not fit 16384^2 or memory).
-    #[arg(long, conflicts_with = "texels")]
+    #[arg(help_heading = "Surface", long, conflicts_with = "texels")]
     pub texel_size: Option<f64>,
     /// Instead of cells sized to their triangles, the same square cell of T x T texels for every
     /// triangle (2..=256).
-    #[arg(long)]
+    #[arg(help_heading = "Surface", long)]
     pub texels: Option<u32>,
     /// Output: .glb (texture embedded) or .obj (writes .mtl and .png beside it).
     #[arg(help_heading = "Output", short, long)]

@@ -47,29 +47,44 @@ pub struct SolidParams {
     #[command(flatten)]
     pub input: InputArgs,
     /// Seed of the jitter field and the tiling offsets.
-    #[arg(long, default_value_t = 0)]
+    #[arg(help_heading = "Solid", long, default_value_t = 0)]
     pub seed: u64,
     /// Jitter magnitude (0 disables the warp).
-    #[arg(long, default_value_t = 1.0, allow_hyphen_values = true)]
+    #[arg(
+        help_heading = "Solid",
+        long,
+        default_value_t = 1.0,
+        allow_hyphen_values = true
+    )]
     pub jitter: f32,
     /// Candidates searched by the correction: the paper's 3D candidates, or 2D (ablation).
-    #[arg(long, value_enum, default_value = "3d")]
+    #[arg(help_heading = "Solid", long, value_enum, default_value = "3d")]
     pub candidates: CandidateMode,
     /// Correction passes per level: one count for every level, or one per level, coarsest
     /// first (`2,2,2,1`).
-    #[arg(long, default_value = "2", value_name = "N|N,N,N,N")]
+    #[arg(
+        help_heading = "Solid",
+        long,
+        default_value = "2",
+        value_name = "N|N,N,N,N"
+    )]
     pub passes: crate::lazy::PassSchedule,
     /// Output colour: the mean of the voxel's three exemplar pixels (the paper's rule);
     /// `matched`: that mean with the exemplar's mean colour and contrast restored (a table from
     /// a probe solid synthesized when the session starts; better histogram and sharpness
     /// scores); or one exemplar's pixel (x, y, z). Or one of these per colour channel, red
     /// first, separated by commas (`x,y,z`: red from Ex, green from Ey, blue from Ez).
-    #[arg(long, default_value = "average", value_name = "SOURCE[,SOURCE...]")]
+    #[arg(
+        help_heading = "Solid",
+        long,
+        default_value = "average",
+        value_name = "SOURCE[,SOURCE...]"
+    )]
     pub color: ColorSource,
     /// Coarse-level cache (paper 6.2): the levels above the finest come from one tileable solid
     /// of period N (a multiple of 64), synthesized once and read through the jitter warp; each
     /// request then synthesizes only the finest level. A different solid, as deterministic.
-    #[arg(long, value_name = "N")]
+    #[arg(help_heading = "Solid", long, value_name = "N")]
     pub coarse_cache: Option<u32>,
     /// Largest group of the request synthesized at once: a cube of this edge in voxels (a
     /// multiple of 4). Smaller groups bound the working memory of large boxes and surfaces, at
@@ -139,38 +154,43 @@ pub struct SolidArgs {
     /// Output volume; its extension picks the format: .nrrd, .npy (NumPy, shape Z,Y,X,C), .tif
     /// or .tiff (a page per z slice, an ImageJ stack), .ktx2 (a 3D texture), .vdb (OpenVDB
     /// density and color grids), .vti (ParaView), .png (a flipbook of all z slices).
-    #[arg(short, long)]
+    #[arg(help_heading = "Output", short, long)]
     pub output: PathBuf,
     /// The output's format, whatever its extension.
-    #[arg(long, value_enum)]
+    #[arg(help_heading = "Output", long, value_enum)]
     pub format: Option<crate::io::volume_file::VolumeFormat>,
     /// KTX2 only: sRGB-encoded colour (the `_SRGB` formats).
-    #[arg(long)]
+    #[arg(help_heading = "Output", long)]
     pub srgb: bool,
     /// KTX2 only: write the full mip chain (2x2x2 box filter).
-    #[arg(long)]
+    #[arg(help_heading = "Output", long)]
     pub mips: bool,
     /// OpenVDB only: the world size of a voxel (the grids are placed at the box's position in
     /// the solid times this).
-    #[arg(long, value_name = "SIZE", default_value_t = 1.0)]
+    #[arg(
+        help_heading = "Output",
+        long,
+        value_name = "SIZE",
+        default_value_t = 1.0
+    )]
     pub voxel_size: f64,
     /// Also write one PNG per z slice into this (new or empty) directory.
-    #[arg(long)]
+    #[arg(help_heading = "Output", long)]
     pub slices: Option<PathBuf>,
     /// Also write all z slices in one grid PNG (the layout Unity and Unreal import as a 3D texture).
-    #[arg(long)]
+    #[arg(help_heading = "Output", long)]
     pub flipbook: Option<PathBuf>,
     /// Also write the volume as VTK image data (.vti, for ParaView).
-    #[arg(long)]
+    #[arg(help_heading = "Output", long)]
     pub vti: Option<PathBuf>,
     /// Also write the finest-level coordinate triples (format in the README).
-    #[arg(long)]
+    #[arg(help_heading = "Output", long)]
     pub triples: Option<PathBuf>,
     /// Also write a contact sheet (exemplar beside orthogonal slices).
-    #[arg(long)]
+    #[arg(help_heading = "Output", long)]
     pub sheet: Option<PathBuf>,
     /// Print a JSON summary on stdout.
-    #[arg(long)]
+    #[arg(help_heading = "Output", long)]
     pub json: bool,
     /// Time each kernel (waits for the device after every kernel) and report the times.
     #[arg(long, help_heading = "Performance")]
