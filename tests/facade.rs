@@ -171,10 +171,8 @@ fn a_cancelled_request_stops_with_a_typed_error() {
     assert_eq!(slabs, 1);
 }
 
-#[test]
-fn the_cache_uses_only_what_belongs_to_the_input() {
-    let dir = tempfile::tempdir().unwrap();
-    let cache = AnalysisCache::at(dir.path());
+/// A small periodic exemplar without balancing (a fast analysis) and its cache key.
+fn cells_cache_input() -> (ExemplarInput, u128) {
     let input = ExemplarInput {
         images: vec![common::fixture("cells32.png")],
         periodic: true,
@@ -183,6 +181,14 @@ fn the_cache_uses_only_what_belongs_to_the_input() {
     };
     let (analysis_input, params) = input.analysis_input().unwrap();
     let key = cache_key(&analysis_input, &params);
+    (input, key)
+}
+
+#[test]
+fn the_cache_uses_only_what_belongs_to_the_input() {
+    let dir = tempfile::tempdir().unwrap();
+    let cache = AnalysisCache::at(dir.path());
+    let (input, key) = cells_cache_input();
     // A different input (another border) has another key.
     let mirrored = ExemplarInput {
         periodic: false,
@@ -234,14 +240,7 @@ fn the_cache_uses_only_what_belongs_to_the_input() {
 fn concurrent_cache_writers_leave_one_whole_file() {
     let dir = tempfile::tempdir().unwrap();
     let cache = AnalysisCache::at(dir.path());
-    let input = ExemplarInput {
-        images: vec![common::fixture("cells32.png")],
-        periodic: true,
-        balance_rounds: 0,
-        ..Default::default()
-    };
-    let (analysis_input, params) = input.analysis_input().unwrap();
-    let key = cache_key(&analysis_input, &params);
+    let (input, key) = cells_cache_input();
     let analysis = Solid::builder()
         .exemplar_input(input)
         .cpu()

@@ -207,8 +207,7 @@ pub fn load_or_analyze(
     let bar = super::progress_bar(quiet);
     let shown = bar.clone();
     let builder = args.builder()?.progress(move |stage: &str, f: f32| {
-        shown.set_position((f * 1000.0) as u64);
-        shown.set_message(stage.to_string());
+        shown.report(stage, f);
     });
     let a = builder.analyze_on(compute)?;
     bar.finish_and_clear();
@@ -244,8 +243,7 @@ pub fn run(args: AnalyzeArgs, quiet: bool) -> anyhow::Result<()> {
         .backend(args.input.backend.backend, args.input.backend.gpu_options())
         .exemplar_input(args.input.exemplar_input()?)
         .progress(move |stage: &str, f: f32| {
-            shown.set_position((f * 1000.0) as u64);
-            shown.set_message(stage.to_string());
+            shown.report(stage, f);
         });
     let compute = builder.open_compute()?;
     let result = builder.analyze_on(&compute)?;

@@ -348,8 +348,7 @@ fn synth(a: SynthArgs, quiet: bool) -> anyhow::Result<()> {
     let bar = super::progress_bar(quiet || a.json);
     bar.set_length(1000);
     let progress = |msg: &str, f: f32| {
-        bar.set_message(msg.to_string());
-        bar.set_position((f * 1000.0) as u64);
+        bar.report(msg, f);
     };
     let (bytes, grid, report) = match &masked {
         Some(m) => {

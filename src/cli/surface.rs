@@ -88,8 +88,7 @@ pub fn run(args: SurfaceArgs, quiet: bool) -> anyhow::Result<()> {
     let bar = super::progress_bar(quiet || args.json);
     let shown = bar.clone();
     let report: crate::solid::ProgressFn = std::sync::Arc::new(move |m: &str, f: f32| {
-        shown.set_position((f * 1000.0) as u64);
-        shown.set_message(m.to_string());
+        shown.report(m, f);
     });
     let mut solid = args.solid.solid(&analysis, &compute, false, Some(report))?;
     // The solid keeps what it reads: the analysis (10 MiB for the built-in exemplar) is not

@@ -403,8 +403,7 @@ fn run_box(args: &SolidArgs, region: Box3, tileable: bool, quiet: bool) -> anyho
     let analysis_s = start.elapsed().as_secs_f64();
     let bar = super::progress_bar(quiet || args.json);
     let report = |m: &str, f: f32| {
-        bar.set_position((f * 1000.0) as u64);
-        bar.set_message(m.to_string());
+        bar.report(m, f);
     };
     let synth_start = Instant::now();
     let mut solid = args.solid.solid(&analysis, &compute, args.profile, None)?;

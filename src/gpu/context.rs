@@ -293,25 +293,14 @@ impl GpuContext {
             ..Default::default()
         }))
         .map_err(|e| Error::Gpu(format!("cannot open device on {}: {e}", info.name)))?;
-        let adapter_max = limits.max_storage_buffer_binding_size as u64;
-        let max_binding_bytes = opts
-            .max_binding_bytes
-            .map_or(adapter_max, |m| m.min(adapter_max));
         tracing::info!(
             adapter = %info.name,
             device_type = ?info.device_type,
             driver = %info.driver,
-            max_storage_binding = adapter_max,
+            max_storage_binding = limits.max_storage_buffer_binding_size,
             "GPU adapter"
         );
-        Ok(Self::with_device(
-            device,
-            queue,
-            info,
-            limits,
-            max_binding_bytes,
-            opts,
-        ))
+        Ok(Self::with_device(device, queue, info, limits, opts))
     }
 
     /// A context over an application's own device and queue (a game engine's, a viewer's):
@@ -328,19 +317,8 @@ impl GpuContext {
         if let Some(problem) = missing_limit(&limits) {
             return Err(Error::invalid("device", problem));
         }
-        let adapter_max = limits.max_storage_buffer_binding_size as u64;
-        let max_binding_bytes = opts
-            .max_binding_bytes
-            .map_or(adapter_max, |m| m.min(adapter_max));
         tracing::info!(adapter = %info.name, "GPU device given by the application");
-        Ok(Self::with_device(
-            device,
-            queue,
-            info,
-            limits,
-            max_binding_bytes,
-            opts,
-        ))
+        Ok(Self::with_device(device, queue, info, limits, opts))
     }
 
     fn with_device(
@@ -348,9 +326,13 @@ impl GpuContext {
         queue: wgpu::Queue,
         info: wgpu::AdapterInfo,
         limits: wgpu::Limits,
-        max_binding_bytes: u64,
         opts: &GpuOptions,
     ) -> Self {
+        // The largest binding: the device's, or less when the options ask for it.
+        let device_max = limits.max_storage_buffer_binding_size as u64;
+        let max_binding_bytes = opts
+            .max_binding_bytes
+            .map_or(device_max, |m| m.min(device_max));
         let uncaptured = Arc::new(Mutex::new(None));
         let sink = uncaptured.clone();
         device.on_uncaptured_error(Arc::new(move |e: wgpu::Error| {
@@ -849,50 +831,28 @@ pub fn required_limits() -> wgpu::Limits {
     }
 }
 
-/// The first limit of `limits` below [`required_limits`], named, with both values.
+/// The limits the kernels depend on (the rest of [`required_limits`] is what wgpu asks of any
+/// device, which an application's device already met).
+const KERNEL_LIMITS: [&str; 7] = [
+    "max_compute_workgroup_size_x",
+    "max_compute_invocations_per_workgroup",
+    "max_compute_workgroups_per_dimension",
+    "max_storage_buffers_per_shader_stage",
+    "max_uniform_buffers_per_shader_stage",
+    "max_uniform_buffer_binding_size",
+    "max_storage_buffer_binding_size",
+];
+
+/// The first of [`KERNEL_LIMITS`] where `limits` falls short of [`required_limits`], named,
+/// with both values (compared by wgpu, which knows each limit's direction).
 pub fn missing_limit(limits: &wgpu::Limits) -> Option<String> {
-    let need = required_limits();
-    let checks: [(&str, u64, u64); 7] = [
-        (
-            "max_compute_workgroup_size_x",
-            limits.max_compute_workgroup_size_x.into(),
-            need.max_compute_workgroup_size_x.into(),
-        ),
-        (
-            "max_compute_invocations_per_workgroup",
-            limits.max_compute_invocations_per_workgroup.into(),
-            need.max_compute_invocations_per_workgroup.into(),
-        ),
-        (
-            "max_compute_workgroups_per_dimension",
-            limits.max_compute_workgroups_per_dimension.into(),
-            need.max_compute_workgroups_per_dimension.into(),
-        ),
-        (
-            "max_storage_buffers_per_shader_stage",
-            limits.max_storage_buffers_per_shader_stage.into(),
-            need.max_storage_buffers_per_shader_stage.into(),
-        ),
-        (
-            "max_uniform_buffers_per_shader_stage",
-            limits.max_uniform_buffers_per_shader_stage.into(),
-            need.max_uniform_buffers_per_shader_stage.into(),
-        ),
-        (
-            "max_uniform_buffer_binding_size",
-            limits.max_uniform_buffer_binding_size.into(),
-            need.max_uniform_buffer_binding_size.into(),
-        ),
-        (
-            "max_storage_buffer_binding_size",
-            limits.max_storage_buffer_binding_size.into(),
-            need.max_storage_buffer_binding_size.into(),
-        ),
-    ];
-    checks
-        .iter()
-        .find(|(_, have, want)| have < want)
-        .map(|(name, have, want)| format!("its limit {name} is {have}; the kernels need {want}"))
+    let mut first = None;
+    required_limits().check_limits_with_fail_fn(limits, false, |name, want, have| {
+        if first.is_none() && KERNEL_LIMITS.contains(&name) {
+            first = Some(format!("its limit {name} is {have}; the kernels need {want}"));
+        }
+    });
+    first
 }
 
 /// Workgroup counts (x, y) and the thread stride of a row for `threads` threads of a 1D kernel,

@@ -37,6 +37,14 @@ impl SlabOrder {
         self.slices_written += slab.nz;
     }
 
+    pub fn dims(&self) -> [u32; 3] {
+        self.dims
+    }
+
+    pub fn channels(&self) -> u32 {
+        self.channels
+    }
+
     /// Slices written so far.
     pub fn slices_written(&self) -> u32 {
         self.slices_written

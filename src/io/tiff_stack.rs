@@ -24,8 +24,6 @@ pub struct SlabWriter {
     file: PendingFile,
     encoder: Encoder,
     path: PathBuf,
-    dims: [u32; 3],
-    channels: u32,
     order: SlabOrder,
 }
 
@@ -69,8 +67,6 @@ impl SlabWriter {
             file,
             encoder,
             path: path.to_path_buf(),
-            dims,
-            channels,
             order: SlabOrder::new(dims, channels),
         })
     }
@@ -82,11 +78,12 @@ impl SlabWriter {
         let slice_len = (slab.nx * slab.ny * slab.channels) as usize;
         for (k, page) in slab.data.chunks_exact(slice_len).enumerate() {
             let first = first_slice + k as u32 == 0;
-            let description = first.then(|| imagej_description(self.dims[2]));
-            let [w, h, _] = self.dims;
+            let [w, h, depth] = self.order.dims();
+            let channels = self.order.channels();
+            let description = first.then(|| imagej_description(depth));
             let result = match &mut self.encoder {
-                Encoder::Standard(e) => write_page(e, w, h, self.channels, page, description),
-                Encoder::Big(e) => write_page(e, w, h, self.channels, page, description),
+                Encoder::Standard(e) => write_page(e, w, h, channels, page, description),
+                Encoder::Big(e) => write_page(e, w, h, channels, page, description),
             };
             result.map_err(|e| tiff_error(&self.path, e))?;
         }

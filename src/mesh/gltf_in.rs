@@ -22,11 +22,12 @@ pub fn parse_gltf(bytes: &[u8], name: &str, base: Option<&Path>) -> Result<Mesh>
 
 fn parse_checked(bytes: &[u8], name: &str, base: Option<&Path>) -> Result<Mesh> {
     let invalid = |problem: String| Error::invalid(name, problem);
-    let unchecked = gltf::Gltf::from_slice_without_validation(bytes)
-        .map_err(|e| invalid(format!("not a valid glTF file: {e}")))?;
-    check_indices(unchecked.as_json()).map_err(invalid)?;
-    let gltf::Gltf { document, blob } = gltf::Gltf::from_slice(bytes)
-        .map_err(|e| invalid(format!("not a valid glTF file: {e}")))?;
+    let not_gltf = |e: gltf::Error| invalid(format!("not a valid glTF file: {e}"));
+    let gltf::Gltf { document, blob } =
+        gltf::Gltf::from_slice_without_validation(bytes).map_err(not_gltf)?;
+    check_indices(document.as_json()).map_err(invalid)?;
+    // The crate's own validation, on the document already parsed.
+    let document = gltf::Document::from_json(document.into_json()).map_err(not_gltf)?;
     let buffers = gltf::import_buffers(&document, base, blob)
         .map_err(|e| invalid(format!("its buffers cannot be read: {e}")))?;
     let mut mesh = Mesh {

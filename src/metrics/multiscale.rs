@@ -57,7 +57,7 @@ pub fn score(images: &[Image], reference: &Image) -> MultiScale {
             imgs = imgs.iter().map(half_size).collect();
             refr = half_size(&refr);
         }
-        *slot = sliced_wasserstein(&patches(&imgs), &patches(&[refr.clone()]));
+        *slot = sliced_wasserstein(&patches(&imgs), &patches(std::slice::from_ref(&refr)));
     }
     MultiScale {
         swd,
