@@ -13,6 +13,7 @@ pub mod lapped_bench;
 pub mod output;
 pub mod ptm;
 pub mod ptm_bench;
+pub mod region_zarr;
 pub mod serve;
 pub mod surface;
 pub mod synth;

@@ -38,6 +38,8 @@ pub struct RegionArgs {
     pub region: String,
     #[command(flatten)]
     pub solid: SolidArgs,
+    #[command(flatten)]
+    pub zarr: super::region_zarr::ZarrArgs,
 }
 
 /// What defines the solid: shared by `synth`, `region` and `cut`.
@@ -332,8 +334,13 @@ pub fn run(args: SynthArgs, quiet: bool) -> anyhow::Result<()> {
     run_box(&args.solid, region, args.tileable, quiet)
 }
 
-/// Parse and check `--box X0,Y0,Z0,X1,Y1,Z1`.
+/// Parse and check `--box X0,Y0,Z0,X1,Y1,Z1` for a volume held whole (sides up to MAX_SIZE).
 pub fn parse_box(text: &str) -> crate::Result<Box3> {
+    parse_box_within(text, MAX_SIZE as i64)
+}
+
+/// Parse and check `--box X0,Y0,Z0,X1,Y1,Z1` with sides up to `max_side` voxels.
+pub fn parse_box_within(text: &str, max_side: i64) -> crate::Result<Box3> {
     let what = format!("--box {text}");
     let v: Vec<i64> = text
         .split(',')
@@ -360,10 +367,10 @@ pub fn parse_box(text: &str) -> crate::Result<Box3> {
                 format!("{0}1 must be greater than {0}0", ["X", "Y", "Z"][a]),
             ));
         }
-        if v[a + 3] - v[a] > MAX_SIZE as i64 {
+        if v[a + 3] - v[a] > max_side {
             return Err(Error::invalid(
                 &what,
-                format!("each side must be at most {MAX_SIZE} voxels"),
+                format!("each side must be at most {max_side} voxels"),
             ));
         }
     }
@@ -375,6 +382,12 @@ pub fn parse_box(text: &str) -> crate::Result<Box3> {
 }
 
 pub fn run_region(args: RegionArgs, quiet: bool) -> anyhow::Result<()> {
+    if super::region_zarr::is_zarr_output(&args.solid) {
+        // Chunk by chunk: memory is one chunk's, so the box may exceed one volume's limit.
+        let b = parse_box_within(&args.region, super::region_zarr::MAX_ZARR_SIDE)?;
+        return super::region_zarr::run(b, &args.solid, &args.zarr, quiet);
+    }
+    args.zarr.check_unused()?;
     let b = parse_box(&args.region)?;
     check_memory(&format!("--box {}", args.region), b, &args.solid)?;
     run_box(&args.solid, b, false, quiet)

@@ -11,3 +11,4 @@ pub mod tiff_stack;
 pub mod vdb;
 pub mod volume_file;
 pub mod vti;
+pub mod zarr;

@@ -1,0 +1,586 @@
+//! `solidsynth._solidsynth`: the Python package's native module, a thin layer over the
+//! library's facade (`solidsynth::Solid` and its builder). Every engine decision (defaults,
+//! input assembly, analysis cache, memory checks) is the facade's; this layer turns Python
+//! arguments into the facade's types, names bad values as the command line names its flags,
+//! and runs long calls off the interpreter (`detached`). The same settings give the same bytes
+//! as the `solidsynth` command line.
+
+mod detached;
+mod errors;
+mod evaluate;
+mod inputs;
+
+use detached::run_detached;
+use errors::{engine_err, invalid, Error};
+use inputs::{
+    backend_choice, candidate_mode, candidate_name, color_source, exemplar_pair, feature_masks,
+    input_frame, CacheArg, PassesArg, Picture,
+};
+use numpy::prelude::*;
+use numpy::{PyArray1, PyArray3, PyArray4};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+use solidsynth::analysis::Analysis;
+use solidsynth::io::{atomic, ssa};
+use solidsynth::solid::{memory, AnalysisCache, ExemplarInput};
+use solidsynth::synth::check_tileable_size;
+use solidsynth::{
+    BackendChoice, Box3, CancelToken, Compute, CutSpec, GpuOptions, Image, Solid, SolidBuilder,
+    SynthOptions, SynthParams, Volume,
+};
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
+
+/// The largest box side and `tileable` size the command line accepts (`cli::synth::MAX_SIZE`,
+/// not built without the `cli` feature).
+const MAX_SIZE: i64 = 2048;
+/// Box coordinates the engine addresses (`--box`'s limit).
+const COORDINATE_LIMIT: i64 = 1 << 28;
+/// The largest cut side (`lazy::cut::MAX_CUT_SIZE`, which the library does not export).
+const MAX_CUT_SIZE: i64 = 4096;
+
+fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
+    // A request that panicked is reported as an error and its solid rebuilt (`Engine::ready`):
+    // the lock itself stays usable.
+    m.lock().unwrap_or_else(PoisonError::into_inner)
+}
+
+/// A solid's synthesis settings as given: what `Solid.options` reports and `Solid.load` takes
+/// (the analysis settings live in the analysis, and so in its `.ssa` file).
+#[derive(Clone)]
+struct SynthSettings {
+    params: SynthParams,
+    max_group: Option<u32>,
+    backend: String,
+    choice: BackendChoice,
+    adapter: Option<String>,
+}
+
+impl SynthSettings {
+    #[allow(clippy::too_many_arguments)]
+    fn parse(
+        seed: u64,
+        jitter: f32,
+        backend: String,
+        adapter: Option<String>,
+        candidates: &str,
+        passes: &PassesArg,
+        color: &str,
+        coarse_cache: Option<u32>,
+        max_group: Option<u32>,
+    ) -> PyResult<SynthSettings> {
+        let choice = backend_choice(&backend)?;
+        if let Some(side) = max_group {
+            // The command line's range for --max-group (clap checks it there).
+            if !(4..=512).contains(&side) {
+                return Err(invalid(format!("--max-group {side}"), "must be 4..=512"));
+            }
+        }
+        let params = SynthParams {
+            seed,
+            jitter,
+            candidates: candidate_mode(candidates)?,
+            passes: passes.schedule()?,
+            color: color_source(color)?,
+            coarse_cache,
+        };
+        params.validate().map_err(engine_err)?;
+        Ok(SynthSettings {
+            params,
+            max_group,
+            backend,
+            choice,
+            adapter,
+        })
+    }
+
+    /// The GPU options as the command line makes them: the environment's, `adapter` first.
+    fn gpu_options(&self) -> GpuOptions {
+        let mut options = GpuOptions::from_env();
+        if self.adapter.is_some() {
+            options.adapter_filter = self.adapter.clone();
+        }
+        options
+    }
+
+    /// The engine's options as the command line gives them (its defaults but `--max-group`).
+    fn synth_options(&self) -> SynthOptions {
+        SynthOptions {
+            max_group: self.max_group,
+            ..Default::default()
+        }
+    }
+}
+
+/// The facade's solid and what rebuilding it takes. A solid's cancellation token is fixed when
+/// it is built, so once a request has been cancelled the solid is rebuilt with a fresh token
+/// before the next one (the analysis is kept; the synthesizer is made again).
+struct Engine {
+    solid: Solid,
+    token: CancelToken,
+    compute: Compute,
+    params: SynthParams,
+    options: SynthOptions,
+    /// A request panicked: the synthesizer's state is not to be trusted.
+    broken: bool,
+}
+
+impl Engine {
+    /// Make the solid usable: rebuilt after a cancellation or a panic.
+    fn ready(
+        &mut self,
+        analysis: &Analysis,
+        published: &Mutex<CancelToken>,
+    ) -> solidsynth::Result<()> {
+        if !(self.broken || self.token.is_cancelled()) {
+            return Ok(());
+        }
+        let token = CancelToken::new();
+        let options = SynthOptions {
+            cancel: Some(token.clone()),
+            ..self.options.clone()
+        };
+        self.solid = Solid::new(
+            analysis,
+            self.params.clone(),
+            options,
+            self.compute.clone(),
+            None,
+        )?;
+        *lock(published) = token.clone();
+        self.token = token;
+        self.broken = false;
+        Ok(())
+    }
+}
+
+/// A solid texture: a deterministic function over all of Z^3, of which any box, tileable
+/// volume or planar cut is synthesized on demand (the same voxels whichever part asked).
+///
+/// `exemplar` is an image path, a NumPy uint8 array (H, W) or (H, W, C) with C in 1, 3, 4, an
+/// `.ssa` analysis file, or None for the built-in exemplar. The other arguments are the
+/// command line's flags of the same names, with its defaults.
+#[pyclass(name = "Solid", module = "solidsynth", frozen)]
+pub struct PySolid {
+    engine: Mutex<Engine>,
+    /// The engine's current token, for the calling thread to cancel while its request holds
+    /// `engine`.
+    token: Mutex<CancelToken>,
+    analysis: Arc<Analysis>,
+    settings: SynthSettings,
+    channels: u32,
+    backend: String,
+}
+
+impl PySolid {
+    /// Analyse (or load, or take from the cache), open the backend and build the solid, off the
+    /// interpreter.
+    fn open(
+        py: Python<'_>,
+        builder: SolidBuilder,
+        analysis_file: Option<PathBuf>,
+        settings: SynthSettings,
+    ) -> PyResult<PySolid> {
+        let options = settings.synth_options();
+        options.validate().map_err(engine_err)?;
+        let token = CancelToken::new();
+        let first = SynthOptions {
+            cancel: Some(token.clone()),
+            ..options.clone()
+        };
+        let params = settings.params.clone();
+        let (compute, analysis, solid) = run_detached(
+            py,
+            || token.cancel(),
+            move || {
+                let builder = match analysis_file {
+                    Some(path) => builder.analysis(ssa::load(&path)?),
+                    None => builder,
+                };
+                let compute = builder.open_compute()?;
+                let analysis = builder.analyze_on(&compute)?;
+                let solid = Solid::new(&analysis, params, first, compute.clone(), None)?;
+                Ok((compute, analysis, solid))
+            },
+        )?;
+        Ok(PySolid {
+            channels: solid.color_channels(),
+            backend: compute.describe(),
+            engine: Mutex::new(Engine {
+                solid,
+                token: token.clone(),
+                compute,
+                params: settings.params.clone(),
+                options,
+                broken: false,
+            }),
+            token: Mutex::new(token),
+            analysis,
+            settings,
+        })
+    }
+
+    /// Run `work` on the solid off the interpreter; Ctrl-C cancels it. Requests from several
+    /// Python threads take turns; Ctrl-C cancels the caller's own request only, not one of
+    /// another thread that it is waiting behind.
+    fn request<T: Send>(
+        &self,
+        py: Python<'_>,
+        work: impl FnOnce(&mut Solid) -> solidsynth::Result<T> + Send,
+    ) -> PyResult<T> {
+        // Both sequentially consistent: whichever of the interrupt and the start comes first,
+        // the work is either cancelled through the token or never starts.
+        let started = AtomicBool::new(false);
+        let abandoned = AtomicBool::new(false);
+        run_detached(
+            py,
+            || {
+                abandoned.store(true, Ordering::SeqCst);
+                if started.load(Ordering::SeqCst) {
+                    lock(&self.token).cancel();
+                }
+            },
+            || {
+                // Taken on the worker thread: a request waiting for another one waits there,
+                // with the interpreter free.
+                let mut engine = lock(&self.engine);
+                engine.ready(&self.analysis, &self.token)?;
+                started.store(true, Ordering::SeqCst);
+                if abandoned.load(Ordering::SeqCst) {
+                    return Err(solidsynth::Error::Cancelled);
+                }
+                let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                    work(&mut engine.solid)
+                }));
+                match outcome {
+                    Ok(result) => result,
+                    Err(panic) => {
+                        engine.broken = true;
+                        std::panic::resume_unwind(panic)
+                    }
+                }
+            },
+        )
+    }
+}
+
+/// `(lo, hi)` as the command line checks `--box X0,Y0,Z0,X1,Y1,Z1` (`cli::synth::parse_box`),
+/// with its messages.
+fn checked_box(lo: [i64; 3], hi: [i64; 3]) -> PyResult<Box3> {
+    let what = format!(
+        "--box {},{},{},{},{},{}",
+        lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]
+    );
+    if lo
+        .iter()
+        .chain(&hi)
+        .any(|c| c.unsigned_abs() > COORDINATE_LIMIT as u64)
+    {
+        return Err(invalid(
+            what,
+            format!("coordinates must lie within +-{COORDINATE_LIMIT}"),
+        ));
+    }
+    for a in 0..3 {
+        if hi[a] <= lo[a] {
+            return Err(invalid(
+                what,
+                format!("{0}1 must be greater than {0}0", ["X", "Y", "Z"][a]),
+            ));
+        }
+        if hi[a] - lo[a] > MAX_SIZE {
+            return Err(invalid(
+                what,
+                format!("each side must be at most {MAX_SIZE} voxels"),
+            ));
+        }
+    }
+    Ok(Box3::new(lo.map(|c| c as i32), hi.map(|c| c as i32)))
+}
+
+/// A volume as a (Z, Y, X, C) array: its bytes are already in that order (x fastest, channels
+/// interleaved), so the vector becomes the array's buffer and is reshaped without a copy.
+fn volume_array(py: Python<'_>, v: Volume) -> PyResult<Bound<'_, PyArray4<u8>>> {
+    let shape = [
+        v.nz as usize,
+        v.ny as usize,
+        v.nx as usize,
+        v.channels as usize,
+    ];
+    PyArray1::from_vec(py, v.data).reshape(shape)
+}
+
+/// An image as a (H, W, C) array, without a copy.
+fn image_array(py: Python<'_>, image: Image) -> PyResult<Bound<'_, PyArray3<u8>>> {
+    let shape = [
+        image.height as usize,
+        image.width as usize,
+        image.channels as usize,
+    ];
+    PyArray1::from_vec(py, image.pixels).reshape(shape)
+}
+
+#[pymethods]
+impl PySolid {
+    #[new]
+    #[pyo3(signature = (
+        exemplar=None, *, ey=None, ez=None, seed=0, jitter=1.0,
+        backend=String::from("auto"), adapter=None, candidates=String::from("3d"),
+        passes=PassesArg::Count(2), color=String::from("average"), coarse_cache=None,
+        max_group=None, frame=None, feature_mask=None, ey_feature_mask=None,
+        ez_feature_mask=None, feature_weight=None, periodic=false, balance_rounds=None,
+        balance_strength=1.0, cache=CacheArg::Flag(true)
+    ))]
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        py: Python<'_>,
+        exemplar: Option<&Bound<'_, PyAny>>,
+        ey: Option<&Bound<'_, PyAny>>,
+        ez: Option<&Bound<'_, PyAny>>,
+        seed: u64,
+        jitter: f32,
+        backend: String,
+        adapter: Option<String>,
+        candidates: String,
+        passes: PassesArg,
+        color: String,
+        coarse_cache: Option<u32>,
+        max_group: Option<u32>,
+        frame: Option<String>,
+        feature_mask: Option<&Bound<'_, PyAny>>,
+        ey_feature_mask: Option<&Bound<'_, PyAny>>,
+        ez_feature_mask: Option<&Bound<'_, PyAny>>,
+        feature_weight: Option<f32>,
+        periodic: bool,
+        balance_rounds: Option<u32>,
+        balance_strength: f32,
+        cache: CacheArg,
+    ) -> PyResult<PySolid> {
+        let settings = SynthSettings::parse(
+            seed,
+            jitter,
+            backend,
+            adapter,
+            &candidates,
+            &passes,
+            &color,
+            coarse_cache,
+            max_group,
+        )?;
+        let main = exemplar
+            .map(|e| Picture::from_arg(e, "exemplar"))
+            .transpose()?;
+        let pair = exemplar_pair(ey, ez)?;
+        if main.is_none() && pair.is_some() {
+            return Err(invalid("--ey", "needs the x exemplar INPUT too"));
+        }
+        // An `.ssa` INPUT is the analysis; any exemplar-side setting given with it is refused
+        // by the facade (`SolidBuilder::analyze_on`), as by the command line.
+        let analysis_file = main
+            .as_ref()
+            .and_then(Picture::analysis_path)
+            .map(|p| p.to_path_buf());
+        let main = main.filter(|_| analysis_file.is_none());
+        let mut images = Vec::new();
+        let mut names = Vec::new();
+        let (y, z) = pair.map_or((None, None), |(y, z)| (Some(y), Some(z)));
+        for (picture, what) in [(main, "exemplar"), (y, "--ey"), (z, "--ez")] {
+            if let Some(picture) = picture {
+                let (image, name) = picture.load(py, what)?;
+                images.push(image);
+                names.push(name);
+            }
+        }
+        let masks = [feature_mask, ey_feature_mask, ez_feature_mask];
+        let defaults = ExemplarInput::default();
+        let input = ExemplarInput {
+            feature_masks: feature_masks(py, masks, images.len())?,
+            images,
+            names,
+            frame: input_frame(frame.as_deref())?,
+            feature_weight: feature_weight.unwrap_or(defaults.feature_weight),
+            periodic,
+            balance_rounds: balance_rounds.unwrap_or(defaults.balance_rounds),
+            balance_strength,
+        };
+        let cache = match cache {
+            CacheArg::Flag(true) => AnalysisCache::user_default(),
+            CacheArg::Flag(false) => None,
+            CacheArg::Dir(dir) => Some(AnalysisCache::at(dir)),
+        };
+        let builder = Solid::builder()
+            .backend(settings.choice, settings.gpu_options())
+            .exemplar_input(input)
+            .cache(cache);
+        PySolid::open(py, builder, analysis_file, settings)
+    }
+
+    /// The solid of an analysis file (`.ssa`, written by `save_analysis` or `solidsynth
+    /// analyze`) with these synthesis settings.
+    #[staticmethod]
+    #[pyo3(signature = (
+        path, *, seed=0, jitter=1.0, backend=String::from("auto"), adapter=None,
+        candidates=String::from("3d"), passes=PassesArg::Count(2),
+        color=String::from("average"), coarse_cache=None, max_group=None
+    ))]
+    #[allow(clippy::too_many_arguments)]
+    fn load(
+        py: Python<'_>,
+        path: PathBuf,
+        seed: u64,
+        jitter: f32,
+        backend: String,
+        adapter: Option<String>,
+        candidates: String,
+        passes: PassesArg,
+        color: String,
+        coarse_cache: Option<u32>,
+        max_group: Option<u32>,
+    ) -> PyResult<PySolid> {
+        let settings = SynthSettings::parse(
+            seed,
+            jitter,
+            backend,
+            adapter,
+            &candidates,
+            &passes,
+            &color,
+            coarse_cache,
+            max_group,
+        )?;
+        let builder = Solid::builder().backend(settings.choice, settings.gpu_options());
+        PySolid::open(py, builder, Some(path), settings)
+    }
+
+    /// The voxels of the half-open box [lo, hi) of the infinite solid, any coordinates (x, y,
+    /// z), as a uint8 array of shape (Z, Y, X, C).
+    fn region<'py>(
+        &self,
+        py: Python<'py>,
+        lo: [i64; 3],
+        hi: [i64; 3],
+    ) -> PyResult<Bound<'py, PyArray4<u8>>> {
+        let b = checked_box(lo, hi)?;
+        let volume = self.request(py, move |solid| solid.region(b))?;
+        volume_array(py, volume)
+    }
+
+    /// The n^3 tileable solid (n a multiple of 32): its own solid, periodic with period n
+    /// along each axis, as (n, n, n, C).
+    fn tileable<'py>(&self, py: Python<'py>, n: i64) -> PyResult<Bound<'py, PyArray4<u8>>> {
+        // As `synth --size N --tileable` checks it.
+        if !(8..=MAX_SIZE).contains(&n) {
+            return Err(invalid(
+                format!("--size {n}"),
+                format!("must be 8..={MAX_SIZE}"),
+            ));
+        }
+        let n = n as u32;
+        check_tileable_size(n).map_err(engine_err)?;
+        if self.settings.params.coarse_cache.is_some() {
+            return Err(invalid(
+                "--coarse-cache with --tileable",
+                "the cache builds regions of the infinite solid; a tileable solid is its own \
+                 periodic definition: give one or the other",
+            ));
+        }
+        let volume = self.request(py, move |solid| solid.tileable(n))?;
+        volume_array(py, volume)
+    }
+
+    /// A planar cut at any angle: `size` x `size` pixels `spacing` voxels apart, centred on
+    /// `origin`, across `normal` (`up` projected onto the plane gives the rows' direction), as
+    /// (size, size, C).
+    #[pyo3(signature = (origin, normal, up=None, size=256, spacing=1.0))]
+    fn cut<'py>(
+        &self,
+        py: Python<'py>,
+        origin: [f64; 3],
+        normal: [f64; 3],
+        up: Option<[f64; 3]>,
+        size: i64,
+        spacing: f64,
+    ) -> PyResult<Bound<'py, PyArray3<u8>>> {
+        if !(1..=MAX_CUT_SIZE).contains(&size) {
+            return Err(invalid(
+                format!("--size {size}"),
+                format!("must be 1..={MAX_CUT_SIZE}"),
+            ));
+        }
+        let spec = CutSpec {
+            origin,
+            normal,
+            up,
+            size: size as u32,
+            spacing,
+        };
+        spec.frame().map_err(engine_err)?;
+        // The command line's check before a cut: the largest group unless --max-group, and
+        // its own 24 bytes a pixel (image and sample positions).
+        memory::check_cut(
+            &format!("cut --size {size} --spacing {spacing}"),
+            spec.size,
+            spacing,
+            memory::planned_group(self.settings.max_group, BackendChoice::Gpu),
+            self.settings.params.coarse_cache,
+            spec.size as u64 * spec.size as u64 * 24,
+        )
+        .map_err(engine_err)?;
+        let image = self.request(py, move |solid| solid.cut(&spec))?;
+        image_array(py, image)
+    }
+
+    /// Write the analysis as an `.ssa` file (what `solidsynth analyze` writes), atomically.
+    fn save_analysis(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
+        atomic::check_output_path(&path, "-o").map_err(engine_err)?;
+        let analysis = self.analysis.clone();
+        run_detached(py, || {}, move || ssa::save(&analysis, &path))
+    }
+
+    /// Colour channels of the arrays returned (the exemplars').
+    #[getter]
+    fn channels(&self) -> u32 {
+        self.channels
+    }
+
+    /// The backend the kernels run on, described (`cpu (16 threads)`, `gpu NAME ...`).
+    #[getter]
+    fn backend(&self) -> String {
+        self.backend.clone()
+    }
+
+    /// The synthesis settings, as `Solid.load` takes them: `Solid.load(path, **solid.options)`
+    /// with this solid's analysis is this solid.
+    #[getter]
+    fn options<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let s = &self.settings;
+        let d = PyDict::new(py);
+        d.set_item("seed", s.params.seed)?;
+        d.set_item("jitter", s.params.jitter)?;
+        d.set_item("backend", s.backend.clone())?;
+        d.set_item("adapter", s.adapter.clone())?;
+        d.set_item("candidates", candidate_name(s.params.candidates))?;
+        d.set_item("passes", s.params.passes.to_string())?;
+        d.set_item("color", s.params.color.to_string())?;
+        d.set_item("coarse_cache", s.params.coarse_cache)?;
+        d.set_item("max_group", s.max_group)?;
+        Ok(d)
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "Solid(seed={}, channels={}, backend={:?})",
+            self.settings.params.seed, self.channels, self.backend
+        )
+    }
+}
+
+#[pymodule]
+fn _solidsynth(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<PySolid>()?;
+    m.add_function(wrap_pyfunction!(evaluate::evaluate, m)?)?;
+    m.add("Error", m.py().get_type::<Error>())?;
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    Ok(())
+}

@@ -1,0 +1,54 @@
+"""Long calls release the GIL and stop on Ctrl-C; the solid stays usable afterwards."""
+
+import _thread
+import threading
+import time
+
+import numpy as np
+import pytest
+
+import solidsynth
+
+
+@pytest.fixture(scope="module")
+def slow(fixture_path):
+    # Small groups: many cancellation points, and a box that takes seconds on the CPU backend.
+    return solidsynth.Solid(
+        fixture_path("cells32.png"), seed=2, periodic=True, balance_rounds=0, backend="cpu",
+        max_group=16,
+    )
+
+
+def test_ctrl_c_cancels_a_request(slow):
+    before = slow.region((0, 0, 0), (8, 8, 8))
+    # What Ctrl-C does: the signal flag the interpreter checks (here from another thread).
+    timer = threading.Timer(0.05, _thread.interrupt_main)
+    start = time.monotonic()
+    timer.start()
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            # Seconds of work on any machine (160^3 in 16^3 groups on the CPU backend).
+            slow.region((0, 0, 0), (160, 160, 160))
+    finally:
+        timer.join()
+    assert time.monotonic() - start < 30
+    # A fresh token: the next request runs, and gives the same voxels.
+    np.testing.assert_array_equal(slow.region((0, 0, 0), (8, 8, 8)), before)
+
+
+def test_other_threads_run_during_a_request(slow):
+    ticks = 0
+    done = threading.Event()
+
+    def work():
+        slow.region((0, 0, 0), (64, 64, 64))
+        done.set()
+
+    worker = threading.Thread(target=work)
+    worker.start()
+    while not done.is_set():
+        ticks += 1
+        time.sleep(0.001)
+    worker.join()
+    # With the GIL held for the whole request this thread would not have run meanwhile.
+    assert ticks > 10
