@@ -24,7 +24,6 @@ ss synth "$repo/tests/fixtures/cc0_gravel64.png" --size 64 --seed 5 --backend cp
 ss synth "$repo/tests/fixtures/cc0_brick64.png" --size 64 --seed 5 --backend cpu -o brick.nrrd --sheet "$out/brick-sheet.png"
 # A cut at an angle, far from the origin: the infinite solid, synthesized on demand.
 ss cut --origin 1000,-500,77 --normal 1,2,3 --size 192 --seed 5 --backend cpu -o "$out/builtin-oblique-cut.png"
-ss cut "$repo/tests/fixtures/cc0_gravel64.png" --origin 0,0,0 --normal 1,1,1 --size 192 --seed 5 --backend cpu -o "$out/gravel-oblique-cut.png"
 # The bunny's surface baked lazily into its atlas and rendered with it (the library example
 # does both: `surface` writes the same atlas into a .glb).
 echo "cargo run --release --example 06_render_surface -- bunny.obj bunny-surface.png 256" >&2
