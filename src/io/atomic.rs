@@ -296,15 +296,20 @@ impl PendingFile {
 pub static DIRECTORY_SYNCS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
 
 /// Flush the directory holding `path` to disk, so the rename that put `path` there survives a
-/// crash (a file's own sync does not cover its directory entry). File systems that cannot sync
-/// a directory (some network and FUSE ones) are skipped.
+/// crash (a file's own sync does not cover its directory entry).
 fn sync_parent(path: &Path) -> Result<()> {
     let parent = match path.parent() {
         Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
         _ => std::path::PathBuf::from("."),
     };
     DIRECTORY_SYNCS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-    match std::fs::File::open(&parent).and_then(|d| d.sync_all()) {
+    sync_dir(&parent)
+}
+
+/// Flush a directory's entries to disk. File systems that cannot sync a directory (some network
+/// and FUSE ones) are skipped.
+pub fn sync_dir(dir: &Path) -> Result<()> {
+    match std::fs::File::open(dir).and_then(|d| d.sync_all()) {
         Ok(()) => Ok(()),
         Err(e)
             if matches!(
@@ -314,7 +319,7 @@ fn sync_parent(path: &Path) -> Result<()> {
         {
             Ok(())
         }
-        Err(e) => Err(Error::io(&parent, e)),
+        Err(e) => Err(Error::io(dir, e)),
     }
 }
 

@@ -184,25 +184,9 @@ fn ensure_dir(dir: &Path) -> Result<()> {
         ensure_dir(parent)?;
     }
     match std::fs::create_dir(dir) {
-        Ok(()) => sync_dir(atomic::parent_dir(dir)),
+        Ok(()) => atomic::sync_dir(atomic::parent_dir(dir)),
         // Another writer of the array made it meanwhile.
         Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists && dir.is_dir() => Ok(()),
-        Err(e) => Err(Error::io(dir, e)),
-    }
-}
-
-/// Flush a directory's entries to disk (skipped where the file system cannot).
-fn sync_dir(dir: &Path) -> Result<()> {
-    match std::fs::File::open(dir).and_then(|d| d.sync_all()) {
-        Ok(()) => Ok(()),
-        Err(e)
-            if matches!(
-                e.kind(),
-                std::io::ErrorKind::InvalidInput | std::io::ErrorKind::Unsupported
-            ) =>
-        {
-            Ok(())
-        }
         Err(e) => Err(Error::io(dir, e)),
     }
 }
@@ -270,7 +254,7 @@ fn already_there(what: String) -> Error {
 pub fn open(root: &Path, flag: &str, metadata: &[u8], may_join: bool) -> Result<Opened> {
     check_target(root, flag, may_join)?;
     match std::fs::create_dir(root) {
-        Ok(()) => sync_dir(atomic::parent_dir(root))?,
+        Ok(()) => atomic::sync_dir(atomic::parent_dir(root))?,
         Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {}
         Err(e) => return Err(Error::io(root, e)),
     }
@@ -307,7 +291,7 @@ fn write_new(path: &Path, bytes: &[u8]) -> Result<bool> {
         .map_err(|e| Error::io(path, e))?;
     match tmp.persist_noclobber(path) {
         Ok(_) => {
-            sync_dir(dir)?;
+            atomic::sync_dir(dir)?;
             Ok(true)
         }
         // The temporary is deleted with the error.
