@@ -80,6 +80,35 @@ fn npy_and_tiff_stacks_hold_the_nrrd_voxels() {
 }
 
 #[test]
+fn gzip_nrrd_holds_the_raw_nrrd_voxels() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let common = "region --box=-5,3,7,19,15,16 --seed 4 --backend cpu";
+    ok(&format!("{common} -o v.nrrd"), d);
+    ok(&format!("{common} -o z.nrrd --format nrrd-gzip"), d);
+    // Small groups: the data arrives in several slabs, each compressed as it comes.
+    ok(
+        &format!("{common} -o s.nrrd --format nrrd-gzip --max-group 8"),
+        d,
+    );
+    let v = nrrd_data(d, "v.nrrd");
+    assert_eq!(nrrd_data(d, "z.nrrd"), v);
+    assert_eq!(nrrd_data(d, "s.nrrd"), v);
+    std::fs::write(d.join("expected.raw"), &v.data).unwrap();
+    // An independent reader: Python's own gzip after the header's blank line.
+    let report = python(
+        "import gzip\n\
+         b = open('z.nrrd', 'rb').read()\n\
+         header, data = b.split(b'\\n\\n', 1)\n\
+         print(b'encoding: gzip' in header.split(b'\\n'), \
+         gzip.decompress(data) == open('expected.raw', 'rb').read())",
+        d,
+    );
+    assert_eq!(report, "True True");
+    assert!(std::fs::metadata(d.join("z.nrrd")).unwrap().len() < v.data.len() as u64);
+}
+
+#[test]
 fn ktx2_textures_read_back_with_their_levels() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();

@@ -155,10 +155,12 @@ pub struct SolidArgs {
     pub solid: SolidParams,
     /// Output volume; its extension picks the format: .nrrd, .npy (NumPy, shape Z,Y,X,C), .tif
     /// or .tiff (a page per z slice, an ImageJ stack), .ktx2 (a 3D texture), .vdb (OpenVDB
-    /// density and color grids), .vti (ParaView), .png (a flipbook of all z slices).
+    /// density and color grids), .vti (ParaView), .png (a flipbook of all z slices); with
+    /// `region`, .zarr (a chunked Zarr v3 array).
     #[arg(help_heading = "Output", short, long)]
     pub output: PathBuf,
-    /// The output's format, whatever its extension.
+    /// The output's format, whatever its extension (`nrrd-gzip`: NRRD with gzip-compressed
+    /// data, as 3D Slicer writes; `.nrrd` alone is written raw, the fastest to write and read).
     #[arg(help_heading = "Output", long, value_enum)]
     pub format: Option<crate::io::volume_file::VolumeFormat>,
     /// KTX2 only: sRGB-encoded colour (the `_SRGB` formats).

@@ -1,7 +1,7 @@
 //! NRRD volumes: 8-bit, 1 to 4 channels, raw or gzip encoding, data attached to the header.
 //!
-//! Written as `NRRD0004`, `type: uint8`, `dimension: 4`, `sizes: C X Y Z`, `encoding: raw`, x
-//! fastest after the channel. Read: versions NRRD0001-0005, types uint8/uchar/unsigned char,
+//! Written as `NRRD0004`, `type: uint8`, `dimension: 4`, `sizes: C X Y Z`, `encoding: raw` (or
+//! `gzip`, what 3D Slicer writes by default), x fastest after the channel. Read: versions NRRD0001-0005, types uint8/uchar/unsigned char,
 //! dimension 3 (one channel, `sizes: X Y Z`) or 4 (`sizes: C X Y Z`, C = 1..=4), encodings raw and
 //! gzip; header fields we do not need are skipped, detached data files are refused.
 
@@ -19,8 +19,14 @@ pub fn header(v: &Volume) -> String {
     header_of(v.dims(), v.channels)
 }
 
-/// The header text of a volume of `dims` voxels with `channels` bytes each.
+/// The header text of a volume of `dims` voxels with `channels` bytes each, raw.
 pub fn header_of(dims: [u32; 3], channels: u32) -> String {
+    header_encoded(dims, channels, false)
+}
+
+/// The header text of a volume of `dims` voxels with `channels` bytes each, its data raw or
+/// gzip-compressed.
+pub fn header_encoded(dims: [u32; 3], channels: u32, gzip: bool) -> String {
     let kind = match channels {
         3 => "RGB-color",
         4 => "RGBA-color",
@@ -28,8 +34,12 @@ pub fn header_of(dims: [u32; 3], channels: u32) -> String {
     };
     format!(
         "NRRD0004\n# written by solidsynth\ntype: uint8\ndimension: 4\nsizes: {} {} {} {}\n\
-         kinds: {kind} domain domain domain\nencoding: raw\n\n",
-        channels, dims[0], dims[1], dims[2]
+         kinds: {kind} domain domain domain\nencoding: {}\n\n",
+        channels,
+        dims[0],
+        dims[1],
+        dims[2],
+        if gzip { "gzip" } else { "raw" }
     )
 }
 
@@ -37,7 +47,7 @@ pub fn header_of(dims: [u32; 3], channels: u32) -> String {
 pub fn save(v: &Volume, path: &Path) -> Result<()> {
     let mut w = SlabWriter::create(path, v.dims(), v.channels)?;
     w.write_slab(v)?;
-    w.finish().commit()
+    w.finish()?.commit()
 }
 
 /// A volume written slab by slab along z (the file's order), so a large synthesis need not
@@ -46,30 +56,74 @@ pub fn save(v: &Volume, path: &Path) -> Result<()> {
 pub struct SlabWriter {
     file: crate::io::atomic::PendingFile,
     order: crate::io::slab_order::SlabOrder,
+    /// gzip encoding: the compressor, whose output so far is moved to the file after each slab
+    /// (so memory stays one slab's, as with raw data).
+    gzip: Option<flate2::write::GzEncoder<Vec<u8>>>,
 }
 
 impl SlabWriter {
+    /// A raw NRRD file.
     pub fn create(path: &Path, dims: [u32; 3], channels: u32) -> Result<SlabWriter> {
+        SlabWriter::create_encoded(path, dims, channels, false)
+    }
+
+    /// A NRRD file, its data raw or gzip-compressed.
+    pub fn create_encoded(
+        path: &Path,
+        dims: [u32; 3],
+        channels: u32,
+        gzip: bool,
+    ) -> Result<SlabWriter> {
         let mut file = crate::io::atomic::PendingFile::create(path)?;
-        file.write_all(header_of(dims, channels).as_bytes())?;
+        file.write_all(header_encoded(dims, channels, gzip).as_bytes())?;
         Ok(SlabWriter {
             file,
             order: crate::io::slab_order::SlabOrder::new(dims, channels),
+            gzip: gzip
+                .then(|| flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::default())),
         })
     }
 
     /// The next `slab.nz` z slices (x and y extents and channels those of the volume).
     pub fn write_slab(&mut self, slab: &Volume) -> Result<()> {
         self.order.advance(slab);
-        self.file.write_all(&slab.data)
+        match &mut self.gzip {
+            None => self.file.write_all(&slab.data),
+            Some(encoder) => {
+                use std::io::Write;
+                encoder
+                    .write_all(&slab.data)
+                    .expect("compressing into memory cannot fail");
+                let compressed = std::mem::take(encoder.get_mut());
+                self.file.write_all(&compressed)
+            }
+        }
     }
 
     /// The complete file, to commit or to stage with a command's other outputs
     /// ([`crate::io::atomic::Outputs`]).
-    pub fn finish(self) -> crate::io::atomic::PendingFile {
+    pub fn finish(mut self) -> Result<crate::io::atomic::PendingFile> {
         self.order.finish();
-        self.file
+        if let Some(encoder) = self.gzip.take() {
+            let tail = encoder
+                .finish()
+                .expect("compressing into memory cannot fail");
+            self.file.write_all(&tail)?;
+        }
+        Ok(self.file)
     }
+}
+
+/// The gzip stream of `data` (default level), for a gzip-encoded NRRD held in memory.
+pub fn gzip_bytes(data: &[u8]) -> Vec<u8> {
+    use std::io::Write;
+    let mut encoder = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::default());
+    encoder
+        .write_all(data)
+        .expect("compressing into memory cannot fail");
+    encoder
+        .finish()
+        .expect("compressing into memory cannot fail")
 }
 
 /// Read a volume file.

@@ -4,6 +4,7 @@
 //! | extension | format | written |
 //! |---|---|---|
 //! | `.nrrd` | NRRD, raw 8-bit, `sizes: C X Y Z` | streamed |
+//! | (`--format nrrd-gzip`) | NRRD, its data gzip-compressed | streamed |
 //! | `.npy` | NumPy, `uint8`, shape (Z, Y, X, C) | streamed |
 //! | `.tif`, `.tiff` | TIFF stack, a page per z slice (ImageJ stack; BigTIFF over 4 GiB) | streamed |
 //! | `.ktx2` | KTX2 3D texture, RGBA8 or R8 (sRGB and mips on request) | whole |
@@ -22,6 +23,8 @@ use std::path::{Path, PathBuf};
 #[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum VolumeFormat {
     Nrrd,
+    /// NRRD with `encoding: gzip` (named by `--format`; `.nrrd` alone is raw).
+    NrrdGzip,
     Npy,
     Tiff,
     Ktx2,
@@ -155,7 +158,14 @@ impl VolumeWriter {
     ) -> Result<VolumeWriter> {
         output.check(path, dims)?;
         let target = match output.format {
-            VolumeFormat::Nrrd => Target::Nrrd(nrrd::SlabWriter::create(path, dims, channels)?),
+            VolumeFormat::Nrrd | VolumeFormat::NrrdGzip => {
+                Target::Nrrd(nrrd::SlabWriter::create_encoded(
+                    path,
+                    dims,
+                    channels,
+                    output.format == VolumeFormat::NrrdGzip,
+                )?)
+            }
             VolumeFormat::Npy => Target::Npy(npy::SlabWriter::create(path, dims, channels)?),
             VolumeFormat::Tiff => {
                 Target::Tiff(tiff_stack::SlabWriter::create(path, dims, channels)?)
@@ -188,7 +198,7 @@ impl VolumeWriter {
     /// The complete file, staged (to commit, or to stage with a command's other outputs).
     pub fn finish(self) -> Result<PendingFile> {
         match self.target {
-            Target::Nrrd(w) => Ok(w.finish()),
+            Target::Nrrd(w) => w.finish(),
             Target::Npy(w) => Ok(w.finish()),
             Target::Tiff(w) => Ok(w.finish()),
             Target::Whole(v) => {
@@ -210,6 +220,11 @@ impl VolumeWriter {
 pub fn to_bytes(v: &Volume, output: VolumeOutput) -> Result<Vec<u8>> {
     let mut bytes = match output.format {
         VolumeFormat::Nrrd => nrrd::header(v).into_bytes(),
+        VolumeFormat::NrrdGzip => {
+            let mut bytes = nrrd::header_encoded(v.dims(), v.channels, true).into_bytes();
+            bytes.extend_from_slice(&nrrd::gzip_bytes(&v.data));
+            return Ok(bytes);
+        }
         VolumeFormat::Npy => npy::header(v.dims(), v.channels),
         VolumeFormat::Tiff => return tiff_stack::to_bytes(v),
         VolumeFormat::Ktx2 => return Ok(ktx2::to_bytes(v, output.texture)),

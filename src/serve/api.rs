@@ -368,7 +368,8 @@ fn cut(state: &State, solid: &jobs::Solid, q: &Query) -> Answer {
 pub const NORMAL_TOLERANCE: f64 = 1e-3;
 
 /// GET /api/solids/ID/volume: the box [0, size)^3 in one of the formats the command line
-/// writes (`nrrd`, `npy`, `tiff`, `ktx2`, `vdb`, `vti`, `flipbook` PNG), or `raw` RGBA bytes.
+/// writes (`nrrd`, `nrrd-gzip`, `npy`, `tiff`, `ktx2`, `vdb`, `vti`, `flipbook` PNG), or `raw` RGBA
+/// bytes.
 fn volume(state: &State, solid: &jobs::Solid, q: &Query) -> Answer {
     use crate::io::volume_file::{VolumeFormat, VolumeOutput};
     q.only(&["size", "format"])?;
@@ -379,6 +380,7 @@ fn volume(state: &State, solid: &jobs::Solid, q: &Query) -> Answer {
     let format = q.get("format").unwrap_or("nrrd");
     let file_format = match format {
         "nrrd" => Some(VolumeFormat::Nrrd),
+        "nrrd-gzip" => Some(VolumeFormat::NrrdGzip),
         "npy" => Some(VolumeFormat::Npy),
         "tiff" => Some(VolumeFormat::Tiff),
         "ktx2" => Some(VolumeFormat::Ktx2),
@@ -390,7 +392,7 @@ fn volume(state: &State, solid: &jobs::Solid, q: &Query) -> Answer {
             return Err((
                 400,
                 format!(
-                    "invalid format {format:?}: nrrd, npy, tiff, ktx2, vdb, vti, flipbook or raw"
+                    "invalid format {format:?}: nrrd, nrrd-gzip, npy, tiff, ktx2, vdb, vti, flipbook or raw"
                 ),
             ))
         }
@@ -408,7 +410,7 @@ fn volume(state: &State, solid: &jobs::Solid, q: &Query) -> Answer {
             };
             let body = crate::io::volume_file::to_bytes(&v, output).map_err(from_error)?;
             let (content_type, ext) = match format {
-                VolumeFormat::Nrrd => ("application/octet-stream", "nrrd"),
+                VolumeFormat::Nrrd | VolumeFormat::NrrdGzip => ("application/octet-stream", "nrrd"),
                 VolumeFormat::Npy => ("application/octet-stream", "npy"),
                 VolumeFormat::Tiff => ("image/tiff", "tif"),
                 VolumeFormat::Ktx2 => ("image/ktx2", "ktx2"),
