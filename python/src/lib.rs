@@ -22,7 +22,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use solidsynth::analysis::Analysis;
 use solidsynth::io::{atomic, ssa};
-use solidsynth::solid::{memory, AnalysisCache, ExemplarInput};
+use solidsynth::solid::{limits, memory, AnalysisCache, ExemplarInput};
 use solidsynth::synth::check_tileable_size;
 use solidsynth::{
     BackendChoice, Box3, CancelToken, Compute, CutSpec, GpuOptions, Image, Solid, SolidBuilder,
@@ -31,14 +31,6 @@ use solidsynth::{
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
-
-/// The largest box side and `tileable` size the command line accepts (`cli::synth::MAX_SIZE`,
-/// not built without the `cli` feature).
-const MAX_SIZE: i64 = 2048;
-/// Box coordinates the engine addresses (`--box`'s limit).
-const COORDINATE_LIMIT: i64 = 1 << 28;
-/// The largest cut side (`lazy::cut::MAX_CUT_SIZE`, which the library does not export).
-const MAX_CUT_SIZE: i64 = 4096;
 
 fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
     // A request that panicked is reported as an error and its solid rebuilt (`Engine::ready`):
@@ -72,10 +64,7 @@ impl SynthSettings {
     ) -> PyResult<SynthSettings> {
         let choice = backend_choice(&backend)?;
         if let Some(side) = max_group {
-            // The command line's range for --max-group (clap checks it there).
-            if !(4..=512).contains(&side) {
-                return Err(invalid(format!("--max-group {side}"), "must be 4..=512"));
-            }
+            limits::check_max_group(side).map_err(engine_err)?;
         }
         let params = SynthParams {
             seed,
@@ -265,38 +254,13 @@ impl PySolid {
     }
 }
 
-/// `(lo, hi)` as the command line checks `--box X0,Y0,Z0,X1,Y1,Z1` (`cli::synth::parse_box`),
-/// with its messages.
+/// `(lo, hi)` as the command line checks `--box X0,Y0,Z0,X1,Y1,Z1`, with its messages.
 fn checked_box(lo: [i64; 3], hi: [i64; 3]) -> PyResult<Box3> {
     let what = format!(
         "--box {},{},{},{},{},{}",
         lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]
     );
-    if lo
-        .iter()
-        .chain(&hi)
-        .any(|c| c.unsigned_abs() > COORDINATE_LIMIT as u64)
-    {
-        return Err(invalid(
-            what,
-            format!("coordinates must lie within +-{COORDINATE_LIMIT}"),
-        ));
-    }
-    for a in 0..3 {
-        if hi[a] <= lo[a] {
-            return Err(invalid(
-                what,
-                format!("{0}1 must be greater than {0}0", ["X", "Y", "Z"][a]),
-            ));
-        }
-        if hi[a] - lo[a] > MAX_SIZE {
-            return Err(invalid(
-                what,
-                format!("each side must be at most {MAX_SIZE} voxels"),
-            ));
-        }
-    }
-    Ok(Box3::new(lo.map(|c| c as i32), hi.map(|c| c as i32)))
+    limits::checked_box(&what, lo, hi, limits::MAX_BOX_SIDE as i64).map_err(engine_err)
 }
 
 /// A volume as a (Z, Y, X, C) array: its bytes are already in that order (x fastest, channels
@@ -470,13 +434,7 @@ impl PySolid {
     /// along each axis, as (n, n, n, C).
     fn tileable<'py>(&self, py: Python<'py>, n: i64) -> PyResult<Bound<'py, PyArray4<u8>>> {
         // As `synth --size N --tileable` checks it.
-        if !(8..=MAX_SIZE).contains(&n) {
-            return Err(invalid(
-                format!("--size {n}"),
-                format!("must be 8..={MAX_SIZE}"),
-            ));
-        }
-        let n = n as u32;
+        let n = limits::check_size(&format!("--size {n}"), n).map_err(engine_err)?;
         check_tileable_size(n).map_err(engine_err)?;
         if self.settings.params.coarse_cache.is_some() {
             return Err(invalid(
@@ -502,17 +460,12 @@ impl PySolid {
         size: i64,
         spacing: f64,
     ) -> PyResult<Bound<'py, PyArray3<u8>>> {
-        if !(1..=MAX_CUT_SIZE).contains(&size) {
-            return Err(invalid(
-                format!("--size {size}"),
-                format!("must be 1..={MAX_CUT_SIZE}"),
-            ));
-        }
+        let size = limits::check_cut_size(&format!("--size {size}"), size).map_err(engine_err)?;
         let spec = CutSpec {
             origin,
             normal,
             up,
-            size: size as u32,
+            size,
             spacing,
         };
         spec.frame().map_err(engine_err)?;

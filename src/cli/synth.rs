@@ -6,6 +6,7 @@ use crate::io::atomic;
 use crate::io::volume_file::{VolumeOutput, VolumeWriter};
 use crate::lazy::{Box3, CandidateMode, ColorSource, SynthOptions, SynthParams};
 use crate::metrics::sheet::contact_sheet;
+use crate::solid::limits;
 use crate::volume::Volume;
 use crate::Error;
 use clap::Args;
@@ -98,7 +99,8 @@ pub struct SolidParams {
     #[arg(
         long,
         value_name = "VOXELS",
-        value_parser = clap::value_parser!(u32).range(4..=512),
+        value_parser = clap::value_parser!(u32)
+            .range(*limits::MAX_GROUP_SIDES.start() as i64..=*limits::MAX_GROUP_SIDES.end() as i64),
         help_heading = "Performance"
     )]
     pub max_group: Option<u32>,
@@ -267,18 +269,7 @@ impl TriplesWriter {
 }
 
 /// Largest --size accepted before the memory estimate is even computed.
-pub const MAX_SIZE: u32 = 2048;
-
-/// Refuse a size outside what `synth` supports.
-pub fn check_size(size: u32) -> crate::Result<()> {
-    if !(8..=MAX_SIZE).contains(&size) {
-        return Err(Error::invalid(
-            format!("--size {size}"),
-            format!("must be 8..={MAX_SIZE}"),
-        ));
-    }
-    Ok(())
-}
+pub const MAX_SIZE: u32 = limits::MAX_BOX_SIDE;
 
 /// Refuse a box whose synthesis would not fit in memory, before allocating anything for it:
 /// the engine's working set and this command's outputs (`what` names the request in the error).
@@ -318,7 +309,7 @@ fn z_slice(v: &Volume, z: u32) -> image::RgbaImage {
 }
 
 pub fn run(args: SynthArgs, quiet: bool) -> anyhow::Result<()> {
-    check_size(args.size)?;
+    limits::check_size(&format!("--size {}", args.size), args.size as i64)?;
     let n = args.size as i32;
     if args.tileable {
         crate::lazy::check_tileable_size(args.size)?;
@@ -355,32 +346,7 @@ pub fn parse_box_within(text: &str, max_side: i64) -> crate::Result<Box3> {
             "expected six integers X0,Y0,Z0,X1,Y1,Z1",
         ));
     }
-    const LIMIT: i64 = 1 << 28;
-    if v.iter().any(|c| c.abs() > LIMIT) {
-        return Err(Error::invalid(
-            &what,
-            format!("coordinates must lie within +-{LIMIT}"),
-        ));
-    }
-    for a in 0..3 {
-        if v[a + 3] <= v[a] {
-            return Err(Error::invalid(
-                &what,
-                format!("{0}1 must be greater than {0}0", ["X", "Y", "Z"][a]),
-            ));
-        }
-        if v[a + 3] - v[a] > max_side {
-            return Err(Error::invalid(
-                &what,
-                format!("each side must be at most {max_side} voxels"),
-            ));
-        }
-    }
-    let b = Box3::new(
-        [v[0] as i32, v[1] as i32, v[2] as i32],
-        [v[3] as i32, v[4] as i32, v[5] as i32],
-    );
-    Ok(b)
+    limits::checked_box(&what, [v[0], v[1], v[2]], [v[3], v[4], v[5]], max_side)
 }
 
 pub fn run_region(args: RegionArgs, quiet: bool) -> anyhow::Result<()> {

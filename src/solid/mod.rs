@@ -20,6 +20,7 @@
 
 pub mod cache;
 pub mod input;
+pub mod limits;
 pub mod memory;
 pub mod surface;
 
