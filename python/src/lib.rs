@@ -29,7 +29,6 @@ use solidsynth::{
     SynthOptions, SynthParams, Volume,
 };
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 
 fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
@@ -218,16 +217,20 @@ impl PySolid {
         py: Python<'_>,
         work: impl FnOnce(&mut Solid) -> solidsynth::Result<T> + Send,
     ) -> PyResult<T> {
-        // Both sequentially consistent: whichever of the interrupt and the start comes first,
-        // the work is either cancelled through the token or never starts.
-        let started = AtomicBool::new(false);
-        let abandoned = AtomicBool::new(false);
+        // The request's phase, changed under one lock with the interrupt's look at it: the
+        // token is cancelled only while this request runs, never before (the request is then
+        // refused when it starts) nor after it ends (the worker marks it done while it still
+        // holds the engine, so no other thread's request can be running on the token then).
+        let phase = Mutex::new(Phase::Waiting);
         run_detached(
             py,
             || {
-                abandoned.store(true, Ordering::SeqCst);
-                if started.load(Ordering::SeqCst) {
+                let mut phase = lock(&phase);
+                if *phase == Phase::Running {
                     lock(&self.token).cancel();
+                }
+                if *phase == Phase::Waiting {
+                    *phase = Phase::Abandoned;
                 }
             },
             || {
@@ -235,13 +238,17 @@ impl PySolid {
                 // with the interpreter free.
                 let mut engine = lock(&self.engine);
                 engine.ready(&self.analysis, &self.token)?;
-                started.store(true, Ordering::SeqCst);
-                if abandoned.load(Ordering::SeqCst) {
-                    return Err(solidsynth::Error::Cancelled);
+                {
+                    let mut phase = lock(&phase);
+                    if *phase == Phase::Abandoned {
+                        return Err(solidsynth::Error::Cancelled);
+                    }
+                    *phase = Phase::Running;
                 }
                 let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
                     work(&mut engine.solid)
                 }));
+                *lock(&phase) = Phase::Done;
                 match outcome {
                     Ok(result) => result,
                     Err(panic) => {
@@ -252,6 +259,15 @@ impl PySolid {
             },
         )
     }
+}
+
+/// Where a request stands, for Ctrl-C (`PySolid::request`).
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Phase {
+    Waiting,
+    Abandoned,
+    Running,
+    Done,
 }
 
 /// `(lo, hi)` as the command line checks `--box X0,Y0,Z0,X1,Y1,Z1`, with its messages.
@@ -535,5 +551,8 @@ fn _solidsynth(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(evaluate::evaluate, m)?)?;
     m.add("Error", m.py().get_type::<Error>())?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    // The request limits, for the Python side's own checks (solidsynth.dask).
+    m.add("MAX_BOX_SIDE", limits::MAX_BOX_SIDE)?;
+    m.add("COORDINATE_LIMIT", limits::COORDINATE_LIMIT)?;
     Ok(())
 }

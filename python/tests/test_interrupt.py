@@ -27,11 +27,12 @@ def test_ctrl_c_cancels_a_request(slow):
     timer.start()
     try:
         with pytest.raises(KeyboardInterrupt):
-            # Seconds of work on any machine (160^3 in 16^3 groups on the CPU backend).
-            slow.region((0, 0, 0), (160, 160, 160))
+            # 320^3 in 16^3 groups on the CPU backend: tens of seconds even on 16 cores
+            # (each small group recomputes its padding), so only a cancelled request ends soon.
+            slow.region((0, 0, 0), (320, 320, 320))
     finally:
         timer.join()
-    assert time.monotonic() - start < 30
+    assert time.monotonic() - start < 5
     # A fresh token: the next request runs, and gives the same voxels.
     np.testing.assert_array_equal(slow.region((0, 0, 0), (8, 8, 8)), before)
 

@@ -150,3 +150,17 @@ def test_options_and_description(cells):
     assert cells.backend.startswith("cpu")
     assert "seed=2" in repr(cells)
     assert isinstance(cells.channels, int)
+
+
+@pytest.mark.parametrize("x0", [67108864, 268435447, -268435456])
+def test_boxes_at_the_far_edges_of_the_coordinate_range_are_the_command_lines(
+    cli, read_nrrd, tmp_path, x0
+):
+    # Far from the origin the jitter field's fixed-point positions leave i32 and wrap; this
+    # build (the tests' dev profile, overflow checks on) must give the release binary's bytes.
+    out = tmp_path / "far.nrrd"
+    box = f"{x0},0,0,{x0 + 8},8,8"
+    cli("region", "--box", box, "--seed", "1", "--backend", "cpu", "-o", out)
+    _, data = read_nrrd(out)
+    array = solidsynth.Solid(None, seed=1, backend="cpu").region((x0, 0, 0), (x0 + 8, 8, 8))
+    assert array.tobytes() == data

@@ -299,22 +299,12 @@ pub fn attributes(
 ) -> serde_json::Value {
     let p = &args.solid;
     let digest = xxhash_rust::xxh3::xxh3_128(&crate::io::ssa::to_bytes(analysis));
-    // File names, not paths: machines filling one array may keep the inputs in other places.
-    let inputs: Vec<String> = [&p.input.input, &p.input.ey, &p.input.ez]
-        .into_iter()
-        .flatten()
-        .map(|path| match path.file_name() {
-            Some(name) => name.to_string_lossy().into_owned(),
-            None => path.display().to_string(),
-        })
-        .collect();
     serde_json::json!({
         "solidsynth": {
             "version": env!("CARGO_PKG_VERSION"),
             "origin": region.lo,
             "box": [region.lo, region.hi],
             "element": "array[z, y, x, c] is channel c of voxel origin + (x, y, z) of the solid",
-            "inputs": inputs,
             "analysis_xxh3": format!("{digest:032x}"),
             "seed": p.seed,
             "jitter": p.jitter,

@@ -73,6 +73,14 @@ pub fn cell_hash(seed_lo: u32, seed_hi: u32, c: [i32; 3], period: u32) -> u32 {
     h
 }
 
+/// Cell `c`'s low corner in 1/256 voxel. Positions far from the origin (cells beyond 2^21)
+/// leave i32: they wrap, here as in the shaders' i32 arithmetic, and only their differences
+/// (a voxel's offset from a nearby Gaussian, a few cells) are used, which the wrapping keeps
+/// exact.
+fn fixed(c: i32) -> i32 {
+    c.wrapping_mul(CELL * 256)
+}
+
 /// One Gaussian of the field: centre (1/256 voxel), width class and direction index.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct Gaussian {
@@ -91,9 +99,9 @@ fn gaussians_around(cell: [i32; 3], seed_lo: u32, seed_hi: u32, period: u32) -> 
                 let shape = hash32(h ^ 4);
                 out.push(Gaussian {
                     centre: [
-                        cx * CELL * 256 + (hash32(h ^ 1) & 1023) as i32,
-                        cy * CELL * 256 + (hash32(h ^ 2) & 1023) as i32,
-                        cz * CELL * 256 + (hash32(h ^ 3) & 1023) as i32,
+                        fixed(cx).wrapping_add((hash32(h ^ 1) & 1023) as i32),
+                        fixed(cy).wrapping_add((hash32(h ^ 2) & 1023) as i32),
+                        fixed(cz).wrapping_add((hash32(h ^ 3) & 1023) as i32),
                     ],
                     shape: (shape & 3) as usize,
                     dir: ((shape >> 2) & 63) as usize,
@@ -116,14 +124,18 @@ pub fn cell_gaussians(
     sig2: [i32; 4],
 ) -> Vec<Gaussian> {
     // The cell's voxel centres span [lo, hi] per axis, in 1/256 voxel.
-    let lo = cell.map(|c| c * CELL * 256 + 128);
-    let hi = lo.map(|v| v + (CELL - 1) * 256);
+    let lo = cell.map(|c| fixed(c).wrapping_add(128));
+    let hi = lo.map(|v| v.wrapping_add((CELL - 1) * 256));
     let mut out = gaussians_around(cell, seed_lo, seed_hi, period);
     out.retain(|g| {
         // Squared distance from the centre to the nearest voxel centre of the cell: a lower
         // bound of every voxel's r2 in `offset_from`.
         let nearest: i32 = (0..3)
-            .map(|i| (lo[i] - g.centre[i]).max(g.centre[i] - hi[i]).max(0))
+            .map(|i| {
+                (lo[i].wrapping_sub(g.centre[i]))
+                    .max(g.centre[i].wrapping_sub(hi[i]))
+                    .max(0)
+            })
             .map(|d| d * d)
             .sum();
         nearest < WEIGHT_ENTRIES as i32 * sig2[g.shape]
@@ -159,10 +171,10 @@ pub fn offset_from(
     sig2: [i32; 4],
     table: &[u32],
 ) -> [i32; 3] {
-    let pos = p.map(|v| v * 256 + 128);
+    let pos = p.map(|v| v.wrapping_mul(256).wrapping_add(128));
     let mut disp = [0i32; 3];
     for g in gaussians {
-        let d = [0, 1, 2].map(|i| pos[i] - g.centre[i]);
+        let d = [0, 1, 2].map(|i| pos[i].wrapping_sub(g.centre[i]));
         let r2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
         // Most of the 125 Gaussians lie beyond the table (3 sigma): rejected by a multiply
         // before the division (for r2, sig2 >= 0, r2 / sig2 < E exactly when r2 < E * sig2),
@@ -191,14 +203,16 @@ pub fn cell_offsets(
     sig2: [i32; 4],
     table: &[u32],
 ) -> [[i32; 3]; 64] {
-    let origin = cell.map(|c| c * CELL * 256 + 128);
+    let origin = cell.map(|c| fixed(c).wrapping_add(128));
     let mut disp = [[0i32; 3]; 64];
     for g in gaussians {
         let limit = WEIGHT_ENTRIES as i32 * sig2[g.shape];
         // Squared distance along each axis of the cell's 4 voxel centres.
         let sq: [[i32; 4]; 3] = std::array::from_fn(|a| {
             std::array::from_fn(|i| {
-                let d = origin[a] + 256 * i as i32 - g.centre[a];
+                let d = origin[a]
+                    .wrapping_add(256 * i as i32)
+                    .wrapping_sub(g.centre[a]);
                 d * d
             })
         });

@@ -14,7 +14,8 @@ bytes as the ``solidsynth`` command line.
 
 Bad input raises :class:`ValueError` (a file that cannot be read: an :class:`OSError`) with the
 command line's message; other failures raise :class:`solidsynth.Error`. Long calls release the
-GIL and stop on Ctrl-C (:class:`KeyboardInterrupt`). :mod:`solidsynth.dask` builds Dask arrays
+GIL; syntheses stop on Ctrl-C (:class:`KeyboardInterrupt`; the analysis, ``eval`` and ``.ssa``
+reading and writing finish first). :mod:`solidsynth.dask` builds Dask arrays
 of solids (``pip install solidsynth[dask]``).
 """
 

@@ -7,6 +7,9 @@ import numpy as np
 import numpy.typing as npt
 
 __version__: str
+# The largest side of a box made in one call, and the coordinates a box may reach (+-).
+MAX_BOX_SIDE: int
+COORDINATE_LIMIT: int
 
 # A path, or pixels: (H, W) or (H, W, C) uint8, C in 1 (gray), 3 (RGB), 4 (RGBA).
 _Picture = Union[str, "os.PathLike[str]", npt.NDArray[np.uint8]]

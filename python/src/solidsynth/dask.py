@@ -30,7 +30,7 @@ import numpy as np
 import dask.array as da
 from dask.array.core import normalize_chunks
 
-from . import Solid
+from . import Solid, _solidsynth
 
 __all__ = ["region"]
 
@@ -58,9 +58,28 @@ def region(
     shape = tuple(int(n) for n in shape)
     if len(shape) != 3 or min(shape) < 1:
         raise ValueError(f"shape: expected three positive sizes (Z, Y, X), got {shape}")
+    origin = tuple(origin)
+    if len(origin) != 3 or not all(isinstance(c, (int, np.integer)) for c in origin):
+        raise ValueError(f"origin: expected three integers (x, y, z), got {origin}")
     ox, oy, oz = (int(c) for c in origin)
+    for axis, (lo, n) in enumerate(zip((ox, oy, oz), shape[::-1])):
+        if not (-COORDINATE_LIMIT <= lo and lo + n <= COORDINATE_LIMIT):
+            raise ValueError(
+                f"origin {origin} with shape {shape}: the box must lie within "
+                f"+-{COORDINATE_LIMIT} along {'xyz'[axis]}"
+            )
+    if chunks == "auto":
+        # Dask's own "auto" sizes blocks by bytes and may exceed a block's side limit.
+        chunks = tuple(min(n, DEFAULT_BLOCK) for n in shape)
+    block_chunks = normalize_chunks(chunks, shape, dtype=np.uint8)
+    largest = max(max(sides) for sides in block_chunks)
+    if largest > MAX_BLOCK_SIDE:
+        raise ValueError(
+            f"chunks {chunks}: a block side of {largest} voxels; each must be at most "
+            f"{MAX_BLOCK_SIDE} (one region call)"
+        )
     ssa, synth_options, channels = _analysis_file(source, solid_options, ssa_dir)
-    block_chunks = normalize_chunks(chunks, shape, dtype=np.uint8) + ((channels,),)
+    block_chunks = block_chunks + ((channels,),)
     return da.map_blocks(
         _block,
         chunks=block_chunks,
@@ -71,6 +90,13 @@ def region(
         options=synth_options,
         origin=(ox, oy, oz),
     )
+
+
+# The library's limits (`solidsynth::solid::limits`): a block is one region call.
+MAX_BLOCK_SIDE = _solidsynth.MAX_BOX_SIDE
+COORDINATE_LIMIT = _solidsynth.COORDINATE_LIMIT
+# The block side for ``chunks="auto"``.
+DEFAULT_BLOCK = 128
 
 
 def _block(block_info=None, *, ssa, options, origin):
