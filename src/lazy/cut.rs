@@ -116,7 +116,7 @@ impl CutSpec {
         let (n, s) = (self.size as f64, self.spacing);
         let p = o + (i as f64 + 0.5 - n / 2.0) * s * u + (j as f64 + 0.5 - n / 2.0) * s * v;
         let f = p.floor();
-        if f.abs().max_element() > (1 << 28) as f64 {
+        if f.abs().max_element() > super::plan::COORDINATE_LIMIT as f64 {
             return None;
         }
         Some([f.x as i32, f.y as i32, f.z as i32])

@@ -17,6 +17,10 @@
 
 use super::SUBPASS_ORDER;
 
+/// Requests stay within +-2^28 voxels of the origin (boxes, cut samples): every level's
+/// coordinates and brick indices then fit the engine's 32-bit arithmetic.
+pub const COORDINATE_LIMIT: i64 = 1 << 28;
+
 /// A half-open box of integer voxel coordinates.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct Box3 {

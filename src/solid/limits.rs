@@ -8,9 +8,7 @@ use std::ops::RangeInclusive;
 /// Largest side of a box synthesized whole (`synth --size`, `region --box`, `tileable`).
 pub const MAX_BOX_SIDE: u32 = 2048;
 
-/// Box coordinates stay within +-2^28 voxels: every level's coordinates, jitter cells and
-/// brick indices then fit the engine's 32-bit arithmetic.
-pub const COORDINATE_LIMIT: i64 = 1 << 28;
+pub use crate::lazy::plan::COORDINATE_LIMIT;
 
 /// Largest side of a planar cut, in pixels.
 pub const MAX_CUT_SIZE: u32 = crate::lazy::cut::MAX_CUT_SIZE;

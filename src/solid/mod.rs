@@ -414,11 +414,11 @@ impl Solid {
                 "each side must be at least one voxel (X1 > X0, Y1 > Y0, Z1 > Z0)",
             ));
         }
-        const LIMIT: i32 = 1 << 28;
-        if b.lo.iter().chain(&b.hi).any(|c| c.abs() > LIMIT) {
+        let limit = limits::COORDINATE_LIMIT;
+        if b.lo.iter().chain(&b.hi).any(|&c| (c as i64).abs() > limit) {
             return Err(Error::invalid(
                 box_flag(b),
-                format!("coordinates must lie within +-{LIMIT}"),
+                format!("coordinates must lie within +-{limit}"),
             ));
         }
         Ok(())
