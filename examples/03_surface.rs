@@ -15,7 +15,17 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     };
     let out = args.next().unwrap_or_else(|| "surface.glb".into());
     // Planned before anything is synthesized: the atlas and its memory (refused if too large).
-    let plan = SurfacePlan::new(&mesh, 96, AtlasLayout::Texels(16), None, 128)?;
+    let plan = SurfacePlan::new(
+        &mesh,
+        "the mesh",
+        96,
+        AtlasLayout::Texels {
+            texels: 16,
+            gutter: 0,
+        },
+        None,
+        128,
+    )?;
     let mut solid = Solid::builder().seed(11).cpu().build()?;
     let started = std::time::Instant::now();
     let baked = solid.bake_surface(&mesh, &plan)?;

@@ -18,7 +18,17 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let out = args.next().unwrap_or_else(|| "render.png".into());
     let resolution: u32 = args.next().map(|r| r.parse()).transpose()?.unwrap_or(96);
     let mesh = solidsynth::mesh::load(path.as_ref())?;
-    let plan = SurfacePlan::new(&mesh, resolution, AtlasLayout::TexelSize(None), None, 128)?;
+    let plan = SurfacePlan::new(
+        &mesh,
+        "bunny.obj",
+        resolution,
+        AtlasLayout::TexelSize {
+            size: None,
+            gutter: 0,
+        },
+        None,
+        128,
+    )?;
     let baked = Solid::builder()
         .seed(5)
         .cpu()

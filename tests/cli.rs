@@ -1097,7 +1097,7 @@ fn surface_bakes_the_solid_at_each_texel_and_refuses_bad_meshes() {
         assert_eq!(img.color(), color, "{png}");
         let img = img.to_rgba8();
         let mesh = solidsynth::mesh::parse_obj(mesh_text.as_bytes(), "t").unwrap();
-        let atlas = Atlas::new(mesh.triangles.len(), 5).unwrap();
+        let atlas = Atlas::new(mesh.triangles.len(), 5, 0).unwrap();
         assert_eq!((img.width(), img.height()), (atlas.width, atlas.height));
         let voxels = atlas.texel_voxels(&mesh, &Placement::fit(&mesh, 16));
         for (k, p) in voxels.iter().enumerate() {
@@ -1188,7 +1188,7 @@ fn surface_bakes_the_solid_at_each_texel_and_refuses_bad_meshes() {
     assert_eq!(summary["texel_size"], 1.0);
     let mesh = solidsynth::mesh::parse_obj(obj_text.as_bytes(), "t").unwrap();
     let place = Placement::fit(&mesh, 16);
-    let atlas = Atlas::fitted(&mesh, &place, 1.0).unwrap();
+    let atlas = Atlas::fitted(&mesh, &place, 1.0, 0).unwrap();
     let img = image::open(d.join("fitted.png")).unwrap().to_rgba8();
     assert_eq!(
         summary["atlas"],
@@ -1202,7 +1202,7 @@ fn surface_bakes_the_solid_at_each_texel_and_refuses_bad_meshes() {
     }
     // Its cells follow the triangles: the right-angled faces' 16-voxel legs get 17 texels, the
     // slanted face's 22.6-voxel edges 24.
-    let sides: Vec<_> = atlas.cells.iter().map(|c| (c.width, c.height)).collect();
+    let sides: Vec<_> = atlas.cells().iter().map(|c| (c.width, c.height)).collect();
     assert_eq!(sides, [(17, 17), (17, 17), (17, 17), (24, 24)]);
     for (flags, needle) in [
         (vec!["--texel-size", "0"], "--texel-size 0"),

@@ -330,3 +330,185 @@ fn openvdb_files_read_back_with_openvdb() {
     assert_eq!(out.status.code(), Some(2));
     assert!(!d.join("v2.nrrd").exists());
 }
+
+/// The glTF JSON chunk of a .glb.
+fn glb_json(glb: &[u8]) -> serde_json::Value {
+    let json_len = u32::from_le_bytes(glb[12..16].try_into().unwrap()) as usize;
+    serde_json::from_slice(&glb[20..20 + json_len]).unwrap()
+}
+
+#[test]
+fn surfaces_bake_into_the_meshs_own_uvs_and_pad_cells_for_mips() {
+    use solidsynth::mesh::{bake::Atlas, Placement};
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let root = env!("CARGO_MANIFEST_DIR");
+    let exemplar = format!("{root}/tests/fixtures/cells32.png --periodic");
+    let cube = format!("{root}/examples/uv-cube.obj");
+    let solid = format!("{exemplar} --seed 3 --backend cpu");
+    ok(&format!("region {solid} --box 0,0,0,16,16,16 -o r.nrrd"), d);
+    let volume = nrrd_data(d, "r.nrrd");
+    ok(
+        &format!(
+            "surface {solid} --mesh {cube} --resolution 16 --uv own --texture-size 64 -o own.obj"
+        ),
+        d,
+    );
+    // Every texel a triangle covers is the solid at its point; every texel next to them (the
+    // first ring of the dilation) is the rounded mean of its covered neighbours.
+    let mesh = solidsynth::mesh::load(Path::new(&cube)).unwrap();
+    assert_eq!(mesh.uvs.as_ref().map(Vec::len), Some(12));
+    let place = Placement::fit(&mesh, 16);
+    let atlas = Atlas::mesh_uvs(&mesh, &place, Some(64), "cube", |_| true).unwrap();
+    let img = image::open(d.join("own.png")).unwrap().to_rgb8();
+    assert_eq!(img.dimensions(), (64, 64));
+    let owners: Vec<u32> = atlas.texel_points(&mesh).iter().map(|p| p.0).collect();
+    let voxels = atlas.texel_voxels(&mesh, &place);
+    let covered = |x: i64, y: i64| {
+        (0..64).contains(&x) && (0..64).contains(&y) && owners[(y * 64 + x) as usize] != u32::MAX
+    };
+    let (mut inside, mut ring) = (0, 0);
+    for y in 0..64i64 {
+        for x in 0..64i64 {
+            let got = img.get_pixel(x as u32, y as u32).0;
+            if covered(x, y) {
+                let p = voxels[(y * 64 + x) as usize];
+                assert_eq!(
+                    &got[..],
+                    volume.at(p[0] as u32, p[1] as u32, p[2] as u32),
+                    "texel {x},{y}"
+                );
+                inside += 1;
+                continue;
+            }
+            let near: Vec<[u8; 3]> = (-1..=1)
+                .flat_map(|dy| (-1..=1).map(move |dx| (x + dx, y + dy)))
+                .filter(|&(nx, ny)| covered(nx, ny))
+                .map(|(nx, ny)| img.get_pixel(nx as u32, ny as u32).0)
+                .collect();
+            if !near.is_empty() {
+                let n = near.len() as u32;
+                let mean: Vec<u8> = (0..3)
+                    .map(|c| ((near.iter().map(|p| p[c] as u32).sum::<u32>() + n / 2) / n) as u8)
+                    .collect();
+                assert_eq!(&got[..], &mean[..], "ring texel {x},{y}");
+                ring += 1;
+            }
+        }
+    }
+    // Six faces of 64/3 - 2 by 32 - 2 texels, and the ring around each.
+    assert!(
+        inside > 6 * 18 * 28 && ring > 6 * 2 * (18 + 28),
+        "{inside} {ring}"
+    );
+
+    // The .glb shares the vertices of each face (24 corners for 36 triangle corners), carries
+    // normals and samples through mipmaps.
+    ok(
+        &format!("surface {solid} --mesh {cube} --resolution 16 --uv own -o own.glb --json"),
+        d,
+    );
+    let doc = glb_json(&std::fs::read(d.join("own.glb")).unwrap());
+    let primitive = &doc["meshes"][0]["primitives"][0];
+    let count = |name: &str| {
+        doc["accessors"][primitive["attributes"][name].as_u64().unwrap() as usize]["count"].clone()
+    };
+    assert_eq!(count("POSITION"), 24);
+    assert_eq!(count("NORMAL"), 24);
+    assert_eq!(
+        doc["accessors"][primitive["indices"].as_u64().unwrap() as usize]["count"],
+        36
+    );
+    assert_eq!(doc["samplers"][0]["minFilter"], 9987);
+
+    // --mips K: every packed cell gets a gutter of 2^K texels; the cells still hold the solid.
+    let out = solidsynth(
+        &format!("surface {solid} --mesh {cube} --resolution 16 --mips 2 -o mips.obj --json"),
+        d,
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let summary: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(summary["gutter"], 4);
+    assert_eq!(summary["mip_safe"], true);
+    let padded = Atlas::fitted(&mesh, &place, 1.0, 4).unwrap();
+    let plain = Atlas::fitted(&mesh, &place, 1.0, 0).unwrap();
+    assert_eq!(
+        summary["atlas"],
+        serde_json::json!([padded.width, padded.height])
+    );
+    assert!(padded.texel_count() > plain.texel_count());
+    let img = image::open(d.join("mips.png")).unwrap().to_rgb8();
+    let voxels = padded.texel_voxels(&mesh, &place);
+    for cell in padded.cells() {
+        assert!(cell.x >= 4 && cell.y >= 4);
+        for y in cell.y..cell.y + cell.height {
+            for x in cell.x..cell.x + cell.width {
+                let p = voxels[(y * padded.width + x) as usize];
+                let want = volume.at(p[0] as u32, p[1] as u32, p[2] as u32);
+                assert_eq!(&img.get_pixel(x, y).0[..], want, "cell texel {x},{y}");
+            }
+        }
+        // The gutter's corner, four rings out along the diagonal, has one filled neighbour in
+        // each ring before it: it repeats the cell's corner texel.
+        let corner = img.get_pixel(cell.x - 4, cell.y - 4).0;
+        assert_eq!(
+            corner,
+            img.get_pixel(cell.x, cell.y).0,
+            "gutter corner of {cell:?}"
+        );
+    }
+}
+
+#[test]
+fn own_uvs_that_are_missing_overlap_or_meet_packed_flags_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let root = env!("CARGO_MANIFEST_DIR");
+    let solid = format!("{root}/tests/fixtures/cells32.png --periodic --backend cpu");
+    // Two triangles mapped onto the same texels.
+    std::fs::write(
+        d.join("stacked.obj"),
+        "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nvt 0.1 0.1\nvt 0.9 0.1\nvt 0.1 0.9\n\
+         f 1/1 2/2 3/3\nf 2/1 4/2 3/3\n",
+    )
+    .unwrap();
+    let cases = [
+        (
+            format!("--mesh {root}/examples/octahedron.obj --uv own"),
+            "octahedron.obj: the mesh has no texture coordinates",
+        ),
+        (
+            "--mesh stacked.obj --uv own".to_string(),
+            "triangle 0 and triangle 1 both cover texel",
+        ),
+        (
+            format!("--mesh {root}/examples/uv-cube.obj --uv own --mips 2"),
+            "--uv own",
+        ),
+        (
+            format!("--mesh {root}/examples/uv-cube.obj --texture-size 64"),
+            "--texture-size",
+        ),
+        (
+            format!("--mesh {root}/examples/uv-cube.obj --uv own --texture-size 0"),
+            "--texture-size 0",
+        ),
+    ];
+    for (flags, needle) in cases {
+        let out = solidsynth(
+            &format!("surface {solid} {flags} --resolution 16 -o bad.glb"),
+            d,
+        );
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{flags}: {stderr}");
+        assert!(
+            stderr.contains(needle),
+            "{flags}: expected '{needle}' in {stderr}"
+        );
+        assert!(!d.join("bad.glb").exists(), "{flags}");
+    }
+}

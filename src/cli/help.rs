@@ -59,7 +59,8 @@ Examples:
 pub const SURFACE: &str = "\
 Examples:
   solidsynth surface --mesh examples/octahedron.obj --resolution 48 --texels 5 -o octahedron.glb
-  solidsynth surface --mesh examples/octahedron.obj --resolution 48 -o octahedron.obj";
+  solidsynth surface --mesh examples/octahedron.obj --resolution 48 -o octahedron.obj
+  solidsynth surface --mesh examples/uv-cube.obj --uv own --resolution 48 -o cube.glb";
 
 pub const INSPECT: &str = "\
 Examples:

@@ -422,7 +422,7 @@ fn bake(args: BakeArgs, quiet: bool) -> anyhow::Result<()> {
     let texels = args
         .texels
         .unwrap_or_else(|| lapped::bake::auto_texels(&surface, &model, scale));
-    let atlas = mesh_bake::Atlas::new(surface.triangles.len(), texels)?;
+    let atlas = mesh_bake::Atlas::new(surface.triangles.len(), texels, 0)?;
     let image = lapped::bake::bake(&model, &surface, &tets, &atlas)?;
     let png = atomic::png_bytes(&image)?;
     drop(image);

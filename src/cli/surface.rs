@@ -29,12 +29,34 @@ pub struct SurfaceArgs {
     /// triangle (2..=256).
     #[arg(help_heading = "Surface", long)]
     pub texels: Option<u32>,
+    /// The texture layout: `packed` (an atlas of its own: every triangle a cell, any mesh) or
+    /// `own` (the mesh's own texture coordinates, as Blender's and Substance's bakers use them:
+    /// texels outside every triangle dilated; overlapping or missing UVs are refused).
+    #[arg(help_heading = "Surface", long, value_enum, default_value_t = UvLayout::Packed)]
+    pub uv: UvLayout,
+    /// With `--uv own`: the texture's side in texels (default: the power of two giving about
+    /// one texel per voxel).
+    #[arg(help_heading = "Surface", long, conflicts_with_all = ["texels", "texel_size"])]
+    pub texture_size: Option<u32>,
+    /// Mip levels the packed atlas keeps apart: each cell gets a gutter of 2^K texels filled by
+    /// dilation, and the .glb asks for mipmapped filtering (0..=6; 0: no gutter, and the .glb is
+    /// sampled without mipmaps).
+    #[arg(help_heading = "Surface", long, default_value_t = 0, value_parser = clap::value_parser!(u32).range(0..=6))]
+    pub mips: u32,
     /// Output: .glb (texture embedded) or .obj (writes .mtl and .png beside it).
     #[arg(help_heading = "Output", short, long)]
     pub output: PathBuf,
     /// Print a JSON summary on stdout.
     #[arg(help_heading = "Output", long)]
     pub json: bool,
+}
+
+/// `--uv`: where the bake's texture coordinates come from.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum UvLayout {
+    Packed,
+    Own,
 }
 
 /// The files an output path stands for: (main, Some((mtl, png)) for OBJ).
@@ -66,13 +88,38 @@ pub fn run(args: SurfaceArgs, quiet: bool) -> anyhow::Result<()> {
     let params = args.solid.synth_params();
     params.validate()?;
     let mesh = mesh::load(&args.mesh)?;
-    let layout = match args.texels {
-        Some(texels) => AtlasLayout::Texels(texels),
-        None => AtlasLayout::TexelSize(args.texel_size),
+    let gutter = AtlasLayout::gutter_for_mips(args.mips);
+    let layout = match (args.uv, args.texels) {
+        (UvLayout::Own, _) => {
+            if args.texels.is_some() || args.texel_size.is_some() || args.mips > 0 {
+                return Err(Error::invalid(
+                    "--uv own",
+                    "lays texels out by the mesh's texture coordinates: --texels, --texel-size \
+                     and --mips apply to the packed atlas (use --texture-size)",
+                )
+                .into());
+            }
+            AtlasLayout::MeshUvs {
+                texture_size: args.texture_size,
+            }
+        }
+        (UvLayout::Packed, Some(texels)) => AtlasLayout::Texels { texels, gutter },
+        (UvLayout::Packed, None) => AtlasLayout::TexelSize {
+            size: args.texel_size,
+            gutter,
+        },
     };
+    if args.uv == UvLayout::Packed && args.texture_size.is_some() {
+        return Err(Error::invalid(
+            "--texture-size",
+            "applies to --uv own (the packed atlas is sized by --texel-size or --texels)",
+        )
+        .into());
+    }
     // Planned (atlas, memory) before the analysis: a bake that cannot fit is refused at once.
     let plan = SurfacePlan::new(
         &mesh,
+        &args.mesh.display().to_string(),
         args.resolution,
         layout,
         args.solid.coarse_cache,
@@ -129,6 +176,9 @@ pub fn run(args: SurfaceArgs, quiet: bool) -> anyhow::Result<()> {
             resolution: args.resolution,
             texels: args.texels,
             texel_size: plan.texel_size,
+            uv: args.uv,
+            gutter: atlas.gutter,
+            mip_safe: atlas.mip_safe(),
             atlas: [atlas.width, atlas.height],
             max_texel_step_voxels: atlas.max_texel_step(&mesh, place),
             placement: PlacementSummary::of(&mesh, place),
@@ -167,6 +217,12 @@ struct SurfaceSummary<'a> {
     resolution: u32,
     texels: Option<u32>,
     texel_size: Option<f64>,
+    /// `--uv`.
+    uv: UvLayout,
+    /// Texels of dilated room around each packed cell.
+    gutter: u32,
+    /// Whether the .glb's sampler uses mipmaps.
+    mip_safe: bool,
     atlas: [u32; 2],
     max_texel_step_voxels: f64,
     /// Where the mesh lies in the solid: `region --box` with `voxel_box` gives the volume the

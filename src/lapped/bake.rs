@@ -30,6 +30,8 @@ pub fn surface(model: &LstModel) -> (Mesh, Vec<u32>) {
         Mesh {
             positions,
             triangles,
+            uvs: None,
+            normals: None,
         },
         tets,
     )

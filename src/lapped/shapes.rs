@@ -37,6 +37,8 @@ pub fn sphere(segments: u32, rings: u32) -> Mesh {
     Mesh {
         positions,
         triangles,
+        uvs: None,
+        normals: None,
     }
 }
 
@@ -83,6 +85,8 @@ pub fn bent_cylinder(radius: f32, bend: f32, around: u32, along: u32) -> Mesh {
     Mesh {
         positions,
         triangles,
+        uvs: None,
+        normals: None,
     }
 }
 

@@ -393,6 +393,8 @@ mod tests {
         let flat = Mesh {
             positions: vec![[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
             triangles: vec![[0, 1, 2]],
+            uvs: None,
+            normals: None,
         };
         let err = stuff(&flat, 8, "flat.obj").unwrap_err().to_string();
         assert!(

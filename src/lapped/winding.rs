@@ -69,6 +69,8 @@ mod tests {
         Mesh {
             positions,
             triangles,
+            uvs: None,
+            normals: None,
         }
     }
 

@@ -1,6 +1,7 @@
 //! glTF 2.0 meshes in (`.glb`, or `.gltf` with its buffers beside it or embedded), through the
 //! `gltf` crate: every triangle primitive of the default scene's mesh instances, placed by their
-//! nodes' world transforms, as one triangle mesh. Materials, textures and animation are ignored.
+//! nodes' world transforms, as one triangle mesh, with their first texture coordinates and their
+//! normals where every primitive has them. Materials, textures and animation are ignored.
 
 use super::Mesh;
 use crate::error::{Error, Result};
@@ -33,6 +34,8 @@ fn parse_checked(bytes: &[u8], name: &str, base: Option<&Path>) -> Result<Mesh> 
     let mut mesh = Mesh {
         positions: Vec::new(),
         triangles: Vec::new(),
+        uvs: None,
+        normals: None,
     };
     let scene = document
         .default_scene()
@@ -41,6 +44,9 @@ fn parse_checked(bytes: &[u8], name: &str, base: Option<&Path>) -> Result<Mesh> 
     let mut stack: Vec<(gltf::Node, glam::Mat4)> =
         scene.nodes().map(|n| (n, glam::Mat4::IDENTITY)).collect();
     let mut visited = vec![false; document.nodes().len()];
+    // Filled while every primitive so far had the attribute.
+    mesh.uvs = Some(Vec::new());
+    mesh.normals = Some(Vec::new());
     while let Some((node, parent)) = stack.pop() {
         // A node reached twice: the hierarchy is not the tree glTF requires (a cycle would
         // never end).
@@ -167,6 +173,37 @@ fn add_primitive(
             "has an index {i} beyond its primitive's {count} vertices"
         )));
     }
+    let corners = |values: &[[f32; 2]]| -> Vec<[[f32; 2]; 3]> {
+        indices
+            .chunks_exact(3)
+            .map(|t| [0, 1, 2].map(|k| values[t[k] as usize]))
+            .collect()
+    };
+    let uvs: Option<Vec<[f32; 2]>> = reader
+        .read_tex_coords(0)
+        .map(|c| c.into_f32().collect())
+        .filter(|c: &Vec<[f32; 2]>| c.len() == positions.len());
+    match (&mut mesh.uvs, uvs) {
+        (Some(out), Some(uvs)) => out.extend(corners(&uvs)),
+        (out, _) => *out = None,
+    }
+    // Normals go through the inverse transpose of the node's transform.
+    let normal_matrix = glam::Mat3::from_mat4(world).inverse().transpose();
+    let normals: Option<Vec<[f32; 3]>> = reader
+        .read_normals()
+        .map(|n| {
+            n.map(|n| (normal_matrix * glam::Vec3::from(n)).to_array())
+                .collect()
+        })
+        .filter(|n: &Vec<[f32; 3]>| n.len() == positions.len());
+    match (&mut mesh.normals, normals) {
+        (Some(out), Some(normals)) => out.extend(
+            indices
+                .chunks_exact(3)
+                .map(|t| [0, 1, 2].map(|k| normals[t[k] as usize])),
+        ),
+        (out, _) => *out = None,
+    }
     mesh.positions.extend(positions);
     mesh.triangles.extend(
         indices
@@ -185,12 +222,17 @@ mod tests {
         let mesh = Mesh {
             positions: vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
             triangles: vec![[0, 1, 2]],
+            uvs: None,
+            normals: None,
         };
-        let atlas = crate::mesh::bake::Atlas::new(1, 4).unwrap();
+        let atlas = crate::mesh::bake::Atlas::new(1, 4, 0).unwrap();
         let glb = crate::mesh::glb::glb_bytes(&mesh, &atlas, &[0u8; 8]);
         let back = parse_gltf(&glb, "t.glb", None).unwrap();
         assert_eq!(back.triangles.len(), 1);
         assert_eq!(back.positions, mesh.positions);
+        // Its texture coordinates and normals come back per corner.
+        assert_eq!(back.uvs, Some(atlas.uvs.clone()));
+        assert_eq!(back.normals, Some(mesh.corner_normals()));
     }
 
     #[test]

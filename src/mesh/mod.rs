@@ -1,13 +1,17 @@
 //! Triangle meshes: loading (OBJ through `tobj`, PLY and gzipped PLY through `ply-rs-bw`),
 //! validation, and placement in the solid's voxel space. The surface baker lives in [`bake`].
 //!
-//! Only positions and triangles are read (polygons are fanned into triangles). Open,
-//! non-manifold and degenerate meshes are fine for baking; empty meshes, non-finite coordinates
-//! and out-of-range indices are errors naming the file.
+//! Positions, triangles (polygons are fanned into triangles) and, where the file has them for
+//! every corner, texture coordinates and normals are read. Open, non-manifold and degenerate
+//! meshes are fine for baking; empty meshes, non-finite coordinates and out-of-range indices are
+//! errors naming the file.
 
 pub mod bake;
+pub mod dilate;
 pub mod glb;
 pub mod gltf_in;
+pub mod pack;
+pub mod uv_raster;
 
 use crate::error::{Error, Result};
 use glam::DVec3;
@@ -18,6 +22,11 @@ use std::path::Path;
 pub struct Mesh {
     pub positions: Vec<[f32; 3]>,
     pub triangles: Vec<[u32; 3]>,
+    /// Per triangle, its corners' texture coordinates from the file (u right, v down: glTF's
+    /// convention; OBJ's and PLY's v is flipped on reading), when every corner has one.
+    pub uvs: Option<Vec<[[f32; 2]; 3]>>,
+    /// Per triangle, its corners' normals from the file, when every corner has one.
+    pub normals: Option<Vec<[[f32; 3]; 3]>>,
 }
 
 impl Mesh {
@@ -47,7 +56,68 @@ impl Mesh {
                 format!("face {t} refers to a vertex beyond the {n} defined"),
             ));
         }
+        let per_triangle = |len: usize, what_kind: &str| {
+            if len == self.triangles.len() {
+                Ok(())
+            } else {
+                Err(Error::invalid(
+                    what,
+                    format!(
+                        "{len} triangles' {what_kind} for {} triangles",
+                        self.triangles.len()
+                    ),
+                ))
+            }
+        };
+        if let Some(uvs) = &self.uvs {
+            per_triangle(uvs.len(), "texture coordinates")?;
+            if let Some(t) = uvs
+                .iter()
+                .position(|c| c.iter().flatten().any(|v| !v.is_finite()))
+            {
+                return Err(Error::invalid(
+                    what,
+                    format!("face {t} has a non-finite texture coordinate"),
+                ));
+            }
+        }
+        if let Some(normals) = &self.normals {
+            per_triangle(normals.len(), "normals")?;
+            if let Some(t) = normals
+                .iter()
+                .position(|c| c.iter().flatten().any(|v| !v.is_finite()))
+            {
+                return Err(Error::invalid(
+                    what,
+                    format!("face {t} has a non-finite normal"),
+                ));
+            }
+        }
         Ok(())
+    }
+
+    /// Per triangle, its corners' unit normals: the file's (normalized; a zero one becomes the
+    /// area-weighted normal of its vertex) when it has them, else [`Self::vertex_normals`].
+    pub fn corner_normals(&self) -> Vec<[[f32; 3]; 3]> {
+        let smooth = self.vertex_normals();
+        let from_vertex = |t: &[u32; 3]| t.map(|i| smooth[i as usize]);
+        match &self.normals {
+            None => self.triangles.iter().map(from_vertex).collect(),
+            Some(given) => self
+                .triangles
+                .iter()
+                .zip(given)
+                .map(|(t, n)| {
+                    let fallback = from_vertex(t);
+                    let mut out = [[0.0; 3]; 3];
+                    for k in 0..3 {
+                        let v = glam::Vec3::from(n[k]);
+                        out[k] = v.try_normalize().map_or(fallback[k], |v| v.to_array());
+                    }
+                    out
+                })
+                .collect(),
+        }
     }
 
     /// Smooth unit normals per vertex: the sum of the normals of the triangles around it
@@ -156,21 +226,78 @@ pub fn parse_obj(bytes: &[u8], name: &str) -> Result<Mesh> {
     let mut mesh = Mesh {
         positions: Vec::new(),
         triangles: Vec::new(),
+        uvs: None,
+        normals: None,
     };
+    // Texture coordinates and normals are kept only when every face of every object has them.
+    let mut uvs = Some(Vec::new());
+    let mut normals = Some(Vec::new());
+    let malformed = || Error::invalid(name, "malformed OBJ geometry");
     for m in models {
         let base = mesh.positions.len() as u32;
-        let p = &m.mesh.positions;
-        if p.len() % 3 != 0 || m.mesh.indices.len() % 3 != 0 {
-            return Err(Error::invalid(name, "malformed OBJ geometry"));
+        let m = &m.mesh;
+        if m.positions.len() % 3 != 0 || m.indices.len() % 3 != 0 {
+            return Err(malformed());
         }
         mesh.positions
-            .extend(p.chunks_exact(3).map(|c| [c[0], c[1], c[2]]));
-        for t in m.mesh.indices.chunks_exact(3) {
+            .extend(m.positions.chunks_exact(3).map(|c| [c[0], c[1], c[2]]));
+        for t in m.indices.chunks_exact(3) {
             let tri = [t[0], t[1], t[2]].map(|i| i.checked_add(base).unwrap_or(u32::MAX));
             mesh.triangles.push(tri);
         }
+        if m.texcoord_indices.len() != m.indices.len() {
+            uvs = None;
+        }
+        if let Some(out) = &mut uvs {
+            for t in m.texcoord_indices.chunks_exact(3) {
+                let mut corners = [[0.0f32; 2]; 3];
+                for (k, &i) in t.iter().enumerate() {
+                    let i = i as usize;
+                    let uv = m.texcoords.get(2 * i..2 * i + 2).ok_or_else(malformed)?;
+                    corners[k] = [uv[0], 1.0 - uv[1]];
+                }
+                out.push(corners);
+            }
+        }
+        if m.normal_indices.len() != m.indices.len() {
+            normals = None;
+        }
+        if let Some(out) = &mut normals {
+            for t in m.normal_indices.chunks_exact(3) {
+                let mut corners = [[0.0f32; 3]; 3];
+                for (k, &i) in t.iter().enumerate() {
+                    let i = i as usize;
+                    let n = m.normals.get(3 * i..3 * i + 3).ok_or_else(malformed)?;
+                    corners[k] = [n[0], n[1], n[2]];
+                }
+                out.push(corners);
+            }
+        }
     }
+    // (tobj fills a corner without them with index 0: the face lines decide.)
+    let (all_uvs, all_normals) = obj_corners_have_attributes(bytes);
+    mesh.uvs = uvs.filter(|u| all_uvs && !u.is_empty());
+    mesh.normals = normals.filter(|n| all_normals && !n.is_empty());
     Ok(mesh)
+}
+
+/// Whether every corner of every `f` line names a texture coordinate (`v/vt`) and a normal
+/// (`v/vt/vn` or `v//vn`).
+fn obj_corners_have_attributes(bytes: &[u8]) -> (bool, bool) {
+    let (mut uvs, mut normals) = (true, true);
+    for line in String::from_utf8_lossy(bytes).lines() {
+        let mut words = line.split_whitespace();
+        if words.next() != Some("f") {
+            continue;
+        }
+        for corner in words {
+            let mut parts = corner.split('/');
+            parts.next();
+            uvs &= parts.next().is_some_and(|p| !p.is_empty());
+            normals &= parts.next().is_some_and(|p| !p.is_empty());
+        }
+    }
+    (uvs, normals)
 }
 
 /// Parse a PLY file (ASCII or binary): `vertex` elements with x, y, z and `face` elements with
@@ -207,6 +334,28 @@ pub fn parse_ply(bytes: &[u8], name: &str) -> Result<Mesh> {
             _ => return Err(bad(format!("vertex {i} lacks a numeric x, y or z"))),
         }
     }
+    // Per-vertex texture coordinates under any of their usual names, and normals: kept when
+    // every vertex has them.
+    let uv_names = [
+        ["u", "v"],
+        ["s", "t"],
+        ["texture_u", "texture_v"],
+        ["texture_s", "texture_t"],
+    ];
+    let vertex_uvs: Option<Vec<[f32; 2]>> = uv_names.iter().find_map(|[u, v]| {
+        vertices
+            .iter()
+            .map(|p| Some([scalar(p.get(*u))?, 1.0 - scalar(p.get(*v))?]))
+            .collect()
+    });
+    let vertex_normals: Option<Vec<[f32; 3]>> = vertices
+        .iter()
+        .map(|p| Some(["nx", "ny", "nz"].map(|k| scalar(p.get(k)))))
+        .map(|n| match n? {
+            [Some(x), Some(y), Some(z)] => Some([x, y, z]),
+            _ => None,
+        })
+        .collect();
     let mut triangles = Vec::new();
     for (i, f) in ply.payload.get("face").into_iter().flatten().enumerate() {
         let list = f.get("vertex_indices").or_else(|| f.get("vertex_index"));
@@ -226,9 +375,27 @@ pub fn parse_ply(bytes: &[u8], name: &str) -> Result<Mesh> {
             triangles.push([idx[0] as u32, idx[k] as u32, idx[k + 1] as u32]);
         }
     }
+    // (Corners out of range are refused by `validate`; they get no attributes here.)
+    let per_corner = |t: &[u32; 3], of: &dyn Fn(usize) -> Option<[f32; 3]>| {
+        t.map(|i| of(i as usize).unwrap_or_default())
+    };
+    let uvs = vertex_uvs.filter(|u| !u.is_empty()).map(|u| {
+        triangles
+            .iter()
+            .map(|t| per_corner(t, &|i| u.get(i).map(|c| [c[0], c[1], 0.0])).map(|c| [c[0], c[1]]))
+            .collect()
+    });
+    let normals = vertex_normals.filter(|n| !n.is_empty()).map(|n| {
+        triangles
+            .iter()
+            .map(|t| per_corner(t, &|i| n.get(i).copied()))
+            .collect()
+    });
     Ok(Mesh {
         positions,
         triangles,
+        uvs,
+        normals,
     })
 }
 
@@ -278,6 +445,28 @@ mod tests {
     }
 
     #[test]
+    fn texture_coordinates_and_normals_are_read_per_corner() {
+        let obj = "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0.25\nvn 0 0 2\nf 1/1/1 2/2/1 3/1/1\n";
+        let mesh = parse_obj(obj.as_bytes(), "t.obj").unwrap();
+        // OBJ's v grows upwards: stored from the top.
+        assert_eq!(mesh.uvs, Some(vec![[[0.0, 1.0], [1.0, 0.75], [0.0, 1.0]]]));
+        assert_eq!(mesh.normals, Some(vec![[[0.0, 0.0, 2.0]; 3]]));
+        assert_eq!(mesh.corner_normals()[0], [[0.0, 0.0, 1.0]; 3]);
+        // A face without them: none kept.
+        let partial = format!("{obj}v 1 1 0\nf 2 4 3\n");
+        let mesh = parse_obj(partial.as_bytes(), "t.obj").unwrap();
+        assert_eq!((mesh.uvs, mesh.normals), (None, None));
+        let ply = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n\
+                   property float z\nproperty float s\nproperty float t\nelement face 1\n\
+                   property list uchar int vertex_indices\nend_header\n0 0 0 0 0\n1 0 0 1 0\n\
+                   0 1 0 0 1\n3 0 1 2\n";
+        let mesh = parse_ply(ply.as_bytes(), "t.ply").unwrap();
+        assert_eq!(mesh.uvs, Some(vec![[[0.0, 1.0], [1.0, 1.0], [0.0, 0.0]]]));
+        assert_eq!(mesh.normals, None);
+        mesh.validate("t.ply").unwrap();
+    }
+
+    #[test]
     fn quads_are_fanned_and_bad_meshes_are_refused() {
         let quad = parse_obj(b"v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n", "q").unwrap();
         assert_eq!(quad.triangles.len(), 2);
@@ -286,6 +475,8 @@ mod tests {
         let nan = Mesh {
             positions: vec![[0.0, f32::NAN, 0.0]; 3],
             triangles: vec![[0, 1, 2]],
+            uvs: None,
+            normals: None,
         };
         assert!(nan
             .validate("n")
@@ -295,6 +486,8 @@ mod tests {
         let out = Mesh {
             positions: vec![[0.0; 3]; 3],
             triangles: vec![[0, 1, 3]],
+            uvs: None,
+            normals: None,
         };
         assert!(out.validate("o").is_err());
     }

@@ -14,11 +14,27 @@ use rayon::prelude::*;
 /// How texels are laid out in the atlas.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum AtlasLayout {
-    /// `--texels N`: every triangle an N x N cell.
-    Texels(u32),
+    /// `--texels N`: every triangle an N x N cell, each with `gutter` texels of dilated room
+    /// around it.
+    Texels { texels: u32, gutter: u32 },
     /// `--texel-size S`: cells fitted to their triangles at S voxels per texel (None: about one
-    /// texel per voxel, the coarsest the memory allows).
-    TexelSize(Option<f64>),
+    /// texel per voxel, the coarsest the memory allows), each with `gutter` texels around it.
+    TexelSize { size: Option<f64>, gutter: u32 },
+    /// `--uv own`: the mesh's own texture coordinates in a square texture of `texture_size`
+    /// texels (None: about one texel per voxel), every texel outside the triangles dilated.
+    MeshUvs { texture_size: Option<u32> },
+}
+
+impl AtlasLayout {
+    /// The gutter that protects the first `mips` mip levels of a packed atlas: 2^mips texels
+    /// (none without mips).
+    pub fn gutter_for_mips(mips: u32) -> u32 {
+        if mips == 0 {
+            0
+        } else {
+            1 << mips
+        }
+    }
 }
 
 /// A surface bake planned: where the mesh lies in the solid, the atlas, and the bricks its
@@ -41,30 +57,30 @@ pub struct SurfacePlan {
 const BYTES_PER_TEXEL: u64 = 16;
 
 impl SurfacePlan {
-    /// Plan the bake of `mesh` fitted into a cube of `resolution` voxels, with `layout`, for a
-    /// solid whose coarse cache is `coarse_cache`, in groups of `group_side` voxels. Refused
-    /// (naming the flag) when it cannot fit in the memory available.
+    /// Plan the bake of `mesh` (named `mesh_name` in errors) fitted into a cube of `resolution`
+    /// voxels, with `layout`, for a solid whose coarse cache is `coarse_cache`, in groups of
+    /// `group_side` voxels. Refused (naming the flag) when it cannot fit in the memory available.
     pub fn new(
         mesh: &Mesh,
+        mesh_name: &str,
         resolution: u32,
         layout: AtlasLayout,
         coarse_cache: Option<u32>,
         group_side: u32,
     ) -> Result<SurfacePlan> {
-        mesh.validate("--mesh")?;
+        mesh.validate(mesh_name)?;
         let placement = Placement::fit(mesh, resolution);
         let available = crate::util::memory::available_memory();
+        let fits = |atlas: &Atlas| atlas.texel_count() * BYTES_PER_TEXEL <= available;
         let (atlas, texel_size, words, flag) = match layout {
-            AtlasLayout::Texels(texels) => (
-                Atlas::new(mesh.triangles.len(), texels)?,
+            AtlasLayout::Texels { texels, gutter } => (
+                Atlas::new(mesh.triangles.len(), texels, gutter)?,
                 None,
                 format!("{texels} x {texels} texels per triangle"),
                 format!("--texels {texels}"),
             ),
-            AtlasLayout::TexelSize(size) => {
-                let (atlas, size) = Atlas::fitted_within(mesh, &placement, size, |atlas| {
-                    atlas.texel_count() * BYTES_PER_TEXEL <= available
-                })?;
+            AtlasLayout::TexelSize { size, gutter } => {
+                let (atlas, size) = Atlas::fitted_within(mesh, &placement, size, gutter, fits)?;
                 (
                     atlas,
                     Some(size),
@@ -72,10 +88,21 @@ impl SurfacePlan {
                     format!("--texel-size {size}"),
                 )
             }
+            AtlasLayout::MeshUvs { texture_size } => {
+                let atlas = Atlas::mesh_uvs(mesh, &placement, texture_size, mesh_name, fits)?;
+                let side = atlas.width;
+                (
+                    atlas,
+                    None,
+                    format!("the mesh's own UVs in {side} x {side} texels"),
+                    format!("--texture-size {side}"),
+                )
+            }
         };
         let fewer = match layout {
-            AtlasLayout::Texels(_) => "a smaller --texels",
-            AtlasLayout::TexelSize(_) => "a larger --texel-size",
+            AtlasLayout::Texels { .. } => "a smaller --texels",
+            AtlasLayout::TexelSize { .. } => "a larger --texel-size",
+            AtlasLayout::MeshUvs { .. } => "a smaller --texture-size",
         };
         let estimate = atlas.texel_count() * BYTES_PER_TEXEL;
         let gib = |b: u64| b as f64 / (1u64 << 30) as f64;
@@ -153,7 +180,8 @@ impl BakedSurface {
 
 impl Solid {
     /// Bake the solid onto `mesh` as `plan` lays it out: every texel the solid's voxel at its 3D
-    /// point (texels outside every cell take the colour of one surface voxel).
+    /// point, then gutters and the texels around UV islands dilated (texels still outside every
+    /// cell take the colour of one surface voxel).
     pub fn bake_surface(&mut self, mesh: &Mesh, plan: &SurfacePlan) -> Result<BakedSurface> {
         let (atlas, place) = (&plan.atlas, &plan.placement);
         let texels = atlas.texel_count() as usize;
@@ -217,6 +245,15 @@ impl Solid {
             }
             synthesized
         })?;
+        // Gutters and the space around UV islands take their neighbours' colours.
+        crate::mesh::dilate::dilate(
+            &mut pixels,
+            atlas.width,
+            atlas.height,
+            texel_bytes,
+            &mut placed,
+            atlas.dilation_rings(),
+        );
         let uncovered_color = uncovered_color.expect("the uncovered texels' voxel is requested");
         let uncovered_pixel = bake::atlas_pixel(uncovered_color, channels);
         for (i, p) in pixels.chunks_exact_mut(texel_bytes).enumerate() {
