@@ -32,6 +32,9 @@ pub struct ServeArgs {
     /// Largest cut accepted (pixels per side, and voxels spanned per side).
     #[arg(help_heading = "Server", long, default_value_t = 512, value_parser = clap::value_parser!(u32).range(16..=1024))]
     pub max_cut_size: u32,
+    /// Largest surface bake the page may ask for: voxels across the mesh's longest side.
+    #[arg(help_heading = "Server", long, default_value_t = 1024, value_parser = clap::value_parser!(u32).range(16..=2048))]
+    pub max_surface_resolution: u32,
     /// Synthesize every level for each request instead of reading the coarse levels from the
     /// coarse-level cache (period 64) that `serve` uses by default: cuts then cost 3-5x more
     /// (measured in BENCHMARKS.md), and the solid is the one `synth` makes without
@@ -57,6 +60,7 @@ fn config(args: &ServeArgs) -> ServeConfig {
         port: args.port,
         preview_size: args.preview_size,
         max_cut_size: args.max_cut_size,
+        max_surface_resolution: args.max_surface_resolution,
         params,
         allow_hosts: args.allow_hosts.clone(),
         cache: crate::solid::AnalysisCache::user_default(),

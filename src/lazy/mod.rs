@@ -455,6 +455,11 @@ impl Synthesizer {
         &self.options
     }
 
+    /// Replace the cancellation token its requests check (None: they run to the end).
+    pub fn set_cancel(&mut self, token: Option<crate::util::cancel::CancelToken>) {
+        self.options.cancel = token;
+    }
+
     /// A warm session (`CutSession`): the GPU keeps its state and colour buffers from one
     /// request for the next ones of the same sizes (no allocation and zeroing per request),
     /// and neither backend hands free heap back between groups (the next request would fault

@@ -33,7 +33,7 @@ impl Reply {
         Reply::json(status, serde_json::json!({"error": message.into()}))
     }
 
-    fn bytes(content_type: &'static str, body: Vec<u8>) -> Reply {
+    pub(super) fn bytes(content_type: &'static str, body: Vec<u8>) -> Reply {
         Reply {
             status: 200,
             content_type,
@@ -42,7 +42,7 @@ impl Reply {
         }
     }
 
-    fn header(mut self, name: &str, value: impl Into<String>) -> Reply {
+    pub(super) fn header(mut self, name: &str, value: impl Into<String>) -> Reply {
         self.headers.push((name.into(), value.into()));
         self
     }
@@ -103,7 +103,7 @@ fn host_allowed(config: &super::ServeConfig, host: &str) -> bool {
 /// Refuse a request from where the server is not meant to be reached: a `Host` it does not
 /// answer to (421: DNS rebinding, a page on another name reading the API), a state-changing
 /// request whose `Origin` is another site's (403: cross-site requests), an upload that is not
-/// an image (415).
+/// an image or a mesh (415).
 fn check_sender(config: &super::ServeConfig, request: &Request) -> Result<(), Reply> {
     let Some(host) = request.header("host") else {
         return Err(Reply::error(400, "the request has no Host header"));
@@ -127,14 +127,19 @@ fn check_sender(config: &super::ServeConfig, request: &Request) -> Result<(), Re
                 ));
             }
         }
+        // (None of these is a type a cross-site form can send without a preflight.)
         if !request.body.is_empty() {
-            let image = request
-                .header("content-type")
-                .is_some_and(|t| t.trim().to_ascii_lowercase().starts_with("image/"));
-            if !image {
+            let accepted = request.header("content-type").is_some_and(|t| {
+                let t = t.trim().to_ascii_lowercase();
+                t.starts_with("image/")
+                    || t.starts_with("model/")
+                    || t.starts_with("application/octet-stream")
+            });
+            if !accepted {
                 return Err(Reply::error(
                     415,
-                    "an upload must be an image (Content-Type: image/png, image/jpeg, ...)",
+                    "an upload must be an image (Content-Type: image/png, image/jpeg, ...) or a \
+                     mesh (model/obj, model/gltf-binary, application/octet-stream, ...)",
                 ));
             }
         }
@@ -154,6 +159,10 @@ fn route(state: &Arc<State>, request: &Request) -> Reply {
         Ok(q) => q,
         Err(e) => return Reply::error(400, e),
     };
+    if let Some(answer) = super::api_objects::route(state, method, &segments, &query, &request.body)
+    {
+        return answer.unwrap_or_else(|(status, message)| Reply::error(status, message));
+    }
     let result = match (segments.as_slice(), get) {
         (["api", "health"], true) => Ok(Reply::json(200, serde_json::json!({"ok": true}))),
         (["api", "state"], true) => Ok(state_json(state)),
@@ -173,7 +182,9 @@ fn route(state: &Arc<State>, request: &Request) -> Reply {
         (["api", "solids", id, "volume"], true) => {
             solid_of(state, id).and_then(|s| volume(state, &s, &query))
         }
-        (["api", ..], _) if known_api_path(&segments) => {
+        (["api", ..], _)
+            if known_api_path(&segments) || super::api_objects::known_path(&segments) =>
+        {
             Err((405, format!("{method} is not allowed on {path}")))
         }
         (["api", ..], _) => Err((404, format!("no API endpoint {path}"))),
@@ -186,7 +197,7 @@ fn route(state: &Arc<State>, request: &Request) -> Reply {
     result.unwrap_or_else(|(status, message)| Reply::error(status, message))
 }
 
-type Answer = Result<Reply, (u16, String)>;
+pub(super) type Answer = Result<Reply, (u16, String)>;
 
 fn known_api_path(segments: &[&str]) -> bool {
     matches!(
@@ -197,12 +208,15 @@ fn known_api_path(segments: &[&str]) -> bool {
     )
 }
 
-fn parse_id(text: &str) -> Result<u64, (u16, String)> {
+pub(super) fn parse_id(text: &str) -> Result<u64, (u16, String)> {
     text.parse::<u64>()
         .map_err(|_| (404, format!("{text:?} is not an id")))
 }
 
-fn solid_of(state: &State, id: &str) -> Result<std::sync::Arc<jobs::Solid>, (u16, String)> {
+pub(super) fn solid_of(
+    state: &State,
+    id: &str,
+) -> Result<std::sync::Arc<jobs::Solid>, (u16, String)> {
     let id = parse_id(id)?;
     state.solid(id).ok_or_else(|| {
         (
@@ -216,7 +230,7 @@ fn solid_of(state: &State, id: &str) -> Result<std::sync::Arc<jobs::Solid>, (u16
 }
 
 /// A library error: the caller's input (400) or ours (500).
-fn from_error(e: Error) -> (u16, String) {
+pub(super) fn from_error(e: Error) -> (u16, String) {
     (if e.is_user_error() { 400 } else { 500 }, e.report())
 }
 
@@ -256,8 +270,10 @@ fn exemplar_png(file: &str) -> Answer {
 
 /// POST /api/solids: a built-in (`?exemplar=NAME`) or the uploaded image in the body.
 fn new_solid(state: &Arc<State>, body: &[u8], q: &Query) -> Answer {
-    q.only(&["exemplar", "seed", "periodic"])?;
-    let seed = q.u64_in("seed", 0, u32::MAX as u64)?.unwrap_or(0);
+    let mut known = vec!["exemplar", "periodic"];
+    known.extend_from_slice(super::settings::SOLID_PARAMETERS);
+    q.only(&known)?;
+    let settings = super::settings::solid_settings(&state.config.params, q)?;
     // The transport refused bodies over `max_upload_bytes` (413) before reading them.
     let source = match (q.get("exemplar"), body.is_empty()) {
         (Some(name), true) => {
@@ -301,7 +317,7 @@ fn new_solid(state: &Arc<State>, body: &[u8], q: &Query) -> Answer {
             ))
         }
     };
-    match state.start_job(source, seed) {
+    match state.start_solid_job(source, settings) {
         Ok(status) => Ok(Reply::json(202, serde_json::json!(status))),
         Err(jobs::Busy(m)) => Err((503, m)),
     }
@@ -459,7 +475,7 @@ impl Query {
     }
 
     /// Refuse parameters the endpoint does not know (a typo would otherwise be ignored).
-    fn only(&self, known: &[&str]) -> Result<(), (u16, String)> {
+    pub(super) fn only(&self, known: &[&str]) -> Result<(), (u16, String)> {
         match self.0.iter().find(|(k, _)| !known.contains(&k.as_str())) {
             Some((k, _)) => Err((
                 400,
@@ -469,7 +485,7 @@ impl Query {
         }
     }
 
-    fn u64_in(&self, key: &str, lo: u64, hi: u64) -> Result<Option<u64>, (u16, String)> {
+    pub(super) fn u64_in(&self, key: &str, lo: u64, hi: u64) -> Result<Option<u64>, (u16, String)> {
         self.get(key)
             .map(|t| match t.trim().parse::<u64>() {
                 Ok(v) if (lo..=hi).contains(&v) => Ok(v),
@@ -481,7 +497,7 @@ impl Query {
             .transpose()
     }
 
-    fn f64_in(&self, key: &str, lo: f64, hi: f64) -> Result<Option<f64>, (u16, String)> {
+    pub(super) fn f64_in(&self, key: &str, lo: f64, hi: f64) -> Result<Option<f64>, (u16, String)> {
         self.get(key)
             .map(|t| match t.trim().parse::<f64>() {
                 Ok(v) if v.is_finite() && (lo..=hi).contains(&v) => Ok(v),
@@ -493,7 +509,7 @@ impl Query {
             .transpose()
     }
 
-    fn bool(&self, key: &str) -> Result<bool, (u16, String)> {
+    pub(super) fn bool(&self, key: &str) -> Result<bool, (u16, String)> {
         match self.get(key) {
             None | Some("0") | Some("false") => Ok(false),
             Some("1") | Some("true") | Some("") => Ok(true),

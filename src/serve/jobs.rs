@@ -1,6 +1,6 @@
 //! The server's state: solids (a warm cut session each, and a preview volume), background jobs
-//! that make them (analysis, then the preview volume), and the lock that serializes all
-//! synthesis work.
+//! that make them (analysis, then the preview volume) or bake surfaces (`super::surfaces`), and
+//! the lock that serializes all synthesis work but surface bakes.
 
 use super::ServeConfig;
 use crate::analysis::Analysis;
@@ -8,7 +8,9 @@ use crate::backend::Compute;
 use crate::error::{Error, Result};
 use crate::exemplar::{self, procedural, Image};
 use crate::lazy::cut::CutSession;
-use crate::lazy::{Box3, SynthParams, Synthesizer};
+use crate::lazy::{Box3, SynthOptions, SynthParams, Synthesizer};
+use crate::solid::FeatureMasks;
+use crate::util::cancel::CancelToken;
 use crate::volume::Volume;
 use std::collections::VecDeque;
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
@@ -72,12 +74,24 @@ pub enum Source {
     },
 }
 
+/// How a new solid is synthesized: the page's parameters over the server's.
+#[derive(Clone, Debug)]
+pub struct SolidSettings {
+    /// The seed is the solid's.
+    pub params: SynthParams,
+    /// The feature channel of an image's analysis.
+    pub feature_masks: FeatureMasks,
+}
+
 /// A solid ready to cut.
 pub struct Solid {
     pub id: u64,
     pub name: String,
     pub seed: u64,
     pub channels: u32,
+    /// What it was made from and with (surface bakes make their own synthesizer of it).
+    pub analysis: Arc<Analysis>,
+    pub params: SynthParams,
     /// The box [0, preview_size)^3, synthesized with the solid.
     pub preview: Arc<Volume>,
     session: Mutex<CutSession>,
@@ -87,21 +101,29 @@ pub struct Solid {
 
 impl Solid {
     pub fn info(&self) -> serde_json::Value {
+        let p = &self.params;
         serde_json::json!({"id": self.id, "name": self.name, "seed": self.seed,
-            "channels": self.channels, "preview_size": self.preview.nx})
+            "channels": self.channels, "preview_size": self.preview.nx,
+            "params": {"jitter": p.jitter, "color": p.color.to_string(),
+                "passes": p.passes.to_string(), "coarse_cache": p.coarse_cache}})
     }
 }
 
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct JobStatus {
     pub id: u64,
+    /// "solid" (analysis and preview) or "surface" (a bake).
+    pub kind: &'static str,
     pub name: String,
-    /// "queued", "running", "done" or "failed".
+    /// "queued", "running", "done", "failed" or "cancelled".
     pub state: &'static str,
     pub stage: String,
     /// 0..=1.
     pub progress: f32,
+    /// The solid made, or baked.
     pub solid: Option<u64>,
+    /// The surface baked (`/api/surfaces/ID.glb`).
+    pub surface: Option<u64>,
     pub error: Option<String>,
     pub seconds: f64,
 }
@@ -109,6 +131,14 @@ pub struct JobStatus {
 pub struct Job {
     status: Mutex<JobStatus>,
     started: Instant,
+    /// Cancels the job's synthesis at its next group or pass.
+    pub cancel: CancelToken,
+}
+
+/// What a finished job made.
+pub enum Made {
+    Solid(Arc<Solid>),
+    Surface { solid: u64, surface: u64 },
 }
 
 impl Job {
@@ -124,7 +154,7 @@ impl Job {
         f(&mut lock(&self.status));
     }
 
-    fn progress(&self, stage: String, progress: f32) {
+    pub fn progress(&self, stage: String, progress: f32) {
         self.update(|s| {
             s.state = "running";
             s.stage = stage;
@@ -167,6 +197,8 @@ pub struct State {
     jobs: Mutex<VecDeque<Arc<Job>>>,
     /// Analyses by input hash, so a new seed of the same exemplar skips the analysis.
     analyses: Mutex<VecDeque<(u128, Arc<Analysis>)>>,
+    /// Uploaded meshes and baked surfaces.
+    pub surfaces: super::surfaces::Store,
     next_id: AtomicU64,
 }
 
@@ -175,6 +207,7 @@ const JOBS_KEPT: usize = 32;
 
 impl State {
     pub fn new(config: ServeConfig, compute: Compute) -> State {
+        let kept = config.max_solids;
         State {
             config,
             compute,
@@ -183,8 +216,14 @@ impl State {
             solids: Mutex::new(VecDeque::new()),
             jobs: Mutex::new(VecDeque::new()),
             analyses: Mutex::new(VecDeque::new()),
+            surfaces: super::surfaces::Store::new(kept),
             next_id: AtomicU64::new(1),
         }
+    }
+
+    /// A new id for a job, solid or surface (one sequence for all).
+    pub fn next_id(&self) -> u64 {
+        self.next_id.fetch_add(1, Ordering::SeqCst)
     }
 
     /// Take a place in the synthesis queue, or say why not.
@@ -219,15 +258,45 @@ impl State {
         lock(&self.jobs).iter().map(|j| j.status()).collect()
     }
 
-    /// Start a background job making a solid from `source` with `seed`; returns its status.
+    /// Start a background job making a solid from `source` with `seed` and the server's
+    /// settings; returns its status.
     pub fn start_job(
         self: &Arc<Self>,
         source: Source,
         seed: u64,
     ) -> std::result::Result<JobStatus, Busy> {
+        let settings = SolidSettings {
+            params: SynthParams {
+                seed,
+                ..self.config.params.clone()
+            },
+            feature_masks: FeatureMasks::Auto,
+        };
+        self.start_solid_job(source, settings)
+    }
+
+    /// Start a background job making a solid from `source` with `settings`.
+    pub fn start_solid_job(
+        self: &Arc<Self>,
+        source: Source,
+        settings: SolidSettings,
+    ) -> std::result::Result<JobStatus, Busy> {
         let name = match &source {
             Source::Image { name, .. } | Source::Analysis { name, .. } => name.clone(),
         };
+        self.spawn_job("solid", name, move |state, job| {
+            state.make_solid(job, source, settings).map(Made::Solid)
+        })
+    }
+
+    /// Start a background job of `kind` running `work` (a thread of its own; at most
+    /// `max_jobs` queued or running); returns its status.
+    pub fn spawn_job(
+        self: &Arc<Self>,
+        kind: &'static str,
+        name: String,
+        work: impl FnOnce(&State, &Arc<Job>) -> Result<Made> + Send + 'static,
+    ) -> std::result::Result<JobStatus, Busy> {
         let job = {
             let mut jobs = lock(&self.jobs);
             let active = jobs
@@ -244,21 +313,24 @@ impl State {
             let job = Arc::new(Job {
                 status: Mutex::new(JobStatus {
                     id,
+                    kind,
                     name,
                     state: "queued",
                     stage: "waiting for the device".into(),
                     progress: 0.0,
                     solid: None,
+                    surface: None,
                     error: None,
                     seconds: 0.0,
                 }),
                 started: Instant::now(),
+                cancel: CancelToken::new(),
             });
             jobs.push_back(job.clone());
             while jobs.len() > JOBS_KEPT {
                 let finished = jobs
                     .iter()
-                    .position(|j| matches!(lock(&j.status).state, "done" | "failed"));
+                    .position(|j| matches!(lock(&j.status).state, "done" | "failed" | "cancelled"));
                 match finished {
                     Some(i) => jobs.remove(i),
                     None => break,
@@ -269,31 +341,45 @@ impl State {
         let status = job.status();
         let state = self.clone();
         let spawned = std::thread::Builder::new()
-            .name("serve-job".into())
+            .name(format!("serve-{kind}-job"))
             .spawn(move || {
-                let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-                    state.make_solid(&job, source, seed)
-                }));
+                let outcome =
+                    std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| work(&state, &job)));
                 let outcome = match outcome {
                     Ok(r) => r,
                     Err(_) => Err(Error::Gpu("the job panicked (a bug)".into())),
                 };
                 let seconds = job.started.elapsed().as_secs_f64();
                 match outcome {
-                    Ok(solid) => {
-                        tracing::info!(
-                            "job: solid {} ({}) ready in {seconds:.1} s",
-                            solid.id,
-                            solid.name
-                        );
+                    Ok(made) => {
+                        let (solid, surface) = match made {
+                            Made::Solid(solid) => {
+                                tracing::info!(
+                                    "job: solid {} ({}) ready in {seconds:.1} s",
+                                    solid.id,
+                                    solid.name
+                                );
+                                (solid.id, None)
+                            }
+                            Made::Surface { solid, surface } => {
+                                tracing::info!("job: surface {surface} baked in {seconds:.1} s");
+                                (solid, Some(surface))
+                            }
+                        };
                         job.update(|s| {
                             s.state = "done";
                             s.stage = "ready".into();
                             s.progress = 1.0;
-                            s.solid = Some(solid.id);
+                            s.solid = Some(solid);
+                            s.surface = surface;
                             s.seconds = seconds;
                         })
                     }
+                    Err(Error::Cancelled) => job.update(|s| {
+                        s.state = "cancelled";
+                        s.stage = "cancelled".into();
+                        s.seconds = seconds;
+                    }),
                     Err(e) => {
                         tracing::warn!("job failed: {}", e.report());
                         job.update(|s| {
@@ -310,8 +396,22 @@ impl State {
         Ok(status)
     }
 
+    /// Ask job `id` to stop: its synthesis ends at its next group or pass (an analysis runs to
+    /// its end first), and the job ends "cancelled". `None`: no such job; `Some(Err)`: it has
+    /// already finished.
+    pub fn cancel_job(&self, id: u64) -> Option<std::result::Result<JobStatus, JobStatus>> {
+        let job = self.job(id)?;
+        let status = job.status();
+        if matches!(status.state, "queued" | "running") {
+            job.cancel.cancel();
+            Some(Ok(job.status()))
+        } else {
+            Some(Err(status))
+        }
+    }
+
     /// The job's work: analysis (unless cached), then a warm synthesizer and the preview volume.
-    fn make_solid(&self, job: &Job, source: Source, seed: u64) -> Result<Arc<Solid>> {
+    fn make_solid(&self, job: &Job, source: Source, settings: SolidSettings) -> Result<Arc<Solid>> {
         let (name, analysis) = match source {
             Source::Analysis { name, analysis } => (name, analysis),
             Source::Image {
@@ -325,6 +425,7 @@ impl State {
                     images: vec![image],
                     names: vec![name.clone()],
                     periodic,
+                    feature_masks: settings.feature_masks.clone(),
                     ..Default::default()
                 };
                 let (input, params) = exemplar.analysis_input()?;
@@ -359,13 +460,18 @@ impl State {
                 (name, analysis)
             }
         };
+        job.cancel.check()?;
         let _work = lock(&self.work);
         let base = job.status().progress.max(0.0);
-        let params = SynthParams {
-            seed,
-            ..self.config.params.clone()
+        let params = settings.params;
+        let seed = params.seed;
+        // The job's token stops the preview.
+        let options = SynthOptions {
+            cancel: Some(job.cancel.clone()),
+            ..SynthOptions::default()
         };
-        let mut synth = Synthesizer::new(&analysis, params, &self.compute)?;
+        let mut synth =
+            Synthesizer::with_options(&analysis, params.clone(), &self.compute, options)?;
         let n = self.config.preview_size as i32;
         let preview = synth.synthesize(Box3::new([0; 3], [n; 3]), &|_, f| {
             job.progress(
@@ -373,11 +479,15 @@ impl State {
                 base + (1.0 - base) * 0.99 * f,
             )
         })?;
+        // Cancelling the finished job must not stop the solid's cuts.
+        synth.set_cancel(None);
         let solid = Arc::new(Solid {
             id: self.next_id.fetch_add(1, Ordering::SeqCst),
             name,
             seed,
             channels: synth.color_channels(),
+            analysis,
+            params,
             preview: Arc::new(preview),
             session: Mutex::new(CutSession::new(synth)),
             extra: Mutex::new(None),

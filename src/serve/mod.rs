@@ -13,10 +13,13 @@
 //! for the tests and the load benchmark.
 
 pub mod api;
+pub mod api_objects;
 pub mod assets;
 pub mod client;
 pub mod http;
 pub mod jobs;
+pub mod settings;
+pub mod surfaces;
 
 use crate::backend::Compute;
 use crate::error::{Error, Result};
@@ -51,6 +54,8 @@ pub struct ServeConfig {
     pub max_solids: usize,
     /// Background jobs running or queued at once; more get HTTP 503.
     pub max_jobs: usize,
+    /// Largest surface bake resolution (voxels across the mesh's longest side).
+    pub max_surface_resolution: u32,
     /// Solid parameters (seed is per request; the rest apply to every solid).
     pub params: SynthParams,
     /// Host names (with or without `:port`) accepted in requests' `Host` header besides the
@@ -74,6 +79,7 @@ impl Default for ServeConfig {
             preview_size: 64,
             max_solids: 4,
             max_jobs: 2,
+            max_surface_resolution: 1024,
             params: SynthParams::default(),
             allow_hosts: Vec::new(),
             cache: None,
