@@ -3,11 +3,14 @@ use solidsynth::analysis::{Analysis, AnalysisInput, AnalysisParams};
 use solidsynth::backend::Compute;
 use solidsynth::exemplar::{decode_image, Border, Image};
 
-pub fn fixture(name: &str) -> Image {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+pub fn fixture_path(name: &str) -> std::path::PathBuf {
+    std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("tests/fixtures")
-        .join(name);
-    decode_image(&std::fs::read(&path).unwrap(), name).unwrap()
+        .join(name)
+}
+
+pub fn fixture(name: &str) -> Image {
+    decode_image(&std::fs::read(fixture_path(name)).unwrap(), name).unwrap()
 }
 
 pub fn analyze(images: Vec<Image>, border: Border) -> Analysis {
