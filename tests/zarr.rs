@@ -439,6 +439,10 @@ fn bad_zarr_flags_exit_2_naming_the_flag_and_write_nothing() {
         args.extend_from_slice(&["-o", "a.zarr", "--chunks-of", bad]);
         refused(&run(d, &args), "--chunks-of");
     }
+    // A share with no chunk of its own (the 16^3 box is one chunk) is a mistake, not a no-op.
+    let mut args = common.to_vec();
+    args.extend_from_slice(&["-o", "a.zarr", "--chunks-of", "1/2"]);
+    refused(&run(d, &args), "would compute none");
     // The Zarr flags belong to Zarr outputs, and outputs made from the whole volume do not go
     // with one.
     for (extra, flag) in [

@@ -207,6 +207,12 @@ pub fn write_zarr(
     let total = layout.chunk_count();
     let ours = || (first as u64..total).step_by(step as usize);
     let assigned = ours().count() as u64;
+    if assigned == 0 {
+        return Err(Error::invalid(
+            format!("--chunks-of {first}/{step}"),
+            format!("the array has {total} chunks, so share {first} would compute none; use N <= {total}"),
+        ));
+    }
     let may_join = job.resume || job.share.is_some();
     let metadata = zarr::metadata(&layout, &job.attributes);
     let opened = zarr::open(job.out, "-o", &metadata, may_join)?;
