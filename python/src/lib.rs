@@ -37,6 +37,35 @@ fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
     m.lock().unwrap_or_else(PoisonError::into_inner)
 }
 
+/// An integer argument in the range of `T`, else `ValueError` naming it (not Python's
+/// `OverflowError` from the conversion).
+fn in_range<T: TryFrom<i128> + num_bounds::Bounded>(name: &str, value: i128) -> PyResult<T> {
+    T::try_from(value).map_err(|_| {
+        pyo3::exceptions::PyValueError::new_err(format!(
+            "invalid --{} {value}: must be {}..={}",
+            name.replace('_', "-"),
+            T::LOW,
+            T::HIGH
+        ))
+    })
+}
+
+mod num_bounds {
+    /// The bounds an integer argument is checked against, for messages.
+    pub trait Bounded {
+        const LOW: i128;
+        const HIGH: i128;
+    }
+    impl Bounded for u32 {
+        const LOW: i128 = 0;
+        const HIGH: i128 = u32::MAX as i128;
+    }
+    impl Bounded for u64 {
+        const LOW: i128 = 0;
+        const HIGH: i128 = u64::MAX as i128;
+    }
+}
+
 /// A solid's synthesis settings as given: what `Solid.options` reports and `Solid.load` takes
 /// (the analysis settings live in the analysis, and so in its `.ssa` file).
 #[derive(Clone)]
@@ -51,17 +80,22 @@ struct SynthSettings {
 impl SynthSettings {
     #[allow(clippy::too_many_arguments)]
     fn parse(
-        seed: u64,
+        seed: i128,
         jitter: f32,
         backend: String,
         adapter: Option<String>,
         candidates: &str,
         passes: &PassesArg,
         color: &str,
-        coarse_cache: Option<u32>,
-        max_group: Option<u32>,
+        coarse_cache: Option<i128>,
+        max_group: Option<i128>,
     ) -> PyResult<SynthSettings> {
         let choice = backend_choice(&backend)?;
+        let seed: u64 = in_range("seed", seed)?;
+        let coarse_cache: Option<u32> = coarse_cache
+            .map(|c| in_range("coarse_cache", c))
+            .transpose()?;
+        let max_group: Option<u32> = max_group.map(|g| in_range("max_group", g)).transpose()?;
         if let Some(side) = max_group {
             limits::check_max_group(side).map_err(engine_err)?;
         }
@@ -318,15 +352,15 @@ impl PySolid {
         exemplar: Option<&Bound<'_, PyAny>>,
         ey: Option<&Bound<'_, PyAny>>,
         ez: Option<&Bound<'_, PyAny>>,
-        seed: u64,
+        seed: i128,
         jitter: f32,
         backend: String,
         adapter: Option<String>,
         candidates: String,
         passes: PassesArg,
         color: String,
-        coarse_cache: Option<u32>,
-        max_group: Option<u32>,
+        coarse_cache: Option<i128>,
+        max_group: Option<i128>,
         frame: Option<String>,
         feature_mask: Option<&Bound<'_, PyAny>>,
         ey_feature_mask: Option<&Bound<'_, PyAny>>,
@@ -408,15 +442,15 @@ impl PySolid {
     fn load(
         py: Python<'_>,
         path: PathBuf,
-        seed: u64,
+        seed: i128,
         jitter: f32,
         backend: String,
         adapter: Option<String>,
         candidates: String,
         passes: PassesArg,
         color: String,
-        coarse_cache: Option<u32>,
-        max_group: Option<u32>,
+        coarse_cache: Option<i128>,
+        max_group: Option<i128>,
     ) -> PyResult<PySolid> {
         let settings = SynthSettings::parse(
             seed,

@@ -72,6 +72,10 @@ def test_a_damaged_analysis_file_is_refused(tmp_path):
         (dict(coarse_cache=100), "invalid --coarse-cache 100"),
         (dict(max_group=2), "invalid --max-group 2"),
         (dict(frame="diagonal"), "invalid --frame diagonal"),
+        (dict(seed=-1), r"invalid --seed -1: must be 0..=18446744073709551615"),
+        (dict(seed=2**64), "invalid --seed 18446744073709551616"),
+        (dict(coarse_cache=-64), "invalid --coarse-cache -64: must be 0..="),
+        (dict(max_group=2**40), "invalid --max-group 1099511627776"),
     ],
 )
 def test_bad_settings_name_their_flag(options, message):

@@ -1,0 +1,21 @@
+import { chromium } from "playwright-core";
+import { readFileSync } from "node:fs";
+const url = process.argv[2];
+const dir = "/work/main/assets/viewer";
+const browser = await chromium.launch({ executablePath: "/usr/bin/chromium", headless: true, args: ["--headless", "--no-sandbox", "--disable-gpu"] });
+const page = await browser.newPage({ viewport: { width: 1280, height: 980 } });
+page.on("pageerror", (e) => console.log("PAGEERROR", e.message));
+page.on("console", (m) => console.log("CONSOLE", m.type(), m.text()));
+await page.route(/\/(index\.html)?$|\.(js|css)$/, (route) => {
+  const p = new URL(route.request().url()).pathname;
+  const f = p === "/" ? "index.html" : p.slice(1);
+  const type = f.endsWith(".js") ? "text/javascript" : f.endsWith(".css") ? "text/css" : "text/html";
+  route.fulfill({ body: readFileSync(`${dir}/${f}`), contentType: type });
+});
+await page.goto(url);
+await page.waitForSelector("body[data-solid]");
+await page.waitForFunction(() => cutsIdle(), null, { timeout: 60000 });
+await page.selectOption("#shape", "bunny");
+await page.waitForTimeout(1500);
+await page.screenshot({ path: "/tmp/smoke/a.png", fullPage: true });
+await browser.close();
