@@ -19,7 +19,7 @@ const MAX_UPLOAD: usize = 64 << 10;
 fn server() -> (SocketAddr, u64) {
     static SERVER: OnceLock<(SocketAddr, u64)> = OnceLock::new();
     *SERVER.get_or_init(|| {
-        let config = ServeConfig {
+        own_server(ServeConfig {
             port: 0,
             preview_size: PREVIEW,
             max_upload_bytes: MAX_UPLOAD,
@@ -27,25 +27,7 @@ fn server() -> (SocketAddr, u64) {
             max_cut_size: 128,
             max_volume_size: 32,
             ..ServeConfig::default()
-        };
-        let server = Server::start(config, Compute::Cpu).unwrap();
-        let addr = server.addr();
-        assert!(addr.ip().is_loopback());
-        let job = server
-            .state()
-            .start_job(
-                Source::Image {
-                    name: "cells32".into(),
-                    image: common::fixture("cells32.png"),
-                    periodic: true,
-                },
-                3,
-            )
-            .unwrap();
-        let solid = wait_job(addr, job.id);
-        // The server lives as long as the test process.
-        std::mem::forget(server);
-        (addr, solid)
+        })
     })
 }
 
@@ -284,16 +266,15 @@ fn unknown_paths_methods_and_traversal_are_refused() {
 #[test]
 fn the_bunny_mesh_is_served_and_its_size_matches_its_header() {
     let (addr, _) = server();
-    let r = get(addr, "/bunny.bin");
+    let r = get(addr, "/api/meshes/bunny/geometry");
     assert_eq!(r.status, 200);
     assert_eq!(r.header("content-type"), Some("application/octet-stream"));
     let b = &r.body;
     let u32_at = |i: usize| u32::from_le_bytes(b[i..i + 4].try_into().unwrap()) as usize;
     let (vertices, triangles) = (u32_at(0), u32_at(4));
-    // The Stanford bunny as converted by assets/viewer/bunny_bin.py.
+    // The Stanford bunny of assets/meshes/bunny.obj.
     assert_eq!((vertices, triangles), (1839, 3674));
-    assert_eq!(b.len(), 8 + 12 * vertices + 6 * triangles);
-    assert!(b.len() < 100 << 10);
+    assert_eq!(b.len(), 8 + 12 * vertices + 12 * triangles);
     // Positions fit [-0.5, 0.5]^3 and the longest side spans it; indices name vertices.
     let positions: Vec<f32> = b[8..8 + 12 * vertices]
         .chunks_exact(4)
@@ -306,9 +287,7 @@ fn the_bunny_mesh_is_served_and_its_size_matches_its_header() {
         hi - lo
     };
     assert!((span(0).max(span(1)).max(span(2)) - 1.0).abs() < 1e-5);
-    assert!(b[8 + 12 * vertices..]
-        .chunks_exact(2)
-        .all(|c| (u16::from_le_bytes([c[0], c[1]]) as usize) < vertices));
+    assert!((0..3 * triangles).all(|k| u32_at(8 + 12 * vertices + 4 * k) < vertices));
 }
 
 #[test]
@@ -788,11 +767,13 @@ fn the_mixed_load_test_runs_and_every_answer_is_as_expected() {
     );
 }
 
-/// A server of its own (surface bakes and new solids would crowd the shared one's solids and
-/// jobs), its first solid made from the cells fixture with seed 3.
+/// A server on a loopback port, its first solid made from the cells fixture with seed 3. (Tests
+/// that bake surfaces or make solids start their own: they would crowd the shared one's solids
+/// and jobs.) The server lives as long as the test process.
 fn own_server(config: ServeConfig) -> (SocketAddr, u64) {
     let server = Server::start(config, Compute::Cpu).unwrap();
     let addr = server.addr();
+    assert!(addr.ip().is_loopback());
     let job = server
         .state()
         .start_job(

@@ -159,7 +159,7 @@ function showFreeCut(r) {
   img.dataset.count = String(freeCut.count);
   $("dl-cut").href = freeCut.url;
   $("dl-cut").download = `cut-${r.spec.solid}.png`;
-  freeCut.cut = { origin: r.spec.origin, frame: r.frame, size: r.spec.size, spacing: r.spec.spacing, bitmap: r.bitmap };
+  freeCut.cut = { solid: r.spec.solid, origin: r.spec.origin, frame: r.frame, size: r.spec.size, spacing: r.spec.spacing, bitmap: r.bitmap };
   $("cut-latency").textContent = `cut ${freeCut.count}: ${latencyText(r)}`;
   $("cut-latency").className = "latency";
   uploadCutTexture();
@@ -285,9 +285,12 @@ function drawSliceOverlay(a, spec) {
   ctx.save();
   ctx.lineWidth = 1;
   if (slicePos(a) >= 0 && slicePos(a) < n) {
-    ctx.setLineDash([3, 3]);
-    ctx.strokeStyle = "rgba(255, 255, 255, 0.7)";
+    // Light dashes on a dark line: visible on light and dark solids alike.
     const [i0, i1, j0, j1] = [px(ax.u, 0), px(ax.u, n), px(ax.v, 0), px(ax.v, n)];
+    ctx.strokeStyle = "rgba(0, 0, 0, 0.6)";
+    ctx.strokeRect(i0, j0, i1 - i0, j1 - j0);
+    ctx.setLineDash([3, 3]);
+    ctx.strokeStyle = "rgba(255, 255, 255, 0.9)";
     ctx.strokeRect(i0, j0, i1 - i0, j1 - j0);
   }
   ctx.setLineDash([]);

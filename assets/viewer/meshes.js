@@ -4,8 +4,9 @@
 // /api/solids/ID/surface) runs as a job; when it is done the page fetches the textured model
 // (/api/surfaces/S.glb), parses the binary glTF itself and swaps it in. The bake places the
 // mesh's box with its longest side spanning `resolution` voxels from voxel 0, so the baked
-// surface shows the solid at a much finer scale than the preview; the cap of a cut baked model
-// is cut from the solid at that same scale (in tiles: a cut spans at most 512 voxels).
+// surface shows the solid at a much finer scale than the preview. The cap of a cut baked model
+// shows the free cut (the preview's scale) or, when asked for, a cut at the bake's scale (in
+// tiles: a cut spans at most 512 voxels; slow, as its pixels lie voxels apart).
 "use strict";
 
 const meshes = {
@@ -15,7 +16,7 @@ const meshes = {
 };
 
 const UPLOAD_TYPES = {
-  obj: "model/obj", ply: "application/octet-stream", glb: "model/gltf-binary", gltf: "model/gltf+json",
+  obj: "model/obj", ply: "model/ply", glb: "model/gltf-binary", gltf: "model/gltf+json",
 };
 
 async function loadMeshList() {
@@ -28,7 +29,7 @@ async function loadMeshList() {
   const select = $("shape"), shown = select.value;
   const options = [new Option("sphere", "sphere")];
   for (const m of meshes.list) {
-    const label = m.id === "bunny" ? "bunny" : `${m.name} (upload ${m.id}, ${m.triangles} triangles)`;
+    const label = m.id === "bunny" ? "bunny" : `${m.name} (upload ${m.id})`;
     options.push(new Option(label, m.id));
   }
   select.replaceChildren(...options);
@@ -123,14 +124,14 @@ async function startBake() {
   const mesh = $("shape").value;
   if (mesh === "sphere") { say("bake onto a mesh: choose the bunny or upload one", true); return; }
   if (!view.solid) { say("no solid to bake yet", true); return; }
-  const t0 = performance.now();
+  const t0 = performance.now(), solid = view.solid.id;
   const resolution = $("bake-resolution").value, fast = $("bake-fast").checked ? 1 : 0;
   try {
-    const r = await api(`/api/solids/${view.solid.id}/surface?mesh=${encodeURIComponent(mesh)}&resolution=${resolution}&fast=${fast}`,
+    const r = await api(`/api/solids/${solid}/surface?mesh=${encodeURIComponent(mesh)}&resolution=${resolution}&fast=${fast}`,
       { method: "POST" });
     const job = await r.json();
     say(`started job ${job.id}: ${job.name}`);
-    followBake(job, t0);
+    followBake(job, { t0, solid, mesh });
   } catch (e) {
     bakeStatus(`bake: ${e.message}`, true);
   }
@@ -142,9 +143,10 @@ function bakeStatus(text, error) {
   if (error) say(text, true);
 }
 
-// Follow bake job `job`; t0: when its Bake button was clicked (null after a reload).
-function followBake(job, t0) {
-  meshes.bake = { job: job.id, t0 };
+// Follow bake job `job`. started: {t0 (when its Bake button was clicked), solid, mesh} for a bake
+// this page started, null for one found running after a reload.
+function followBake(job, started) {
+  meshes.bake = { job: job.id };
   $("bake-cancel").disabled = false;
   document.body.dataset.bake = "running";
   follow(job.id, {
@@ -158,8 +160,13 @@ function followBake(job, t0) {
       document.body.dataset.bake = j.state;
       if (j.state === "cancelled") { bakeStatus(`${j.name}: cancelled after ${j.seconds.toFixed(1)} s`); return; }
       if (j.state === "failed") { bakeStatus(`${j.name}: failed: ${j.error}`, true); return; }
+      // Swapped in while the view still shows what was baked; else it waits in the job list.
+      if (started && (!view.solid || view.solid.id !== started.solid || $("shape").value !== started.mesh)) {
+        bakeStatus(`${j.name}: baked in ${j.seconds.toFixed(1)} s; the view has moved on: "show" it from the job list`);
+        return;
+      }
       bakeStatus(`${j.name}: baked in ${j.seconds.toFixed(1)} s; fetching the model`);
-      await showSurfaceById(j.surface, t0 === null ? null : { t0, bakeSeconds: j.seconds, name: j.name });
+      await showSurfaceById(j.surface, started && { t0: started.t0, bakeSeconds: j.seconds, name: j.name });
     },
   });
 }
@@ -181,6 +188,10 @@ async function showSurfaceById(id, timing) {
     const t1 = performance.now();
     const bytes = await (await api(info.glb)).arrayBuffer();
     const glb = await parseGlb(bytes);
+    const max = gl3.gl ? gl3.gl.getParameter(gl3.gl.MAX_TEXTURE_SIZE) : 0;
+    if (Math.max(glb.bitmap.width, glb.bitmap.height) > max) {
+      throw new Error(`its ${glb.bitmap.width}x${glb.bitmap.height} texture is larger than this browser's WebGL allows (${max}): bake at a lower resolution`);
+    }
     const model = createModel({ ...glb, texture: texture2D(glb.bitmap, glb.filter) });
     glb.bitmap.close();
     model.info = info;
@@ -200,7 +211,8 @@ async function showSurfaceById(id, timing) {
 // Called by the view once a baked model has been drawn: how long from the click to the screen.
 function bakedOnScreen(model) {
   const t = model.timing;
-  if (!t) { bakeStatus(`showing surface ${model.info.id}: ${model.info.resolution} voxels across`); return; }
+  say(`showing surface ${model.info.id}: solid ${model.info.solid} baked onto ${model.info.mesh} at ${model.info.resolution}`);
+  if (!t) return;
   const ms = model.drawnAt - t.t0;
   $("view3d").dataset.bakeMs = ms.toFixed(0);
   bakeStatus(`${t.name}: on screen ${(ms / 1000).toFixed(1)} s after the click ` +
@@ -215,7 +227,8 @@ function showTextureLabel() {
     return;
   }
   const i = b.info;
-  label.textContent = `texture: baked at ${i.resolution} voxels across (atlas ${i.atlas[0]}x${i.atlas[1]})` +
+  label.textContent = `texture: baked at ${i.resolution} voxels across (atlas ${i.atlas[0]}x${i.atlas[1]}; ` +
+    `the cut face at ${$("cap-baked").checked ? "the bake's scale" : "the preview's"})` +
     (i.fast ? " · FAST bake: a slightly different solid (fewer correction passes, coarse cache)" : "");
   label.className = i.fast ? "label baked fast" : "label baked";
 }
@@ -235,7 +248,7 @@ function surfaceContextChanged() {
   if (b && (!view.solid || b.info.solid !== view.solid.id || b.info.mesh !== $("shape").value)) {
     deleteModel(b);
     objectView.baked = null;
-    capTiles.cap = null;
+    planeChanged();
     drawView();
   }
   showTextureLabel();
@@ -300,12 +313,13 @@ async function parseGlb(buf) {
   };
 }
 
-// ---- the baked model's cap: the free plane cut from the solid at the bake's scale ----
+// ---- the baked model's cap at the bake's scale (on request): the free plane cut from the solid ----
 
 const CAP_TILE = 128;
 const capTiles = {
   cap: null,     // what the shader samples: {key, texture, origin, u, v, size, voxScale, voxOffset}
   want: null,    // the plan to fetch next
+  gen: 0,        // counts changes of plan: tiles of an older one are not fetched
   running: false,
   texture: null, // reused while its size stays
   textureSize: 0,
@@ -313,10 +327,10 @@ const capTiles = {
 
 // Where the free plane meets the baked mesh's box, in the bake's voxels, as a k x k grid of
 // square tiles of CAP_TILE pixels each spanning at most a cut's 512 voxels; null when the plane
-// misses the box or there is no cut.
+// misses the box or there is no cut at the bake's scale to show.
 function capPlan() {
   const b = objectView.baked;
-  if (!b || !$("clip").checked || !view.solid) return null;
+  if (!b || !$("clip").checked || !$("cap-baked").checked || !view.solid) return null;
   const plane = objectPlane(), res = b.info.resolution;
   // Object space -> the bake's voxels: the mesh's box corner `lo` is voxel 0 and its longest
   // side spans `res` voxels (object space has it MESH_SCALE long, centred).
@@ -350,10 +364,12 @@ function capPlan() {
 // The free plane moved (or the baked model or the clip changed): cut the cap again.
 function planeChanged() {
   const plan = capPlan();
-  if (!plan) { capTiles.want = null; return; }
-  if ((capTiles.cap && capTiles.cap.key === plan.key) || (capTiles.want && capTiles.want.key === plan.key)) return;
+  const key = plan && plan.key;
+  if (key && ((capTiles.cap && capTiles.cap.key === key) || (capTiles.want && capTiles.want.key === key))) return;
+  capTiles.gen += 1;
   capTiles.want = plan;
-  fetchCapTiles();
+  if (!plan) capTiles.cap = null;
+  if (plan) fetchCapTiles();
 }
 
 // Fetches the wanted plan's tiles one at a time into one texture (alpha 0 until a tile
@@ -363,7 +379,7 @@ async function fetchCapTiles() {
   capTiles.running = true;
   const gl = gl3.gl;
   while (capTiles.want && gl) {
-    const plan = capTiles.want;
+    const plan = capTiles.want, gen = capTiles.gen;
     capTiles.want = null;
     if (capTiles.textureSize !== plan.size) {
       if (capTiles.texture) gl.deleteTexture(capTiles.texture);
@@ -375,10 +391,10 @@ async function fetchCapTiles() {
     setFilters(gl, gl.TEXTURE_2D, gl.NEAREST, gl.CLAMP_TO_EDGE);
     capTiles.cap = { ...plan, texture: capTiles.texture };
     for (const tile of plan.tiles) {
-      if (capTiles.want) break;
+      if (capTiles.gen !== gen) break;
       try {
         const bitmap = await createImageBitmap(await (await api(cutUrl(tile.spec))).blob());
-        if (capTiles.cap.key !== plan.key) break;
+        if (capTiles.gen !== gen) { bitmap.close(); break; }
         gl.bindTexture(gl.TEXTURE_2D, capTiles.texture);
         gl.pixelStorei(gl.UNPACK_FLIP_Y_WEBGL, false);
         gl.texSubImage2D(gl.TEXTURE_2D, 0, tile.x, tile.y, gl.RGBA, gl.UNSIGNED_BYTE, bitmap);
@@ -395,7 +411,7 @@ async function fetchCapTiles() {
 
 // The cap's uniforms for the view, while they are of the current plane.
 function bakedCap() {
-  const c = capTiles.cap, plan = objectView.baked && $("clip").checked ? capPlan() : null;
+  const c = capTiles.cap, plan = c ? capPlan() : null;
   return c && plan && c.key === plan.key ? c : null;
 }
 
@@ -403,6 +419,7 @@ function wireMeshes() {
   $("shape").addEventListener("change", shapeChanged);
   $("bake").addEventListener("click", startBake);
   $("bake-cancel").addEventListener("click", () => { if (meshes.bake) cancelJob(meshes.bake.job); });
+  $("cap-baked").addEventListener("change", showTextureLabel);
   $("mesh-file").addEventListener("change", () => {
     const f = $("mesh-file").files[0];
     if (f) uploadMesh(f);

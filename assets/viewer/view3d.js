@@ -4,7 +4,8 @@
 // object space, where [-1, 1]^3 is the preview box [0, n)^3 of the solid (voxel = (p + 1) n / 2),
 // seen by the same orbiting camera (eye at target + rot * (0, 0, dist), focal length 2.2), and
 // are clipped and capped the same way: the free plane removes the side p . pn > pd; where it cuts
-// the shape, the cap shows a server cut at that point. A mesh is textured either by the preview
+// the shape, the cap shows a server cut at that point (the free cut; for a baked model, on request,
+// one at the bake's scale). A mesh is textured either by the preview
 // volume (a 3D texture stretched over the mesh's box: immediate) or, once baked, by the baked
 // texture atlas of its .glb (the solid at the bake's much finer scale).
 "use strict";
@@ -243,7 +244,8 @@ function objectPlane() {
 // The preview's cap: the free cut, while it shows the current plane.
 function previewCap() {
   const c = freeCut.cut, o = planeOrigin(), N = view.n || 64;
-  if (!gl3.haveCut || !c || !c.origin.every((x, i) => Math.abs(x - o[i]) < 1e-6)) return null;
+  const current = c && view.solid && c.solid === view.solid.id && c.origin.every((x, i) => Math.abs(x - o[i]) < 1e-6);
+  if (!gl3.haveCut || !current) return null;
   return { texture: gl3.cutTex, origin: c.origin, u: c.frame.u.map((x) => x / c.spacing),
     v: c.frame.v.map((x) => x / c.spacing), size: c.size, voxScale: N / 2, voxOffset: [N / 2, N / 2, N / 2] };
 }
@@ -303,7 +305,7 @@ function drawView() {
     gl.uniform3fv(L.pn, plane.n);
     gl.uniform1f(L.pd, plane.d);
     gl.uniform1f(L.volN, view.n || 64);
-    const cap = model && model === objectView.baked ? bakedCap() : previewCap();
+    const cap = (model && model === objectView.baked && bakedCap()) || previewCap();
     gl.uniform1i(L.haveCap, cap ? 1 : 0);
     if (cap) {
       gl.activeTexture(gl.TEXTURE1);
@@ -411,7 +413,7 @@ function cameraControls(canvas) {
 
 function wireView() {
   try { initGL(); } catch (e) { $("view-status").textContent = "WebGL error: " + e.message; }
-  $("clip").addEventListener("change", () => { drawView(); planeChanged(); });
+  for (const id of ["clip", "cap-baked"]) $(id).addEventListener("change", () => { drawView(); planeChanged(); });
   $("view-reset").addEventListener("click", () => { Object.assign(camera, structuredClone(CAMERA_HOME)); drawView(); });
   cameraControls($("view3d"));
 }

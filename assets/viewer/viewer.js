@@ -118,6 +118,7 @@ function followSolidJob(id) {
       document.body.dataset.job = job.state;
       if (job.state === "done") {
         setJobStatus(`${job.name}: ready in ${job.seconds.toFixed(1)} s`);
+        say(`solid ${job.solid} (${job.name}) is ready`);
         const solid = await (await api("/api/solids/" + job.solid)).json();
         await loadSolid(solid);
       } else if (job.state === "cancelled") {
@@ -151,8 +152,8 @@ async function loadSolid(solid) {
   updateDownloads();
   uploadVolumeTexture();
   document.body.dataset.solid = String(solid.id);
-  solidChanged();      // cuts.js: every cut is of the new solid
   surfaceContextChanged(); // meshes.js: a baked surface belongs to its solid
+  solidChanged();          // cuts.js: every cut is of the new solid
 }
 
 function updateDownloads() {
@@ -271,7 +272,7 @@ function renderJobs(jobs) {
     li.dataset.state = job.state;
     li.querySelector("progress").value = job.progress;
     li.querySelector("progress").hidden = ended(job);
-    const detail = job.state === "failed" ? job.error : job.state === "done" ? "" : ` · ${job.stage} ${percent(job)}`;
+    const detail = job.state === "failed" ? ` · ${job.error}` : ended(job) ? "" : ` · ${job.stage} ${percent(job)}`;
     li.querySelector(".job-text").innerHTML = `<b>${job.id}</b> ${job.kind === "surface" ? "bake" : "solid"}: ` +
       `${escapeHtml(job.name)} · <span class="state-${job.state}">${job.state}</span>${escapeHtml(detail)} · ${job.seconds.toFixed(1)} s`;
     if (li.dataset.key === key) continue;

@@ -127,19 +127,17 @@ fn check_sender(config: &super::ServeConfig, request: &Request) -> Result<(), Re
                 ));
             }
         }
-        // (None of these is a type a cross-site form can send without a preflight.)
+        // (Neither is a type a cross-site form can send without a preflight.)
         if !request.body.is_empty() {
             let accepted = request.header("content-type").is_some_and(|t| {
                 let t = t.trim().to_ascii_lowercase();
-                t.starts_with("image/")
-                    || t.starts_with("model/")
-                    || t.starts_with("application/octet-stream")
+                t.starts_with("image/") || t.starts_with("model/")
             });
             if !accepted {
                 return Err(Reply::error(
                     415,
                     "an upload must be an image (Content-Type: image/png, image/jpeg, ...) or a \
-                     mesh (model/obj, model/gltf-binary, application/octet-stream, ...)",
+                     mesh (model/obj, model/ply, model/gltf-binary, ...)",
                 ));
             }
         }

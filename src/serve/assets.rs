@@ -22,21 +22,31 @@ const ASSETS: &[(&str, Asset)] = &[
         },
     ),
     (
+        "/cuts.js",
+        Asset {
+            content_type: "text/javascript; charset=utf-8",
+            body: include_bytes!("../../assets/viewer/cuts.js"),
+        },
+    ),
+    (
+        "/view3d.js",
+        Asset {
+            content_type: "text/javascript; charset=utf-8",
+            body: include_bytes!("../../assets/viewer/view3d.js"),
+        },
+    ),
+    (
+        "/meshes.js",
+        Asset {
+            content_type: "text/javascript; charset=utf-8",
+            body: include_bytes!("../../assets/viewer/meshes.js"),
+        },
+    ),
+    (
         "/viewer.css",
         Asset {
             content_type: "text/css; charset=utf-8",
             body: include_bytes!("../../assets/viewer/viewer.css"),
-        },
-    ),
-    // The Stanford bunny as a triangle mesh for the 3D view (public domain, Stanford 3D Scanning
-    // Repository; see assets/viewer/SOURCES.md): u32 vertex count V, u32 triangle count T (little
-    // endian), V x 3 f32 positions in [-0.5, 0.5]^3, T x 3 u16 indices. Made by
-    // assets/viewer/bunny_bin.py.
-    (
-        "/bunny.bin",
-        Asset {
-            content_type: "application/octet-stream",
-            body: include_bytes!("../../assets/viewer/bunny.bin"),
         },
     ),
 ];
@@ -53,7 +63,7 @@ mod tests {
     fn only_table_entries_are_served() {
         assert!(super::get("/").is_some());
         assert!(super::get("/viewer.js").is_some());
-        assert!(super::get("/bunny.bin").is_some());
+        assert!(super::get("/cuts.js").is_some());
         for p in [
             "/../Cargo.toml",
             "/%2e%2e/Cargo.toml",
