@@ -56,44 +56,42 @@ impl Mesh {
                 format!("face {t} refers to a vertex beyond the {n} defined"),
             ));
         }
-        let per_triangle = |len: usize, what_kind: &str| {
-            if len == self.triangles.len() {
-                Ok(())
-            } else {
-                Err(Error::invalid(
-                    what,
-                    format!(
-                        "{len} triangles' {what_kind} for {} triangles",
-                        self.triangles.len()
-                    ),
-                ))
-            }
-        };
         if let Some(uvs) = &self.uvs {
-            per_triangle(uvs.len(), "texture coordinates")?;
-            if let Some(t) = uvs
-                .iter()
-                .position(|c| c.iter().flatten().any(|v| !v.is_finite()))
-            {
-                return Err(Error::invalid(
-                    what,
-                    format!("face {t} has a non-finite texture coordinate"),
-                ));
-            }
+            self.check_corner_values(what, uvs, "texture coordinate")?;
         }
         if let Some(normals) = &self.normals {
-            per_triangle(normals.len(), "normals")?;
-            if let Some(t) = normals
-                .iter()
-                .position(|c| c.iter().flatten().any(|v| !v.is_finite()))
-            {
-                return Err(Error::invalid(
-                    what,
-                    format!("face {t} has a non-finite normal"),
-                ));
-            }
+            self.check_corner_values(what, normals, "normal")?;
         }
         Ok(())
+    }
+
+    /// Per-corner `values` (named `kind`): one triple per triangle, every number finite.
+    fn check_corner_values<const N: usize>(
+        &self,
+        what: &str,
+        values: &[[[f32; N]; 3]],
+        kind: &str,
+    ) -> Result<()> {
+        if values.len() != self.triangles.len() {
+            return Err(Error::invalid(
+                what,
+                format!(
+                    "{} triangles' {kind}s for {} triangles",
+                    values.len(),
+                    self.triangles.len()
+                ),
+            ));
+        }
+        match values
+            .iter()
+            .position(|c| c.iter().flatten().any(|v| !v.is_finite()))
+        {
+            Some(t) => Err(Error::invalid(
+                what,
+                format!("face {t} has a non-finite {kind}"),
+            )),
+            None => Ok(()),
+        }
     }
 
     /// Per triangle, its corners' unit normals: the file's (normalized; a zero one becomes the
@@ -464,6 +462,13 @@ mod tests {
         assert_eq!(mesh.uvs, Some(vec![[[0.0, 1.0], [1.0, 1.0], [0.0, 0.0]]]));
         assert_eq!(mesh.normals, None);
         mesh.validate("t.ply").unwrap();
+        let mut broken = mesh.clone();
+        broken.uvs.as_mut().unwrap()[0][1][0] = f32::NAN;
+        let err = broken.validate("t.ply").unwrap_err().to_string();
+        assert!(err.contains("face 0 has a non-finite texture coordinate"), "{err}");
+        broken.uvs = Some(vec![]);
+        let err = broken.validate("t.ply").unwrap_err().to_string();
+        assert!(err.contains("0 triangles' texture coordinates for 1 triangles"), "{err}");
     }
 
     #[test]
