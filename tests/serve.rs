@@ -500,20 +500,8 @@ fn a_gpu_server_cuts_the_same_bytes_as_the_cpu_one() {
         preview_size: PREVIEW,
         ..ServeConfig::default()
     };
-    let server = Server::start(config, compute).unwrap();
+    let (server, gpu_solid) = start_with_solid(config, compute);
     let addr = server.addr();
-    let job = server
-        .state()
-        .start_job(
-            Source::Image {
-                name: "cells32".into(),
-                image: common::fixture("cells32.png"),
-                periodic: true,
-            },
-            3,
-        )
-        .unwrap();
-    let gpu_solid = wait_job(addr, job.id);
     assert!(get(addr, "/api/state").json()["backend"]
         .as_str()
         .unwrap()
@@ -771,7 +759,15 @@ fn the_mixed_load_test_runs_and_every_answer_is_as_expected() {
 /// that bake surfaces or make solids start their own: they would crowd the shared one's solids
 /// and jobs.) The server lives as long as the test process.
 fn own_server(config: ServeConfig) -> (SocketAddr, u64) {
-    let server = Server::start(config, Compute::Cpu).unwrap();
+    let (server, solid) = start_with_solid(config, Compute::Cpu);
+    let addr = server.addr();
+    std::mem::forget(server);
+    (addr, solid)
+}
+
+/// A server on `compute` and the id of its first solid, made from the cells fixture with seed 3.
+fn start_with_solid(config: ServeConfig, compute: Compute) -> (Server, u64) {
+    let server = Server::start(config, compute).unwrap();
     let addr = server.addr();
     assert!(addr.ip().is_loopback());
     let job = server
@@ -786,8 +782,7 @@ fn own_server(config: ServeConfig) -> (SocketAddr, u64) {
         )
         .unwrap();
     let solid = wait_job(addr, job.id);
-    std::mem::forget(server);
-    (addr, solid)
+    (server, solid)
 }
 
 /// Wait for job `id` to reach `state` ("done", "cancelled"); its status.

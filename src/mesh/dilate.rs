@@ -16,6 +16,9 @@ pub fn dilate(
     placed: &mut [u64],
     rings: Option<u32>,
 ) {
+    if rings == Some(0) {
+        return; // (the default packed atlas: no gutter, and no scan of its texels)
+    }
     let (w, h) = (width as usize, height as usize);
     let is_set = |bits: &[u64], i: usize| bits[i / 64] & (1 << (i % 64)) != 0;
     let set = |bits: &mut [u64], i: usize| bits[i / 64] |= 1 << (i % 64);

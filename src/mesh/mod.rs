@@ -243,40 +243,55 @@ pub fn parse_obj(bytes: &[u8], name: &str) -> Result<Mesh> {
             let tri = [t[0], t[1], t[2]].map(|i| i.checked_add(base).unwrap_or(u32::MAX));
             mesh.triangles.push(tri);
         }
-        if m.texcoord_indices.len() != m.indices.len() {
-            uvs = None;
-        }
-        if let Some(out) = &mut uvs {
-            for t in m.texcoord_indices.chunks_exact(3) {
-                let mut corners = [[0.0f32; 2]; 3];
-                for (k, &i) in t.iter().enumerate() {
-                    let i = i as usize;
-                    let uv = m.texcoords.get(2 * i..2 * i + 2).ok_or_else(malformed)?;
-                    corners[k] = [uv[0], 1.0 - uv[1]];
-                }
-                out.push(corners);
-            }
-        }
-        if m.normal_indices.len() != m.indices.len() {
-            normals = None;
-        }
-        if let Some(out) = &mut normals {
-            for t in m.normal_indices.chunks_exact(3) {
-                let mut corners = [[0.0f32; 3]; 3];
-                for (k, &i) in t.iter().enumerate() {
-                    let i = i as usize;
-                    let n = m.normals.get(3 * i..3 * i + 3).ok_or_else(malformed)?;
-                    corners[k] = [n[0], n[1], n[2]];
-                }
-                out.push(corners);
-            }
-        }
+        let flip_v = |uv: [f32; 2]| [uv[0], 1.0 - uv[1]];
+        add_obj_corners(
+            &mut uvs,
+            &m.indices,
+            &m.texcoord_indices,
+            &m.texcoords,
+            flip_v,
+        )
+        .ok_or_else(malformed)?;
+        add_obj_corners(
+            &mut normals,
+            &m.indices,
+            &m.normal_indices,
+            &m.normals,
+            |n| n,
+        )
+        .ok_or_else(malformed)?;
     }
     // (tobj fills a corner without them with index 0: the face lines decide.)
     let (all_uvs, all_normals) = obj_corners_have_attributes(bytes);
     mesh.uvs = uvs.filter(|u| all_uvs && !u.is_empty());
     mesh.normals = normals.filter(|n| all_normals && !n.is_empty());
     Ok(mesh)
+}
+
+/// Append to `out` the per-corner values (N floats each, mapped by `map`) that `indices` pick
+/// from `values`, one triple per triangle of `faces`; `out` becomes None when the object has no
+/// such index for every corner. None when an index is out of range.
+fn add_obj_corners<const N: usize>(
+    out: &mut Option<Vec<[[f32; N]; 3]>>,
+    faces: &[u32],
+    indices: &[u32],
+    values: &[f32],
+    map: impl Fn([f32; N]) -> [f32; N],
+) -> Option<()> {
+    if indices.len() != faces.len() {
+        *out = None;
+    }
+    let Some(out) = out else { return Some(()) };
+    for t in indices.chunks_exact(3) {
+        let mut corners = [[0.0f32; N]; 3];
+        for (corner, &i) in corners.iter_mut().zip(t) {
+            let i = i as usize;
+            let v = values.get(N * i..N * i + N)?;
+            *corner = map(v.try_into().expect("N values"));
+        }
+        out.push(corners);
+    }
+    Some(())
 }
 
 /// Whether every corner of every `f` line names a texture coordinate (`v/vt`) and a normal
@@ -465,10 +480,16 @@ mod tests {
         let mut broken = mesh.clone();
         broken.uvs.as_mut().unwrap()[0][1][0] = f32::NAN;
         let err = broken.validate("t.ply").unwrap_err().to_string();
-        assert!(err.contains("face 0 has a non-finite texture coordinate"), "{err}");
+        assert!(
+            err.contains("face 0 has a non-finite texture coordinate"),
+            "{err}"
+        );
         broken.uvs = Some(vec![]);
         let err = broken.validate("t.ply").unwrap_err().to_string();
-        assert!(err.contains("0 triangles' texture coordinates for 1 triangles"), "{err}");
+        assert!(
+            err.contains("0 triangles' texture coordinates for 1 triangles"),
+            "{err}"
+        );
     }
 
     #[test]

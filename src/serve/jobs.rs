@@ -309,7 +309,7 @@ impl State {
                     self.config.max_jobs
                 )));
             }
-            let id = self.next_id.fetch_add(1, Ordering::SeqCst);
+            let id = self.next_id();
             let job = Arc::new(Job {
                 status: Mutex::new(JobStatus {
                     id,
@@ -482,7 +482,7 @@ impl State {
         // Cancelling the finished job must not stop the solid's cuts.
         synth.set_cancel(None);
         let solid = Arc::new(Solid {
-            id: self.next_id.fetch_add(1, Ordering::SeqCst),
+            id: self.next_id(),
             name,
             seed,
             channels: synth.color_channels(),
