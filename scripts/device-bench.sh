@@ -7,7 +7,7 @@
 #   scripts/device-bench.sh --prepare      # strips the binaries into dist/, copies the bunny
 # then on the GPU machine, from the repository root (dist/ and .gl/ carried):
 #   scripts/device-bench.sh [--quick] [PHASE...]
-# PHASEs (default: all, in this order): kernels synth cuts surface gradient other. One device
+# PHASEs (default: all, in this order): kernels compare synth cuts surface gradient other. One device
 # call may run 10 minutes: split the phases over calls where they would not fit.
 # --quick runs small sizes and few repeats only (a check of the script itself, e.g. on lavapipe).
 set -uo pipefail
@@ -34,7 +34,7 @@ if [[ "${1:-}" == "--quick" ]]; then
     shift
 fi
 phases=("$@")
-((${#phases[@]})) || phases=(kernels synth cuts surface gradient other)
+((${#phases[@]})) || phases=(kernels compare synth cuts surface gradient other)
 wants() { [[ " ${phases[*]} " == *" $1 "* ]]; }
 # shellcheck source=scripts/device-env.sh
 source scripts/device-env.sh
@@ -84,6 +84,13 @@ fi
 
 # Byte-exactness of every kernel against its CPU reference, on this device.
 wants kernels && section kernels.txt dist/kernels-test
+
+# Issue 55's table: the same jobs on the CPU backend and on every adapter, and the same bytes.
+if wants compare; then
+    compare_flags=()
+    ((quick)) && compare_flags=(--quick)
+    section compare.md $ss bench compare "${compare_flags[@]}"
+fi
 
 # Issue 4: full volumes (targets 256^3 <= 100 ms, 512^3 <= 1 s on an H100); the CPU backend
 # beside it up to 256^3 for the per-kernel ratios.

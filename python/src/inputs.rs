@@ -231,46 +231,25 @@ pub fn volume_from_array(array: &Bound<'_, PyUntypedArray>, what: &str) -> PyRes
     })
 }
 
-/// `--backend`: the library has no parser for it without the `cli` feature.
+/// `--backend`, parsed by the library.
 pub fn backend_choice(name: &str) -> PyResult<BackendChoice> {
-    match name {
-        "auto" => Ok(BackendChoice::Auto),
-        "cpu" => Ok(BackendChoice::Cpu),
-        "gpu" => Ok(BackendChoice::Gpu),
-        _ => Err(invalid(
-            format!("--backend {name}"),
-            "expected auto, cpu or gpu",
-        )),
-    }
+    name.parse()
+        .map_err(|problem: String| invalid(format!("--backend {name}"), problem))
 }
 
-/// `--candidates`.
+/// `--candidates`, parsed by the library.
 pub fn candidate_mode(name: &str) -> PyResult<CandidateMode> {
-    match name {
-        "3d" => Ok(CandidateMode::ThreeD),
-        "2d" => Ok(CandidateMode::TwoD),
-        _ => Err(invalid(format!("--candidates {name}"), "expected 3d or 2d")),
-    }
+    name.parse()
+        .map_err(|problem: String| invalid(format!("--candidates {name}"), problem))
 }
 
-pub fn candidate_name(mode: CandidateMode) -> &'static str {
-    match mode {
-        CandidateMode::ThreeD => "3d",
-        CandidateMode::TwoD => "2d",
-    }
-}
-
-/// `--frame` (None: the default the library resolves).
+/// `--frame` (None: the default the library resolves), parsed by the library.
 pub fn input_frame(name: Option<&str>) -> PyResult<Option<InputFrame>> {
-    match name {
-        None => Ok(None),
-        Some("paper") => Ok(Some(InputFrame::Paper)),
-        Some("cyclic") => Ok(Some(InputFrame::Cyclic)),
-        Some(other) => Err(invalid(
-            format!("--frame {other}"),
-            "expected paper or cyclic",
-        )),
-    }
+    name.map(|text| {
+        text.parse()
+            .map_err(|problem: String| invalid(format!("--frame {text}"), problem))
+    })
+    .transpose()
 }
 
 /// `--color`, parsed by the library.

@@ -13,8 +13,8 @@ mod inputs;
 use detached::run_detached;
 use errors::{engine_err, invalid, Error};
 use inputs::{
-    backend_choice, candidate_mode, candidate_name, color_source, exemplar_pair, feature_masks,
-    input_frame, CacheArg, PassesArg, Picture,
+    backend_choice, candidate_mode, color_source, exemplar_pair, feature_masks, input_frame,
+    CacheArg, PassesArg, Picture,
 };
 use numpy::prelude::*;
 use numpy::{PyArray1, PyArray3, PyArray4};
@@ -563,7 +563,7 @@ impl PySolid {
         d.set_item("jitter", s.params.jitter)?;
         d.set_item("backend", s.backend.clone())?;
         d.set_item("adapter", s.adapter.clone())?;
-        d.set_item("candidates", candidate_name(s.params.candidates))?;
+        d.set_item("candidates", s.params.candidates.to_string())?;
         d.set_item("passes", s.params.passes.to_string())?;
         d.set_item("color", s.params.color.to_string())?;
         d.set_item("coarse_cache", s.params.coarse_cache)?;

@@ -42,6 +42,18 @@ pub enum InputFrame {
     Cyclic,
 }
 
+/// `paper` or `cyclic`, as `--frame` spells them.
+impl std::str::FromStr for InputFrame {
+    type Err = String;
+    fn from_str(text: &str) -> std::result::Result<Self, String> {
+        match text {
+            "paper" => Ok(InputFrame::Paper),
+            "cyclic" => Ok(InputFrame::Cyclic),
+            _ => Err("expected paper or cyclic".into()),
+        }
+    }
+}
+
 /// Whether `images` (one for all planes, or Ex, Ey, Ez) can be given in the paper's frame: Ey
 /// transposed must have Ex's size (every square image can; a non-square one only as three
 /// exemplars with Ey given turned).

@@ -37,6 +37,19 @@ pub enum BackendChoice {
     Auto,
 }
 
+/// `auto`, `cpu` or `gpu`, as `--backend` spells them (for callers without clap, e.g. Python).
+impl std::str::FromStr for BackendChoice {
+    type Err = String;
+    fn from_str(text: &str) -> std::result::Result<Self, String> {
+        match text {
+            "auto" => Ok(BackendChoice::Auto),
+            "cpu" => Ok(BackendChoice::Cpu),
+            "gpu" => Ok(BackendChoice::Gpu),
+            _ => Err("expected auto, cpu or gpu".into()),
+        }
+    }
+}
+
 /// An opened backend.
 #[derive(Clone)]
 pub enum Compute {

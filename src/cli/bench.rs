@@ -37,6 +37,11 @@ pub enum BenchCommand {
     /// failures.
     #[command(after_help = super::help::BENCH_SERVE)]
     Serve(super::serve::BenchServeArgs),
+    /// The same jobs (a volume, warm cuts, a surface) on the CPU backend and on every GPU adapter
+    /// present, software ones labelled: medians, CPU/GPU ratios and a same-bytes check, as
+    /// Markdown or JSON.
+    #[command(after_help = super::help::BENCH_COMPARE)]
+    Compare(super::bench_compare::BenchCompareArgs),
 }
 
 #[derive(Args, Debug)]
@@ -159,6 +164,7 @@ pub fn run(cmd: BenchCommand) -> anyhow::Result<()> {
         BenchCommand::Ptm(args) => super::ptm_bench::run(args),
         BenchCommand::Lapped(args) => super::lapped_bench::run(args),
         BenchCommand::Serve(args) => super::serve::bench(args),
+        BenchCommand::Compare(args) => super::bench_compare::run(args),
     }
 }
 

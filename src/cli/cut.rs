@@ -35,7 +35,8 @@ pub struct CutArgs {
         allow_hyphen_values = true
     )]
     pub spacing: f64,
-    /// Run the cut K times through one warm session and print the median and p95 latency.
+    /// Run the cut K times through one session and print the median and p95 latency of the warm
+    /// cuts (all but the first, which is reported on its own).
     #[arg(help_heading = "Cut", long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=10000))]
     pub repeat: u32,
     /// Output PNG.
@@ -145,7 +146,7 @@ pub fn run(args: CutArgs, quiet: bool) -> anyhow::Result<()> {
         });
     } else if !quiet {
         eprintln!(
-            "cut {0}x{0} -> {1}: median {median:.1} ms, p95 {p95:.1} ms over {2} run(s) (first {3:.1} ms)",
+            "cut {0}x{0} -> {1}: median {median:.1} ms, p95 {p95:.1} ms of the warm cuts ({2} run(s), first {3:.1} ms)",
             args.size,
             args.output.display(),
             args.repeat,

@@ -180,6 +180,12 @@ pub const BENCH_LAPPED: &str = "\
 Examples:
   solidsynth bench lapped --resolution 6 --runs 1 --cuts 3";
 
+pub const BENCH_COMPARE: &str = "\
+Examples:
+  solidsynth bench compare --quick
+  solidsynth bench compare --adapters llvmpipe --runs 3 --json > compare.json
+  solidsynth bench compare --adapters none --quick";
+
 pub const BENCH_SERVE: &str = "\
 Examples:
   solidsynth bench serve --clients 2 --requests 8 --size 64 --backend cpu";

@@ -110,7 +110,7 @@ pub struct CutArgs {
     /// Model units across the image (default: the model's bounding-box diagonal).
     #[arg(long)]
     pub extent: Option<f64>,
-    /// Cut K times and print the median and p95 latency.
+    /// Cut K times and print the median and p95 latency of all but the first cut.
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=10000))]
     pub repeat: u32,
     #[arg(help_heading = "Output", short, long)]

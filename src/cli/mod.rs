@@ -2,6 +2,7 @@
 
 pub mod analyze;
 pub mod bench;
+pub mod bench_compare;
 pub mod cut;
 mod entry;
 pub mod eval;

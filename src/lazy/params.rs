@@ -68,6 +68,27 @@ pub enum CandidateMode {
     TwoD,
 }
 
+/// `3d` or `2d`, as `--candidates` spells them.
+impl std::str::FromStr for CandidateMode {
+    type Err = String;
+    fn from_str(text: &str) -> std::result::Result<Self, String> {
+        match text {
+            "3d" => Ok(CandidateMode::ThreeD),
+            "2d" => Ok(CandidateMode::TwoD),
+            _ => Err("expected 3d or 2d".into()),
+        }
+    }
+}
+
+impl std::fmt::Display for CandidateMode {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            CandidateMode::ThreeD => "3d",
+            CandidateMode::TwoD => "2d",
+        })
+    }
+}
+
 /// Where an output voxel's colour comes from (the solid itself, its triples, is the same): one
 /// source for every colour channel, or one per channel ([`ColorSource::PerChannel`]).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]

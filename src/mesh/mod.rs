@@ -18,6 +18,10 @@ use glam::DVec3;
 use std::io::Read;
 use std::path::Path;
 
+/// The Stanford bunny as an OBJ file (`assets/meshes/bunny.obj`): the viewer's built-in mesh and
+/// the surface job of `bench compare`.
+pub const BUNNY_OBJ: &[u8] = include_bytes!("../../assets/meshes/bunny.obj");
+
 #[derive(Clone, Debug, PartialEq)]
 pub struct Mesh {
     pub positions: Vec<[f32; 3]>,

@@ -90,8 +90,8 @@ fn bunny() -> Arc<StoredMesh> {
     static BUNNY: std::sync::OnceLock<Arc<StoredMesh>> = std::sync::OnceLock::new();
     BUNNY
         .get_or_init(|| {
-            let text = include_bytes!("../../assets/meshes/bunny.obj");
-            let mesh = mesh::parse_obj(text, "bunny.obj").expect("the built-in bunny parses");
+            let mesh =
+                mesh::parse_obj(mesh::BUNNY_OBJ, "bunny.obj").expect("the built-in bunny parses");
             Arc::new(StoredMesh {
                 id: "bunny".into(),
                 name: "Stanford bunny".into(),

@@ -1,0 +1,81 @@
+//! `bench compare`: the same jobs on the CPU backend and on every Vulkan adapter, with the
+//! same-bytes check (CI has lavapipe, so the check runs there on a GPU backend).
+
+use std::process::{Command, Output};
+
+fn run(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_solidsynth"))
+        .env("SOLIDSYNTH_LOG", "warn")
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+#[test]
+fn compare_runs_every_job_on_every_device_with_the_cpu_bytes() {
+    let out = run(&["bench", "compare", "--quick", "--runs", "1", "--json"]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let doc: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let devices = doc["devices"].as_array().unwrap();
+    assert_eq!(devices[0]["kind"], "cpu", "{doc}");
+    let adapters = solidsynth::device::list_adapters();
+    if std::env::var_os("CI").is_some() {
+        // CI installs lavapipe: a GPU backend must be in the table, labelled as software.
+        assert!(devices.iter().any(|d| d["kind"] == "software GPU"), "{doc}");
+    }
+    let names: std::collections::BTreeSet<&str> =
+        adapters.iter().map(|a| a.name.as_str()).collect();
+    assert_eq!(devices.len(), 1 + names.len(), "{doc}");
+
+    let jobs = doc["jobs"].as_array().unwrap();
+    assert_eq!(jobs.len(), 6, "{doc}");
+    for job in jobs {
+        let cells = job["cells"].as_array().unwrap();
+        assert_eq!(cells.len(), devices.len(), "{job}");
+        for cell in cells {
+            let median = cell["median"].as_f64().unwrap();
+            assert!(median > 0.0 && median.is_finite(), "{job}");
+            assert_eq!(cell["same_bytes_as_cpu"], true, "{job}");
+            if job["unit"] == "ms" {
+                assert!(cell["p95"].as_f64().unwrap() >= median, "{job}");
+            }
+        }
+    }
+}
+
+#[test]
+fn compare_prints_markdown_and_refuses_an_unknown_adapter() {
+    let out = run(&[
+        "bench",
+        "compare",
+        "--quick",
+        "--runs",
+        "1",
+        "--adapters",
+        "none",
+    ]);
+    let table = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(table.contains("| job | CPU | same bytes |"), "{table}");
+    assert_eq!(
+        table.lines().filter(|l| l.starts_with("| ")).count(),
+        7,
+        "{table}"
+    );
+
+    let out = run(&["bench", "compare", "--adapters", "no-such-card"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("--adapters") && err.contains("no-such-card"),
+        "{err}"
+    );
+}
