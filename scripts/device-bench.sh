@@ -89,7 +89,7 @@ wants kernels && section kernels.txt dist/kernels-test
 if wants compare; then
     compare_flags=()
     ((quick)) && compare_flags=(--quick)
-    section compare.md $ss bench compare "${compare_flags[@]}"
+    section compare.md $ss --quiet bench compare "${compare_flags[@]}"
 fi
 
 # Issue 4: full volumes (targets 256^3 <= 100 ms, 512^3 <= 1 s on an H100); the CPU backend

@@ -71,11 +71,25 @@ fn compare_prints_markdown_and_refuses_an_unknown_adapter() {
         "{table}"
     );
 
-    let out = run(&["bench", "compare", "--adapters", "no-such-card"]);
+    for adapters in ["no-such-card", "none,no-such-card", " "] {
+        let out = run(&["bench", "compare", "--adapters", adapters]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{adapters}: {err}");
+        assert!(err.contains("--adapters"), "{adapters}: {err}");
+    }
+
+    // An exemplar synth refuses is the user's input: exit 2, naming the file.
+    let dir = tempfile::tempdir().unwrap();
+    let missing = dir.path().join("missing.png");
+    let out = run(&[
+        "bench",
+        "compare",
+        "--quick",
+        "--adapters",
+        "none",
+        missing.to_str().unwrap(),
+    ]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(2), "{err}");
-    assert!(
-        err.contains("--adapters") && err.contains("no-such-card"),
-        "{err}"
-    );
+    assert!(err.contains("missing.png"), "{err}");
 }

@@ -76,8 +76,11 @@ struct Cell {
     p95: Option<f64>,
     /// Every run's time (fresh-process jobs).
     samples: Vec<f64>,
-    /// Whether the output's bytes equal the CPU backend's (always true for the CPU column).
+    /// Whether the output's bytes equal the CPU backend's (always true for the CPU column;
+    /// false when the job failed).
     same_bytes_as_cpu: bool,
+    /// Why the job failed on this device (the table says `failed`; the others still run).
+    error: Option<String>,
 }
 
 #[derive(serde::Serialize)]
@@ -107,13 +110,25 @@ pub fn run(args: BenchCompareArgs) -> anyhow::Result<()> {
             .arg("-o")
             .arg(output);
         if let Some(input) = &args.input {
-            cmd.arg(input);
+            cmd.arg("--").arg(input);
         }
-        run_child(cmd)
+        let summary = run_child(cmd)?;
+        // The column's device, not another whose name contains its label.
+        let backend = summary["backend"].as_str().unwrap_or_default();
+        if !backend.starts_with(&device.backend_prefix()) {
+            anyhow::bail!("ran on {backend}, not on {}", device.label);
+        }
+        Ok(summary)
     };
     // Analyse once, on the CPU, so every job and device reads the same cached analysis.
     let warm_up = ["synth", "--size", "16"].map(String::from);
-    child(&warm_up, &devices[0], &scratch.path().join("warm.nrrd"))?;
+    child(&warm_up, &devices[0], &scratch.path().join("warm.nrrd")).map_err(|e| {
+        // `synth` refused INPUT: the user's input (exit 2), in `synth`'s words.
+        match e.downcast::<Refused>() {
+            Ok(refused) => anyhow::Error::new(crate::Error::invalid("INPUT", refused.0)),
+            Err(e) => e,
+        }
+    })?;
 
     let mut results = Vec::new();
     for job in &jobs {
@@ -126,39 +141,31 @@ pub fn run(args: BenchCompareArgs) -> anyhow::Result<()> {
             } else {
                 scratch.path().join(format!("device{d}-{}", job.output))
             };
-            let cell = match job.measure {
-                Measure::FreshSeconds => {
-                    let mut samples = Vec::new();
-                    for _ in 0..runs {
-                        let summary = child(&job.args, device, &output)?;
-                        samples.push(number(&summary, "synthesis_seconds", &job.title)?);
-                    }
-                    let mut sorted = samples.clone();
-                    sorted.sort_by(f64::total_cmp);
+            let measured = measure(job, runs, || child(&job.args, device, &output));
+            let cell = match measured {
+                Ok((median, p95, samples)) => Cell {
+                    device: device.label.clone(),
+                    median,
+                    p95,
+                    samples,
+                    same_bytes_as_cpu: d == 0
+                        || (cells[0].error.is_none()
+                            && std::fs::read(&output)? == std::fs::read(&cpu_output)?),
+                    error: None,
+                },
+                Err(e) => {
+                    tracing::warn!("bench compare: {} on {}: {e:#}", job.title, device.label);
                     Cell {
                         device: device.label.clone(),
-                        median: sorted[sorted.len() / 2],
+                        median: f64::NAN,
                         p95: None,
-                        samples,
-                        same_bytes_as_cpu: true,
-                    }
-                }
-                Measure::WarmCut => {
-                    let summary = child(&job.args, device, &output)?;
-                    Cell {
-                        device: device.label.clone(),
-                        median: number(&summary, "median_ms", &job.title)?,
-                        p95: Some(number(&summary, "p95_ms", &job.title)?),
                         samples: Vec::new(),
-                        same_bytes_as_cpu: true,
+                        same_bytes_as_cpu: false,
+                        error: Some(format!("{e:#}")),
                     }
                 }
             };
-            let same = d == 0 || std::fs::read(&output)? == std::fs::read(&cpu_output)?;
-            cells.push(Cell {
-                same_bytes_as_cpu: same,
-                ..cell
-            });
+            cells.push(cell);
         }
         results.push(JobResult {
             job: job.title.clone(),
@@ -185,6 +192,14 @@ pub fn run(args: BenchCompareArgs) -> anyhow::Result<()> {
     } else {
         print!("{}", markdown(&devices, &results, runs));
     }
+    let failed = results
+        .iter()
+        .flat_map(|r| &r.cells)
+        .filter(|c| c.error.is_some())
+        .count();
+    if failed > 0 {
+        anyhow::bail!("{failed} job(s) failed on a device (see the table and the warnings)");
+    }
     if results
         .iter()
         .any(|r| r.cells.iter().any(|c| !c.same_bytes_as_cpu))
@@ -192,6 +207,34 @@ pub fn run(args: BenchCompareArgs) -> anyhow::Result<()> {
         anyhow::bail!("a device wrote bytes that differ from the CPU backend's (see the table)");
     }
     Ok(())
+}
+
+/// Run `job` `runs` times through `child` (once for a cut, which repeats inside): the median,
+/// the cuts' p95, and the fresh runs' samples.
+fn measure(
+    job: &Job,
+    runs: u32,
+    child: impl Fn() -> anyhow::Result<serde_json::Value>,
+) -> anyhow::Result<(f64, Option<f64>, Vec<f64>)> {
+    match job.measure {
+        Measure::FreshSeconds => {
+            let mut samples = Vec::new();
+            for _ in 0..runs {
+                samples.push(number(&child()?, "synthesis_seconds", &job.title)?);
+            }
+            let mut sorted = samples.clone();
+            sorted.sort_by(f64::total_cmp);
+            Ok((sorted[sorted.len() / 2], None, samples))
+        }
+        Measure::WarmCut => {
+            let summary = child()?;
+            Ok((
+                number(&summary, "median_ms", &job.title)?,
+                Some(number(&summary, "p95_ms", &job.title)?),
+                Vec::new(),
+            ))
+        }
+    }
 }
 
 /// The CPU backend first, then each GPU adapter that `filters` admits (all when empty).
@@ -206,16 +249,38 @@ fn devices(filters: &[String]) -> anyhow::Result<Vec<Device>> {
         ),
         args: ["--backend", "cpu"].map(String::from).to_vec(),
     }];
-    if filters.iter().any(|f| f.eq_ignore_ascii_case("none")) {
+    let filters: Vec<String> = filters.iter().map(|f| f.trim().to_lowercase()).collect();
+    if filters == ["none"] {
         return Ok(devices);
     }
+    let adapters = crate::gpu::context::list_adapters();
+    let available: Vec<&str> = adapters.iter().map(|a| a.name.as_str()).collect();
+    for f in &filters {
+        if f.is_empty() || f == "none" || !available.iter().any(|n| n.to_lowercase().contains(f)) {
+            anyhow::bail!(crate::Error::invalid(
+                format!("--adapters {}", filters.join(",")),
+                if f.is_empty() || f == "none" {
+                    "`none` stands alone, and no name may be empty".to_string()
+                } else {
+                    format!(
+                        "no Vulkan adapter's name contains {f:?} (adapters: {})",
+                        if available.is_empty() {
+                            "none".to_string()
+                        } else {
+                            available.join(", ")
+                        }
+                    )
+                },
+            ));
+        }
+    }
     let mut seen = std::collections::BTreeSet::new();
-    for info in crate::gpu::context::list_adapters() {
+    for info in adapters {
         let name = info.name.clone();
         let wanted = filters.is_empty()
             || filters
                 .iter()
-                .any(|f| name.to_lowercase().contains(&f.to_lowercase()));
+                .any(|f| name.to_lowercase().contains(f.as_str()));
         // `--adapter` selects by name, so identical adapters (two cards of one model) are one
         // column: the first of them.
         if !wanted || !seen.insert(name.clone()) {
@@ -236,13 +301,21 @@ fn devices(filters: &[String]) -> anyhow::Result<Vec<Device>> {
             args: vec!["--backend".into(), "gpu".into(), "--adapter".into(), name],
         });
     }
-    if !filters.is_empty() && devices.len() == 1 {
-        anyhow::bail!(crate::Error::invalid(
-            "--adapters",
-            format!("no Vulkan adapter's name contains {}", filters.join(" or "))
-        ));
+    if devices.len() == 1 {
+        tracing::warn!("bench compare: no Vulkan adapter found; the CPU backend alone");
     }
     Ok(devices)
+}
+
+impl Device {
+    /// How a child's `--json` summary names this device's backend (`Compute::describe`).
+    fn backend_prefix(&self) -> String {
+        if self.kind == "cpu" {
+            "cpu (".into()
+        } else {
+            format!("gpu {} (", self.label)
+        }
+    }
 }
 
 /// The jobs of the table: a volume, warm cuts (axis-aligned and oblique, with the default
@@ -318,6 +391,9 @@ fn markdown(devices: &[Device], results: &[JobResult], runs: u32) -> String {
     for d in devices {
         out.push_str(&format!("- **{}** ({}): {}\n", d.label, d.kind, d.details));
     }
+    if devices.len() == 1 {
+        out.push_str("- no GPU adapter measured\n");
+    }
     out.push('\n');
     let mut header = vec!["job".to_string()];
     header.extend(devices.iter().map(|d| d.label.clone()));
@@ -327,26 +403,35 @@ fn markdown(devices: &[Device], results: &[JobResult], runs: u32) -> String {
     out.push_str(&format!("|{}\n", "---|".repeat(header.len())));
     for r in results {
         let mut row = vec![r.job.clone()];
-        row.extend(r.cells.iter().map(|c| match c.p95 {
-            Some(p95) => format!("{} ({})", figure(c.median), figure(p95)),
-            None => figure(c.median),
+        row.extend(r.cells.iter().map(|c| match (&c.error, c.p95) {
+            (Some(_), _) => "failed".to_string(),
+            (None, Some(p95)) => format!("{} ({})", figure(c.median), figure(p95)),
+            (None, None) => figure(c.median),
         }));
         let cpu = r.cells[0].median;
-        row.extend(
-            r.cells[1..]
-                .iter()
-                .map(|c| format!("{:.2}", cpu / c.median)),
-        );
+        row.extend(r.cells[1..].iter().map(|c| {
+            let ratio = cpu / c.median;
+            if ratio.is_finite() {
+                format!("{ratio:.2}")
+            } else {
+                "-".into()
+            }
+        }));
         let differing: Vec<&str> = r
             .cells
             .iter()
-            .filter(|c| !c.same_bytes_as_cpu)
+            .filter(|c| !c.same_bytes_as_cpu && c.error.is_none())
             .map(|c| c.device.as_str())
             .collect();
-        row.push(if differing.is_empty() {
-            "yes".into()
-        } else {
+        let compared = r.cells.iter().filter(|c| c.error.is_none()).count();
+        row.push(if r.cells[0].error.is_some() {
+            "-".into()
+        } else if !differing.is_empty() {
             format!("**no**: {}", differing.join(", "))
+        } else if compared < 2 && r.cells.len() > 1 {
+            "-".into()
+        } else {
+            "yes".into()
         });
         out.push_str(&format!("| {} |\n", row.join(" | ")));
     }
@@ -373,14 +458,21 @@ fn number(summary: &serde_json::Value, key: &str, job: &str) -> anyhow::Result<f
         .ok_or_else(|| anyhow::anyhow!("{job}: the child's --json summary has no {key}"))
 }
 
+/// A child that exited with code 2: it refused its input, for the reason it printed.
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+struct Refused(String);
+
 fn run_child(mut cmd: Command) -> anyhow::Result<serde_json::Value> {
     let out = cmd.output()?;
     if !out.status.success() {
-        anyhow::bail!(
-            "{:?} failed: {}",
-            cmd.get_args().collect::<Vec<_>>(),
-            String::from_utf8_lossy(&out.stderr).trim()
-        );
+        let err = String::from_utf8_lossy(&out.stderr);
+        let err = err.trim();
+        let err = err.strip_prefix("error: ").unwrap_or(err).to_string();
+        if out.status.code() == Some(2) {
+            return Err(Refused(err).into());
+        }
+        anyhow::bail!("{err}");
     }
     Ok(serde_json::from_slice(&out.stdout)?)
 }
@@ -396,4 +488,90 @@ fn cpu_model() -> String {
                 .map(|m| m.trim().to_string())
         })
         .unwrap_or_else(|| std::env::consts::ARCH.to_string())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn device(label: &str, kind: &str) -> Device {
+        Device {
+            label: label.into(),
+            kind: kind.into(),
+            details: "details".into(),
+            args: Vec::new(),
+        }
+    }
+
+    fn cell(device: &str, median: f64, same: bool, error: Option<&str>) -> Cell {
+        Cell {
+            device: device.into(),
+            median,
+            p95: None,
+            samples: vec![median],
+            same_bytes_as_cpu: same,
+            error: error.map(String::from),
+        }
+    }
+
+    #[test]
+    fn the_table_gives_ratios_mismatches_and_failures() {
+        let devices = [
+            device("CPU", "cpu"),
+            device("A", "gpu"),
+            device("B", "software GPU"),
+        ];
+        let results = [
+            JobResult {
+                job: "fine (s)".into(),
+                unit: "s",
+                cells: vec![
+                    cell("CPU", 2.0, true, None),
+                    cell("A", 0.5, true, None),
+                    cell("B", 4.0, true, None),
+                ],
+            },
+            JobResult {
+                job: "mismatch (s)".into(),
+                unit: "s",
+                cells: vec![
+                    cell("CPU", 1.0, true, None),
+                    cell("A", 1.0, false, None),
+                    cell("B", f64::NAN, false, Some("out of memory")),
+                ],
+            },
+        ];
+        let table = markdown(&devices, &results, 3);
+        assert!(
+            table.contains("| job | CPU | A | B | CPU / A | CPU / B | same bytes |"),
+            "{table}"
+        );
+        assert!(
+            table.contains("| fine (s) | 2.00 | 0.500 | 4.00 | 4.00 | 0.50 | yes |"),
+            "{table}"
+        );
+        assert!(
+            table.contains("| mismatch (s) | 1.00 | 1.00 | failed | 1.00 | - | **no**: A |"),
+            "{table}"
+        );
+        assert!(table.contains("- **B** (software GPU): details"), "{table}");
+    }
+
+    #[test]
+    fn a_cpu_only_table_says_so() {
+        let results = [JobResult {
+            job: "cut (ms)".into(),
+            unit: "ms",
+            cells: vec![Cell {
+                p95: Some(12.0),
+                ..cell("CPU", 10.0, true, None)
+            }],
+        }];
+        let table = markdown(&[device("CPU", "cpu")], &results, 1);
+        assert!(table.contains("no GPU adapter measured"), "{table}");
+        assert!(
+            table.contains("| cut (ms) | 10.0 (12.0) | yes |"),
+            "{table}"
+        );
+    }
 }

@@ -146,10 +146,10 @@ pub fn run(args: CutArgs, quiet: bool) -> anyhow::Result<()> {
         });
     } else if !quiet {
         eprintln!(
-            "cut {0}x{0} -> {1}: median {median:.1} ms, p95 {p95:.1} ms of the warm cuts ({2} run(s), first {3:.1} ms)",
+            "cut {0}x{0} -> {1}: median {median:.1} ms, p95 {p95:.1} ms {2} (first {3:.1} ms)",
             args.size,
             args.output.display(),
-            args.repeat,
+            super::output::Latencies::over(args.repeat),
             latencies[0]
         );
         if let Some(st) = session.synthesizer().last_stats() {

@@ -182,9 +182,8 @@ Examples:
 
 pub const BENCH_COMPARE: &str = "\
 Examples:
-  solidsynth bench compare --quick
-  solidsynth bench compare --adapters llvmpipe --runs 3 --json > compare.json
-  solidsynth bench compare --adapters none --quick";
+  solidsynth bench compare --quick --runs 1 --adapters none
+  solidsynth bench compare --quick --runs 1 --adapters none --json";
 
 pub const BENCH_SERVE: &str = "\
 Examples:

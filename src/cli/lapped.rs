@@ -350,10 +350,10 @@ fn cut(args: CutArgs, quiet: bool) -> anyhow::Result<()> {
     } else if !quiet {
         eprintln!(
             "cut {0}x{0} ({inside} pixels inside the model) -> {1}: median {median:.2} ms, p95 \
-             {p95:.2} ms over {2} run(s)",
+             {p95:.2} ms {2}",
             args.size,
             args.output.display(),
-            args.repeat
+            super::output::Latencies::over(args.repeat)
         );
     }
     Ok(())

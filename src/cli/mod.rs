@@ -252,3 +252,33 @@ struct AdapterSummary<'a> {
     driver: &'a str,
     driver_info: &'a str,
 }
+
+#[cfg(test)]
+mod tests {
+    use clap::ValueEnum;
+
+    /// The library's parsers (what the Python package uses) accept exactly the flags' spellings.
+    fn parses_every_flag_spelling<T>()
+    where
+        T: ValueEnum + std::str::FromStr + PartialEq + std::fmt::Debug,
+    {
+        for variant in T::value_variants() {
+            let name = variant.to_possible_value().unwrap().get_name().to_string();
+            assert_eq!(name.parse::<T>().ok().as_ref(), Some(variant), "{name}");
+        }
+        assert!("no-such-value".parse::<T>().is_err());
+    }
+
+    #[test]
+    fn library_parsers_match_the_command_line() {
+        parses_every_flag_spelling::<crate::backend::BackendChoice>();
+        parses_every_flag_spelling::<crate::lazy::CandidateMode>();
+        parses_every_flag_spelling::<crate::analysis::frame::InputFrame>();
+        for mode in crate::lazy::CandidateMode::value_variants() {
+            assert_eq!(
+                mode.to_string(),
+                mode.to_possible_value().unwrap().get_name()
+            );
+        }
+    }
+}

@@ -56,6 +56,28 @@ impl Latencies {
             first_ms: ms[0],
         }
     }
+
+    /// What the median and p95 of `repeat` requests cover, for messages.
+    pub fn over(repeat: u32) -> String {
+        match repeat {
+            1 => "of one cut".into(),
+            2 => "of the cut after the first".into(),
+            n => format!("over the {} cuts after the first", n - 1),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Latencies;
+
+    #[test]
+    fn latencies_leave_out_the_cold_first_request() {
+        let t = Latencies::of(&[100.0, 1.0, 3.0, 2.0]);
+        assert_eq!((t.median_ms, t.p95_ms, t.first_ms), (2.0, 3.0, 100.0));
+        let one = Latencies::of(&[5.0]);
+        assert_eq!((one.median_ms, one.p95_ms, one.first_ms), (5.0, 5.0, 5.0));
+    }
 }
 
 /// A kernel's time in a summary (`--profile`).

@@ -261,13 +261,19 @@ impl GpuContext {
             .map(|a| format!("{} ({:?})", a.get_info().name, a.get_info().device_type))
             .collect();
         let filter = opts.adapter_filter.as_ref().map(|f| f.to_lowercase());
+        // An adapter named exactly as the filter wins over those whose names merely contain it
+        // ("RTX 4070" is not the "RTX 4070 Ti"), then hardware over software.
         let chosen = adapters
             .into_iter()
             .filter(|a| match &filter {
                 Some(f) => a.get_info().name.to_lowercase().contains(f.as_str()),
                 None => true,
             })
-            .min_by_key(|a| type_rank(a.get_info().device_type));
+            .min_by_key(|a| {
+                let info = a.get_info();
+                let exact = filter.as_deref() == Some(info.name.to_lowercase().as_str());
+                (!exact, type_rank(info.device_type))
+            });
         let adapter = chosen.ok_or_else(|| {
             if names.is_empty() {
                 Error::Gpu(
