@@ -133,26 +133,32 @@ pub fn run(args: BenchCompareArgs) -> anyhow::Result<()> {
     let mut results = Vec::new();
     for job in &jobs {
         let mut cells: Vec<Cell> = Vec::new();
-        let cpu_output = scratch.path().join(format!("cpu-{}", job.output));
+        // The CPU backend's output (device 0), read once: what every other device must equal.
+        let mut cpu_bytes: Option<Vec<u8>> = None;
         for (d, device) in devices.iter().enumerate() {
             tracing::info!("bench compare: {} on {}", job.title, device.label);
-            let output = if d == 0 {
-                cpu_output.clone()
-            } else {
-                scratch.path().join(format!("device{d}-{}", job.output))
-            };
+            let output = scratch.path().join(format!("device{d}-{}", job.output));
             let measured = measure(job, runs, || child(&job.args, device, &output));
             let cell = match measured {
-                Ok((median, p95, samples)) => Cell {
-                    device: device.label.clone(),
-                    median,
-                    p95,
-                    samples,
-                    same_bytes_as_cpu: d == 0
-                        || (cells[0].error.is_none()
-                            && std::fs::read(&output)? == std::fs::read(&cpu_output)?),
-                    error: None,
-                },
+                Ok((median, p95, samples)) => {
+                    let bytes = std::fs::read(&output)?;
+                    let same_bytes_as_cpu = match &cpu_bytes {
+                        Some(cpu) => *cpu == bytes,
+                        // The CPU column itself, or a job the CPU backend failed.
+                        None => d == 0,
+                    };
+                    if d == 0 {
+                        cpu_bytes = Some(bytes);
+                    }
+                    Cell {
+                        device: device.label.clone(),
+                        median,
+                        p95,
+                        samples,
+                        same_bytes_as_cpu,
+                        error: None,
+                    }
+                }
                 Err(e) => {
                     tracing::warn!("bench compare: {} on {}: {e:#}", job.title, device.label);
                     Cell {
