@@ -1,6 +1,6 @@
 //! `solidsynth bench ...`: benchmark tables (the numbers recorded in BENCHMARKS.md).
 
-use super::output::BenchReport;
+use super::output::{self, BenchReport};
 use crate::exemplar::{self, procedural, Image};
 use clap::{Args, Subcommand};
 use std::path::PathBuf;
@@ -297,8 +297,7 @@ fn bench_gradient_render(args: BenchRenderArgs) -> anyhow::Result<()> {
                 out = render_u8(&solid, &query, compute)?;
                 times.push(start.elapsed().as_secs_f64());
             }
-            times.sort_by(f64::total_cmp);
-            let median = times[times.len() / 2];
+            let median = output::median(&times);
             let row = GradientRenderRow {
                 size,
                 backend: name.to_string(),
@@ -404,8 +403,7 @@ fn bench_synth(args: BenchSynthArgs) -> anyhow::Result<()> {
                 times.push(v["synthesis_seconds"].as_f64().unwrap_or(f64::NAN));
                 peak = peak.max(v["peak_rss_bytes"].as_u64().unwrap_or(0));
             }
-            times.sort_by(f64::total_cmp);
-            let median = times[times.len() / 2];
+            let median = output::median(&times);
             let prof = child(size, backend, true)?;
             let k = |name: &str| {
                 prof["kernels"][name]["seconds"]
@@ -543,8 +541,7 @@ fn bench_analyze(args: BenchAnalyzeArgs) -> anyhow::Result<()> {
             peak = peak.max(summary["peak_rss_bytes"].as_u64().unwrap_or(0));
             times.push(secs);
         }
-        times.sort_by(f64::total_cmp);
-        let median = times[times.len() / 2];
+        let median = output::median(&times);
         let file_mib = std::fs::metadata(&output)?.len() as f64 / (1 << 20) as f64;
         if args.json {
             println!(

@@ -6,6 +6,7 @@
 //! volumes and surfaces in fresh processes (median of the runs' synthesis times, analysis
 //! excluded through a warm cache), cuts through one warm session each (`cut --repeat`).
 
+use super::output;
 use clap::Args;
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -228,9 +229,7 @@ fn measure(
             for _ in 0..runs {
                 samples.push(number(&child()?, "synthesis_seconds", &job.title)?);
             }
-            let mut sorted = samples.clone();
-            sorted.sort_by(f64::total_cmp);
-            Ok((sorted[sorted.len() / 2], None, samples))
+            Ok((output::median(&samples), None, samples))
         }
         Measure::WarmCut => {
             let summary = child()?;

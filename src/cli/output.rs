@@ -33,6 +33,25 @@ pub fn print_summary(summary: &impl serde::Serialize) {
     print_json(serde_json::to_value(summary).expect("summaries serialize"));
 }
 
+/// The median of `samples` (at least one): for an even count the upper of the two middle values,
+/// so that it is always one of the measured samples.
+pub fn median(samples: &[f64]) -> f64 {
+    let mut sorted = samples.to_vec();
+    sorted.sort_by(f64::total_cmp);
+    sorted[sorted.len() / 2]
+}
+
+/// The `p`-th quantile (0 < p <= 1) of `samples` by the nearest-rank method; NaN when there are
+/// none.
+pub fn percentile(samples: &[f64], p: f64) -> f64 {
+    if samples.is_empty() {
+        return f64::NAN;
+    }
+    let mut sorted = samples.to_vec();
+    sorted.sort_by(f64::total_cmp);
+    sorted[((sorted.len() as f64 * p).ceil() as usize).clamp(1, sorted.len()) - 1]
+}
+
 /// Repeated requests' latencies in a summary (`--repeat`): the median and the 95th percentile
 /// (nearest rank) of the warm requests (all but the first, when there are several), and the first
 /// (cold) one, which pays for building the session's pipelines and caches.
@@ -47,12 +66,9 @@ impl Latencies {
     /// Of `ms`, in request order (at least one).
     pub fn of(ms: &[f64]) -> Latencies {
         let warm = if ms.len() > 1 { &ms[1..] } else { ms };
-        let mut sorted = warm.to_vec();
-        sorted.sort_by(f64::total_cmp);
-        let rank = ((sorted.len() as f64 * 0.95).ceil() as usize).clamp(1, sorted.len());
         Latencies {
-            median_ms: sorted[sorted.len() / 2],
-            p95_ms: sorted[rank - 1],
+            median_ms: median(warm),
+            p95_ms: percentile(warm, 0.95),
             first_ms: ms[0],
         }
     }
@@ -69,7 +85,20 @@ impl Latencies {
 
 #[cfg(test)]
 mod tests {
-    use super::Latencies;
+    use super::{median, percentile, Latencies};
+
+    #[test]
+    fn median_and_percentiles_are_measured_samples() {
+        assert_eq!(median(&[3.0, 1.0, 2.0]), 2.0);
+        // An even count gives the upper middle sample, not an average of two.
+        assert_eq!(median(&[4.0, 1.0, 3.0, 2.0]), 3.0);
+        let hundred: Vec<f64> = (1..=100).rev().map(f64::from).collect();
+        assert_eq!(percentile(&hundred, 0.5), 50.0);
+        assert_eq!(percentile(&hundred, 0.95), 95.0);
+        assert_eq!(percentile(&hundred, 0.99), 99.0);
+        assert_eq!(percentile(&[7.0], 0.95), 7.0);
+        assert!(percentile(&[], 0.5).is_nan());
+    }
 
     #[test]
     fn latencies_leave_out_the_cold_first_request() {

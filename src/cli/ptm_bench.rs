@@ -2,7 +2,7 @@
 //! (medians, ratio, and a check that the outputs are byte-identical), and relighting on the CPU
 //! and the GPU.
 
-use super::output::BenchReport;
+use super::output::{self, BenchReport};
 use crate::backend::{BackendChoice, Compute};
 use crate::ptm::quilt::{self, QuiltParams, SearchMethod};
 use crate::ptm::Lighting;
@@ -52,11 +52,6 @@ struct PtmRow {
     median_ms: f64,
 }
 
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
-}
-
 fn timed<T>(runs: u32, mut f: impl FnMut() -> anyhow::Result<T>) -> anyhow::Result<(f64, T)> {
     let mut times = Vec::new();
     let mut last = None;
@@ -65,7 +60,7 @@ fn timed<T>(runs: u32, mut f: impl FnMut() -> anyhow::Result<T>) -> anyhow::Resu
         last = Some(f()?);
         times.push(t.elapsed().as_secs_f64());
     }
-    Ok((median(times), last.unwrap()))
+    Ok((output::median(&times), last.unwrap()))
 }
 
 /// `src` tiled to `size` x `size`.

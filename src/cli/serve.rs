@@ -2,6 +2,7 @@
 //! `solidsynth bench serve`, its load test.
 
 use super::analyze::load_or_analyze;
+use super::output::percentile;
 use super::synth::SolidParams;
 use crate::serve::jobs::{self, Source};
 use crate::serve::{client, ServeConfig, Server};
@@ -265,13 +266,6 @@ pub fn bench(args: BenchServeArgs) -> anyhow::Result<()> {
     server.shutdown();
     let ok: Vec<&(bool, f64, f64)> = results.iter().filter(|r| r.0).collect();
     let failed = results.len() - ok.len();
-    let pct = |mut v: Vec<f64>, p: f64| -> f64 {
-        if v.is_empty() {
-            return f64::NAN;
-        }
-        v.sort_by(f64::total_cmp);
-        v[((v.len() as f64 * p).ceil() as usize).clamp(1, v.len()) - 1]
-    };
     let rt: Vec<f64> = ok.iter().map(|r| r.1).collect();
     let synth: Vec<f64> = ok.iter().map(|r| r.2).collect();
     let summary = LoadSummary {
@@ -286,10 +280,10 @@ pub fn bench(args: BenchServeArgs) -> anyhow::Result<()> {
         ok: ok.len(),
         failed,
         throughput_per_s: ok.len() as f64 / wall,
-        latency_p50_ms: pct(rt.clone(), 0.5),
-        latency_p95_ms: pct(rt, 0.95),
-        synthesis_p50_ms: pct(synth.clone(), 0.5),
-        synthesis_p95_ms: pct(synth, 0.95),
+        latency_p50_ms: percentile(&rt, 0.5),
+        latency_p95_ms: percentile(&rt, 0.95),
+        synthesis_p50_ms: percentile(&synth, 0.5),
+        synthesis_p95_ms: percentile(&synth, 0.95),
     };
     if args.json {
         super::output::print_summary(&summary);
@@ -501,14 +495,6 @@ fn print_mixed(
     seconds: u32,
     table: &[(&'static str, KindResults)],
 ) {
-    let pct = |v: &[f64], p: f64| -> f64 {
-        if v.is_empty() {
-            return f64::NAN;
-        }
-        let mut v = v.to_vec();
-        v.sort_by(f64::total_cmp);
-        v[((v.len() as f64 * p).ceil() as usize).clamp(1, v.len()) - 1]
-    };
     let rss = crate::util::memory::peak_rss_bytes().unwrap_or(0) as f64 / (1 << 20) as f64;
     if args.json {
         let rows: Vec<_> = table
@@ -518,9 +504,9 @@ fn print_mixed(
                 as_expected: r.latencies_ms.len(),
                 unexpected: r.unexpected.clone(),
                 per_s: r.latencies_ms.len() as f64 / seconds as f64,
-                p50_ms: pct(&r.latencies_ms, 0.5),
-                p95_ms: pct(&r.latencies_ms, 0.95),
-                p99_ms: pct(&r.latencies_ms, 0.99),
+                p50_ms: percentile(&r.latencies_ms, 0.5),
+                p95_ms: percentile(&r.latencies_ms, 0.95),
+                p99_ms: percentile(&r.latencies_ms, 0.99),
             })
             .collect();
         super::output::print_summary(&MixedSummary {
@@ -547,9 +533,9 @@ fn print_mixed(
             l.len(),
             r.unexpected.len(),
             l.len() as f64 / seconds as f64,
-            pct(l, 0.5),
-            pct(l, 0.95),
-            pct(l, 0.99)
+            percentile(l, 0.5),
+            percentile(l, 0.95),
+            percentile(l, 0.99)
         );
     }
     for (kind, r) in table {
