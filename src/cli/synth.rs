@@ -227,6 +227,7 @@ impl SolidArgs {
         output.vdb = crate::io::vdb::VdbOptions {
             voxel_size: self.voxel_size,
             origin: region.lo.map(|c| c as f64 * self.voxel_size),
+            ..Default::default()
         };
         Ok(output)
     }
