@@ -80,6 +80,8 @@ def put_meta(out, name, type_name, value):
 def uuid(vol, opts):
     """A UUID derived from the content, so that equal inputs give equal files."""
     key = struct.pack('<4I4d', vol.nx, vol.ny, vol.nz, vol.c, opts.voxel_size, *opts.origin)
+    if opts.zip:
+        key += b'\x01'  # zipped files differ, so their UUIDs do too
     words = (
         zlib.crc32(vol.data),
         zlib.crc32(key),

@@ -42,7 +42,7 @@ pub fn median(samples: &[f64]) -> f64 {
 }
 
 /// The `p`-th quantile (0 < p <= 1) of `samples` by the nearest-rank method; NaN when there are
-/// none.
+/// none. For an even count its 0.5 is the lower middle sample, where [`median`] takes the upper.
 pub fn percentile(samples: &[f64], p: f64) -> f64 {
     if samples.is_empty() {
         return f64::NAN;

@@ -164,14 +164,25 @@ fn equal_inputs_give_equal_files() {
     assert_ne!(&a[21..57], &b[21..57], "the UUID follows the content");
 }
 
+/// Each grid's (grid, leaf buffers, end) positions, from the descriptors.
+fn grid_offsets(b: &[u8]) -> Vec<[usize; 3]> {
+    let mut at = 65;
+    GRIDS
+        .iter()
+        .map(|grid| {
+            at += 12 + grid.name.len() + grid.tree_type.len();
+            let offsets = [0, 8, 16].map(|k| i64_at(b, at + k) as usize);
+            at = offsets[2];
+            offsets
+        })
+        .collect()
+}
+
 /// Each grid's leaf buffers, values inflated where zipped: (value mask, metadata, values).
 fn leaf_buffers(b: &[u8]) -> Vec<(Vec<u8>, u8, Vec<u8>)> {
-    let zip = u32_at(b, 65 + 4 + 7 + 4 + 16 + 4 + 24) & COMPRESS_ZIP != 0;
     let mut leaves = Vec::new();
-    let mut at = 65;
-    for grid in &GRIDS {
-        at += 12 + grid.name.len() + grid.tree_type.len();
-        let (block_pos, end) = (i64_at(b, at + 8) as usize, i64_at(b, at + 16) as usize);
+    for (grid, [grid_pos, block_pos, end]) in GRIDS.iter().zip(grid_offsets(b)) {
+        let zip = u32_at(b, grid_pos) & COMPRESS_ZIP != 0;
         let mut p = block_pos;
         while p < end {
             let mask = b[p..p + 64].to_vec();
@@ -179,32 +190,27 @@ fn leaf_buffers(b: &[u8]) -> Vec<(Vec<u8>, u8, Vec<u8>)> {
             p += 65;
             let active: usize = mask.iter().map(|m| m.count_ones() as usize).sum();
             let len = active * grid.value_size;
-            let values = if !zip {
-                p += len;
-                b[p - len..p].to_vec()
-            } else {
-                let n = i64_at(b, p);
+            let n = if zip { i64_at(b, p) } else { -(len as i64) };
+            if zip {
                 p += 8;
-                if n <= 0 {
-                    assert_eq!(-n as usize, len);
-                    p += len;
-                    b[p - len..p].to_vec()
-                } else {
-                    let mut inflated = Vec::new();
-                    let zipped = &b[p..p + n as usize];
-                    std::io::Read::read_to_end(
-                        &mut flate2::read::ZlibDecoder::new(zipped),
-                        &mut inflated,
-                    )
-                    .unwrap();
-                    p += n as usize;
-                    inflated
-                }
+            }
+            let values = if n <= 0 {
+                assert_eq!(-n as usize, len);
+                b[p..p + len].to_vec()
+            } else {
+                let mut inflated = Vec::new();
+                let zipped = &b[p..p + n as usize];
+                std::io::Read::read_to_end(
+                    &mut flate2::read::ZlibDecoder::new(zipped),
+                    &mut inflated,
+                )
+                .unwrap();
+                inflated
             };
+            p += n.unsigned_abs() as usize;
             leaves.push((mask, meta, values));
         }
         assert_eq!(p, end);
-        at = end;
     }
     leaves
 }
@@ -216,10 +222,20 @@ fn zipped_files_hold_the_raw_files_values() {
         let zipped = to_bytes(&v, VdbOptions::default());
         let plain = to_bytes(&v, raw());
         assert!(zipped.len() < plain.len(), "{dims:?}");
-        assert_eq!(
-            u32_at(&zipped, 65 + 4 + 7 + 4 + 16 + 4 + 24),
-            COMPRESS_ACTIVE_MASK | COMPRESS_ZIP
-        );
+        // Both grids zipped; their topology gains the longer `file_compression` string and an
+        // empty zip chunk (8 bytes) per internal node.
+        let internal_nodes: u32 = [4096, 128]
+            .map(|s| dims.map(|n| n.div_ceil(s)).iter().product::<u32>())
+            .iter()
+            .sum();
+        for (z, p) in grid_offsets(&zipped).into_iter().zip(grid_offsets(&plain)) {
+            assert_eq!(u32_at(&zipped, z[0]), COMPRESS_ACTIVE_MASK | COMPRESS_ZIP);
+            assert_eq!(
+                z[1] - z[0],
+                p[1] - p[0] + 6 + 8 * internal_nodes as usize,
+                "{dims:?}"
+            );
+        }
         let leaves = leaf_buffers(&zipped);
         assert_eq!(leaves, leaf_buffers(&plain), "{dims:?}");
         assert_eq!(
