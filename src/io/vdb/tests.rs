@@ -164,6 +164,24 @@ fn equal_inputs_give_equal_files() {
     assert_ne!(&a[21..57], &b[21..57], "the UUID follows the content");
 }
 
+#[test]
+fn files_do_not_depend_on_the_thread_count() {
+    // More leaves than one parallel task takes, so that several tasks share the work.
+    let v = pattern(96, 40, 72, 3);
+    let one = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap();
+    let three = rayon::ThreadPoolBuilder::new()
+        .num_threads(3)
+        .build()
+        .unwrap();
+    for options in [VdbOptions::default(), raw()] {
+        let serial = one.install(|| to_bytes(&v, options));
+        assert_eq!(serial, three.install(|| to_bytes(&v, options)));
+    }
+}
+
 /// Each grid's (grid, leaf buffers, end) positions, from the descriptors.
 fn grid_offsets(b: &[u8]) -> Vec<[usize; 3]> {
     let mut at = 65;
