@@ -238,29 +238,51 @@ fn leaf_mask(v: &Volume, origin: [u32; 3]) -> Vec<u8> {
     mask(3, bits)
 }
 
-/// A zlib compressor for zip chunks (reused: each one holds a few hundred KB of state).
-fn zip_compressor() -> Compress {
-    Compress::new(Compression::default(), true)
+/// Writes value arrays, raw or as zip chunks. Its zlib compressor (a few hundred KB of state) is
+/// made at the first array worth compressing and reused for the rest.
+struct ValueWriter {
+    zip: bool,
+    compressor: Option<Compress>,
 }
 
-/// One value array: the metadata byte, then the active values, raw or, given a compressor, as a
-/// zip chunk.
-fn put_values(out: &mut Vec<u8>, raw: &[u8], zip: Option<&mut Compress>) {
-    out.push(NO_MASK_OR_INACTIVE_VALS);
-    let Some(z) = zip else {
-        out.extend_from_slice(raw);
-        return;
-    };
-    z.reset();
-    // Room for a stream shorter than the values: a longer one is not used.
-    let mut zipped = Vec::with_capacity(raw.len());
-    let status = z.compress_vec(raw, &mut zipped, FlushCompress::Finish);
-    if matches!(status, Ok(Status::StreamEnd)) && zipped.len() < raw.len() {
-        out.extend_from_slice(&(zipped.len() as i64).to_le_bytes());
-        out.extend_from_slice(&zipped);
-    } else {
-        out.extend_from_slice(&(-(raw.len() as i64)).to_le_bytes());
-        out.extend_from_slice(raw);
+impl ValueWriter {
+    fn new(zip: bool) -> ValueWriter {
+        ValueWriter {
+            zip,
+            compressor: None,
+        }
+    }
+
+    /// One value array: the metadata byte, then the active values.
+    fn put(&mut self, out: &mut Vec<u8>, raw: &[u8]) {
+        out.push(NO_MASK_OR_INACTIVE_VALS);
+        if !self.zip {
+            out.extend_from_slice(raw);
+            return;
+        }
+        let mut zipped = Vec::new();
+        // An empty array never shrinks: its chunk is the raw branch's zero length.
+        if !raw.is_empty() {
+            let z = self
+                .compressor
+                .get_or_insert_with(|| Compress::new(Compression::default(), true));
+            z.reset();
+            // Room for a stream shorter than the values: a longer one is not used.
+            zipped.reserve(raw.len());
+            if !matches!(
+                z.compress_vec(raw, &mut zipped, FlushCompress::Finish),
+                Ok(Status::StreamEnd)
+            ) {
+                zipped.clear();
+            }
+        }
+        if !zipped.is_empty() && zipped.len() < raw.len() {
+            out.extend_from_slice(&(zipped.len() as i64).to_le_bytes());
+            out.extend_from_slice(&zipped);
+        } else {
+            out.extend_from_slice(&(-(raw.len() as i64)).to_le_bytes());
+            out.extend_from_slice(raw);
+        }
     }
 }
 
@@ -272,16 +294,16 @@ fn put_internal(
     origin: [u32; 3],
     level: usize,
     leaves: &mut Vec<[u32; 3]>,
-    zip: &mut Option<Compress>,
+    values: &mut ValueWriter,
 ) {
     let kids = children(v, origin, level);
     let log2_dim = LOG2_SPAN[level] - LOG2_SPAN[level + 1];
     out.extend_from_slice(&mask(log2_dim, kids.iter().map(|k| k.1)));
     out.extend_from_slice(&mask(log2_dim, std::iter::empty::<u32>()));
-    put_values(out, &[], zip.as_mut());
+    values.put(out, &[]);
     for (child, _) in kids {
         if level == 0 {
-            put_internal(out, v, child, 1, leaves, zip);
+            put_internal(out, v, child, 1, leaves, values);
         } else {
             out.extend_from_slice(&leaf_mask(v, child));
             leaves.push(child);
@@ -291,7 +313,7 @@ fn put_internal(
 
 /// The tree's topology; returns the leaves' origins in buffer order.
 fn put_topology(out: &mut Vec<u8>, v: &Volume, value_size: usize, zip: bool) -> Vec<[u32; 3]> {
-    let mut zip = zip.then(zip_compressor);
+    let mut values = ValueWriter::new(zip);
     put_u32(out, 1); // buffer count
     out.resize(out.len() + value_size, 0); // background: zero
     let step = 1usize << LOG2_SPAN[0];
@@ -311,7 +333,7 @@ fn put_topology(out: &mut Vec<u8>, v: &Volume, value_size: usize, zip: bool) -> 
         for c in origin {
             out.extend_from_slice(&(c as i32).to_le_bytes());
         }
-        put_internal(out, v, origin, 0, &mut leaves, &mut zip);
+        put_internal(out, v, origin, 0, &mut leaves, &mut values);
     }
     leaves
 }
@@ -320,7 +342,7 @@ fn put_topology(out: &mut Vec<u8>, v: &Volume, value_size: usize, zip: bool) -> 
 /// their order.
 fn put_buffers(out: &mut Vec<u8>, v: &Volume, leaves: &[[u32; 3]], grid: &Grid, zip: bool) {
     let (nx, ny, c) = (v.nx as usize, v.ny as usize, v.channels as usize);
-    let buffer = |zip: &mut Option<Compress>, &origin: &[u32; 3]| {
+    let buffer = |values: &mut ValueWriter, &origin: &[u32; 3]| {
         let mut raw = Vec::with_capacity(512 * grid.value_size);
         let [ex, ey, ez] = leaf_extent(v, origin);
         // Leaf index order: x, then y, then z fastest.
@@ -333,15 +355,15 @@ fn put_buffers(out: &mut Vec<u8>, v: &Volume, leaves: &[[u32; 3]], grid: &Grid, 
             }
         }
         let mut bytes = leaf_mask(v, origin);
-        put_values(&mut bytes, &raw, zip.as_mut());
+        values.put(&mut bytes, &raw);
         bytes
     };
     // A chunk of leaves per task keeps the collected pieces few, and shares a compressor.
     let pieces: Vec<Vec<u8>> = leaves
         .par_chunks(64)
         .map(|chunk| {
-            let mut zip = zip.then(zip_compressor);
-            chunk.iter().flat_map(|o| buffer(&mut zip, o)).collect()
+            let mut values = ValueWriter::new(zip);
+            chunk.iter().flat_map(|o| buffer(&mut values, o)).collect()
         })
         .collect();
     for piece in pieces {

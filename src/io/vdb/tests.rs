@@ -10,6 +10,15 @@ fn raw() -> VdbOptions {
     }
 }
 
+/// Raw values, a half-size voxel and the grids translated: the prototype's placed case.
+fn translated() -> VdbOptions {
+    VdbOptions {
+        voxel_size: 0.5,
+        origin: [1.5, -2.0, 3.0],
+        zip: false,
+    }
+}
+
 /// The volume `scripts/vdb_prototype.py`'s checks were run on (see `golden_files`).
 fn pattern(nx: u32, ny: u32, nz: u32, channels: u32) -> Volume {
     let mut v = Volume::new(nx, ny, nz, channels);
@@ -83,16 +92,11 @@ fn header_and_descriptors() {
 
 #[test]
 fn length_follows_the_tree_shape() {
-    let translated = VdbOptions {
-        voxel_size: 0.5,
-        origin: [1.5, -2.0, 3.0],
-        zip: false,
-    };
     for (dims, c, o) in [
         ([8, 8, 8], 3, raw()),
         ([13, 7, 21], 1, raw()),
         ([100, 40, 9], 4, raw()),
-        ([8, 8, 8], 1, translated),
+        ([8, 8, 8], 1, translated()),
         ([4100, 2, 3], 1, raw()),
     ] {
         let b = to_bytes(&pattern(dims[0], dims[1], dims[2], c), o);
@@ -131,16 +135,11 @@ fn first_leaf_holds_density_in_leaf_order() {
 /// writes the prototype's bytes, which `scripts/vdb_check.py` validated with OpenVDB.
 #[test]
 fn golden_files() {
-    let translated = VdbOptions {
-        voxel_size: 0.5,
-        origin: [1.5, -2.0, 3.0],
-        zip: false,
-    };
     for (dims, c, o, crc, uuid_head) in [
         ([8, 8, 8], 3, raw(), 0x92b8ac80u32, "765887c8-e92f"),
         ([13, 7, 21], 3, raw(), 0xbce9c04e, "8e63396d-8fe0"),
         ([100, 40, 9], 4, raw(), 0x810743fa, "49835d6a-28c9"),
-        ([8, 8, 8], 1, translated, 0xd01f21f9, "d3ac1c26-3b0d"),
+        ([8, 8, 8], 1, translated(), 0xd01f21f9, "d3ac1c26-3b0d"),
         ([4100, 2, 3], 1, raw(), 0xf8f2acb7, "532d167f-770c"),
     ] {
         let b = to_bytes(&pattern(dims[0], dims[1], dims[2], c), o);
