@@ -1,6 +1,6 @@
 //! Kernel `colorize` alone: the colours of a state's voxels (made by the CPU `init`) from each
-//! colour source (the voxel's cached mean, each exemplar's pixel, the matched table), against the
-//! CPU reference.
+//! colour source (the voxel's cached mean, each exemplar's pixel, the matched table, the fitted
+//! weighting, which reads neighbours, also wrapped into a period), against the CPU reference.
 
 use crate::compare::words_equal;
 use crate::synth_inputs::{analysis, gpu_synth, initial_state, BoxBricks};
@@ -25,16 +25,27 @@ fn colorize_matches_its_reference_and_its_comparison_can_fail() {
     let (state, _) = initial_state(&pack, Border::Mirror, &bricks);
     let index = g.upload_index(&bricks.index);
     let s = g.upload_state(&state);
-    // Per channel, 4 bits of source: 0 the cached mean, a + 1 exemplar a's pixel, 4 matched.
+    // Per channel, 4 bits of source: 0 the cached mean, a + 1 exemplar a's pixel, 4 matched,
+    // 5 fitted; with a period of 8 the fitted reads (and the voxels) wrap into [0, 8)^3.
     let mut outputs = Vec::new();
-    for source in [0x000, 0x123, 0x321, 0x444, 0x041] {
-        let what = format!("colorize, sources {source:#05x}");
+    for (source, period) in [
+        (0x000, 0),
+        (0x123, 0),
+        (0x321, 0),
+        (0x444, 0),
+        (0x041, 0),
+        (0x555, 0),
+        (0x505, 0),
+        (0x555, 8),
+    ] {
+        let what = format!("colorize, sources {source:#05x}, period {period}");
         let p = kernel_params::colorize_params(
             &pack,
             Border::Mirror.code(),
             &bricks.grid,
             (bricks.list, bricks.count()),
             source,
+            period,
         );
         let reference = solidsynth::cpu::colorize::colorize(&p, &pack.words, &state, &bricks.index);
         let read = g.colorize(0, &p, &s, &index).unwrap();

@@ -56,6 +56,33 @@ fn synthesis_kernels_bit_exact_on_gpu_and_cpu() {
             s.synthesize(b, &|_, _| {}).unwrap()
         });
     }
+    // The fitted colours, which read the final level's neighbours (2 voxels more of it planned
+    // around the box, or wrapped around a tileable solid's period).
+    let a = analysis(true, Border::Mirror);
+    let params = SynthParams {
+        seed: 79,
+        color: ColorSource::Fitted,
+        ..Default::default()
+    };
+    same_on_both(
+        "fitted colours",
+        &a,
+        &params,
+        &gpu,
+        Default::default(),
+        |s| {
+            s.synthesize(Box3::new([-3, 5, -8], [9, 14, 1]), &|_, _| {})
+                .unwrap()
+        },
+    );
+    same_on_both(
+        "fitted, tileable",
+        &a,
+        &params,
+        &gpu,
+        Default::default(),
+        |s| s.synthesize_tileable(32, &|_, _| {}, false).unwrap().0,
+    );
     // A one-voxel-thick slab (an axis-aligned cut's request): its bricks and their padding.
     // (Passes compute whole bricks, so every brick mask here is full.)
     let a = analysis(false, Border::Wrap);

@@ -73,7 +73,10 @@ pub struct SolidParams {
     )]
     pub passes: crate::lazy::PassSchedule,
     /// Output colour: the mean of the voxel's three exemplar pixels (the paper's rule);
-    /// `matched`: that mean with the exemplar's mean colour and contrast restored (a table from
+    /// `fitted`: those pixels weighted by how well each plane's 5x5 neighbourhood fits its
+    /// exemplar there (closer to the exemplar on most quality measures; a voxel's colour then
+    /// reads its neighbours, so requests compute 2 voxels more around their output); `matched`:
+    /// the mean with the exemplar's mean colour and contrast restored (a table from
     /// a probe solid synthesized when the session starts; better histogram and sharpness
     /// scores); or one exemplar's pixel (x, y, z). Or one of these per colour channel, red
     /// first, separated by commas (`x,y,z`: red from Ex, green from Ey, blue from Ez).

@@ -175,11 +175,18 @@ gpu_struct! {
         match_table: u32,
         color_channels: u32,
         /// Per channel c, 4 bits at 4c: 0 the voxel's cached value (mean of its three pixels);
-        /// a + 1 exemplar a's pixel; 4 the cached value mapped through the match table.
+        /// a + 1 exemplar a's pixel; 4 the cached value mapped through the match table; 5 the
+        /// fitted weighting of the three pixels (reads neighbours up to [`FITTED_REACH`] away).
         source: u32,
-        _r0: u32, _r1: u32, _r2: u32,
+        /// A tileable solid's period (finest-level voxels; 0 for none): neighbours wrap.
+        period: u32,
+        _r1: u32, _r2: u32,
     }
 }
+
+/// How far the fitted colour rule (`ColorizeParams::source` 5) reads around a voxel: the
+/// half-width of its 5x5 plane neighbourhoods.
+pub const FITTED_REACH: i32 = 2;
 
 gpu_struct! {
     /// Uniforms of `wgsl/tricubic_eval.wgsl`: evaluate a gradient solid at points. Floats are

@@ -198,6 +198,7 @@ impl Synthesizer {
             &finest.grid,
             (layout.output_list, group.len() as u32),
             self.params.color.kernel_code(),
+            periodic.read_period(last),
         );
         tracing::debug!("group's kernels recorded in {:.1} ms", ms(recording));
         // In a request of several groups the colours may come back while the next group runs

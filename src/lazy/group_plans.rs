@@ -46,7 +46,14 @@ impl Synthesizer {
             .iter()
             .map(|p| (3 + p.pixel_words as u64) * 4)
             .collect();
-        let bound = |extent| grouping::planned_state_bytes(extent, passes, &strides);
+        // The finest level also delivers what the output's colours read around it.
+        let reach = match coarser_by {
+            0 => 2 * self.params.color.reach() as u64,
+            _ => 0,
+        };
+        let bound = |extent: [u64; 3]| {
+            grouping::planned_state_bytes(extent.map(|e| e + reach), passes, &strides)
+        };
         let sides = grouping::group_sides(all, cap, coarser_by > 0, self.state_limit(), bound);
         grouping::cubes(all, sides)
     }
@@ -76,7 +83,7 @@ impl Synthesizer {
             0
         };
         let timer = std::time::Instant::now();
-        let levels = plan_group(all, exact, &passes[first..]);
+        let levels = plan_group(all, exact, &passes[first..], self.params.color.reach());
         tracing::debug!(
             "planned {} bricks as one group in {:.1} ms",
             all.len(),
@@ -105,6 +112,7 @@ impl Synthesizer {
         first: usize,
     ) -> std::collections::VecDeque<Vec<SparseLevel>> {
         let passes = &self.params.passes.levels()[first..];
+        let reach = self.params.color.reach();
         // Plans of every level are several times larger (the 2048 bunny's shared-level plans
         // held 0.65 GB more at 16 at once, `parents_of_groups`): at most 4 of those.
         let most = match first {
@@ -123,7 +131,7 @@ impl Synthesizer {
         let timer = std::time::Instant::now();
         let plans = groups[..window]
             .par_iter()
-            .map(|g| plan_group(g, group_part(exact, g), passes))
+            .map(|g| plan_group(g, group_part(exact, g), passes, reach))
             .collect();
         tracing::debug!("planned {window} groups ahead in {:.1} ms", ms(timer));
         plans
@@ -143,7 +151,8 @@ impl Synthesizer {
             }
         }
         let timer = std::time::Instant::now();
-        let levels = plan_group(group, exact, &self.params.passes.levels()[first..]);
+        let reach = self.params.color.reach();
+        let levels = plan_group(group, exact, &self.params.passes.levels()[first..], reach);
         tracing::debug!("planned {} bricks in {:.1} ms", group.len(), ms(timer));
         levels
     }
@@ -217,15 +226,24 @@ impl Synthesizer {
 }
 
 /// The plan of a group of bricks: voxel-exact at the finest level when the request is the
-/// box `exact` (see [`Synthesizer::for_each_group`]).
+/// box `exact` (see [`Synthesizer::for_each_group`]). `reach`: how far around an output voxel
+/// its colour reads the finest level's final values ([`ColorSource::reach`]), which the finest
+/// level then delivers too (the group's bricks and their neighbours where it is not a box).
 pub(super) fn plan_group(
     group: &[Brick],
     exact: Option<Box3>,
     passes: &[usize],
+    reach: i32,
 ) -> Vec<SparseLevel> {
-    match exact {
-        Some(b) => bricks::plan_voxel_box(b, passes),
-        None => bricks::plan_sparse(group, passes),
+    match (exact, reach) {
+        (Some(b), _) => bricks::plan_voxel_box(b.dilate([-reach; 3], [reach; 3]), passes),
+        (None, 0) => bricks::plan_sparse(group, passes),
+        (None, _) => {
+            // Within one brick of its own (reach <= 4): a correction pass computes whole
+            // bricks anyway.
+            debug_assert!(reach <= bricks::BRICK);
+            bricks::plan_sparse(&bricks::dilate(group, [-1; 3], [1; 3]), passes)
+        }
     }
 }
 

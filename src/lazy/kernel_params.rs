@@ -144,13 +144,14 @@ pub fn upsample_params(
 
 /// The uniforms of `colorize` of the output bricks of the list `list` of the finest level's
 /// brick index (whose table, at word 0, describes `grid`), channel sources `source`
-/// ([`super::ColorSource::kernel_code`]).
+/// ([`super::ColorSource::kernel_code`]), in a tileable solid of period `period` (0 for none).
 pub fn colorize_params(
     pack: &LevelPack,
     border: u32,
     grid: &BrickGrid,
     list: (u32, u32),
     source: u32,
+    period: u32,
 ) -> ColorizeParams {
     ColorizeParams {
         ex: ExemplarFields::of(pack, border),
@@ -167,7 +168,7 @@ pub fn colorize_params(
         match_table: pack.offsets.color_match,
         color_channels: pack.color_channels,
         source,
-        _r0: 0,
+        period,
         _r1: 0,
         _r2: 0,
     }

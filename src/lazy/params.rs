@@ -96,6 +96,11 @@ pub enum ColorSource {
     /// The mean of the voxel's three exemplar pixels (the paper's rule).
     #[default]
     Average,
+    /// The voxel's three exemplar pixels weighted by how well each plane's 5x5 neighbourhood of
+    /// mean colours fits its exemplar around the pixel (`cpu::colorize`). It reads the
+    /// neighbours' mean colours, so a request computes 2 voxels more around its output
+    /// ([`ColorSource::reach`]).
+    Fitted,
     /// The pixel of Ex (resp. Ey, Ez) at the voxel's coordinate in it: sharper, but only as
     /// consistent across axes as the synthesis made the triple.
     X,
@@ -115,6 +120,7 @@ pub enum ColorSource {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
 pub enum ChannelSource {
     Average,
+    Fitted,
     X,
     Y,
     Z,
@@ -122,8 +128,9 @@ pub enum ChannelSource {
 }
 
 impl ChannelSource {
-    const NAMES: [(&'static str, ChannelSource); 5] = [
+    const NAMES: [(&'static str, ChannelSource); 6] = [
         ("average", ChannelSource::Average),
+        ("fitted", ChannelSource::Fitted),
         ("matched", ChannelSource::Matched),
         ("x", ChannelSource::X),
         ("y", ChannelSource::Y),
@@ -141,17 +148,18 @@ impl ChannelSource {
             .map(|&(_, source)| source)
             .ok_or_else(|| {
                 format!(
-                    "unknown colour source {name:?}: average, matched, x, y or z, or one per \
-                     colour channel separated by commas"
+                    "unknown colour source {name:?}: average, fitted, matched, x, y or z, or \
+                     one per colour channel separated by commas"
                 )
             })
     }
 
     /// Its code in `ColorizeParams::source`: 0 the mean, a + 1 exemplar a's pixel, 4 the
-    /// matched mean.
+    /// matched mean, 5 the fitted weighting.
     fn code(self) -> u32 {
         match self {
             ChannelSource::Average => 0,
+            ChannelSource::Fitted => 5,
             ChannelSource::X => 1,
             ChannelSource::Y => 2,
             ChannelSource::Z => 3,
@@ -172,6 +180,7 @@ impl ColorSource {
     pub fn channel(self, c: usize) -> ChannelSource {
         match self {
             ColorSource::Average => ChannelSource::Average,
+            ColorSource::Fitted => ChannelSource::Fitted,
             ColorSource::X => ChannelSource::X,
             ColorSource::Y => ChannelSource::Y,
             ColorSource::Z => ChannelSource::Z,
@@ -185,6 +194,20 @@ impl ColorSource {
         (0..4).any(|c| self.channel(c) == ChannelSource::Matched)
     }
 
+    /// How far (voxels, along every axis) a voxel's colour reads its neighbours' mean colours:
+    /// `contract::uniforms::FITTED_REACH` when a channel is [`ChannelSource::Fitted`], else 0 (the other rules
+    /// read the voxel alone). Requests compute this much more around their output.
+    pub fn reach(self) -> i32 {
+        let channels = match self {
+            ColorSource::PerChannel(list) => list.len as usize,
+            _ => 1,
+        };
+        match (0..channels).any(|c| self.channel(c) == ChannelSource::Fitted) {
+            true => crate::contract::uniforms::FITTED_REACH,
+            false => 0,
+        }
+    }
+
     /// `ColorizeParams::source`: colour channel c's [`ChannelSource`] code in bits 4c..4c+3.
     pub fn kernel_code(self) -> u32 {
         (0..4).fold(0, |code, c| code | self.channel(c).code() << (4 * c))
@@ -194,13 +217,14 @@ impl ColorSource {
 impl std::str::FromStr for ColorSource {
     type Err = String;
 
-    /// `average`, `matched`, `x`, `y` or `z`, or 2 to 4 of them separated by commas, one per
+    /// `average`, `fitted`, `matched`, `x`, `y` or `z`, or 2 to 4 of them separated by commas, one per
     /// colour channel.
     fn from_str(text: &str) -> std::result::Result<ColorSource, String> {
         let names: Vec<&str> = text.split(',').collect();
         match names.len() {
             1 => Ok(match ChannelSource::parse(names[0])? {
                 ChannelSource::Average => ColorSource::Average,
+                ChannelSource::Fitted => ColorSource::Fitted,
                 ChannelSource::X => ColorSource::X,
                 ChannelSource::Y => ColorSource::Y,
                 ChannelSource::Z => ColorSource::Z,

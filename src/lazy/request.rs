@@ -274,8 +274,9 @@ impl Synthesizer {
         } = job;
         let finest = ANALYSED_LEVELS - 1;
         let passes = self.params.passes.levels();
+        let reach = self.params.color.reach();
         let plan_finest = |group: &[Brick]| {
-            plan_group(group, group_part(exact, group), &passes[finest..])
+            plan_group(group, group_part(exact, group), &passes[finest..], reach)
                 .pop()
                 .expect("one level")
         };
