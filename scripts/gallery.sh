@@ -22,6 +22,9 @@ ss() { echo "solidsynth $*" >&2; "$bin" --quiet "$@"; }
 ss synth --size 64 --seed 5 --backend cpu -o builtin.nrrd --sheet "$out/builtin-sheet.png"
 ss synth "$repo/tests/fixtures/cc0_gravel64.png" --size 64 --seed 5 --backend cpu -o gravel.nrrd --sheet "$out/gravel-sheet.png"
 ss synth "$repo/tests/fixtures/cc0_brick64.png" --size 64 --seed 5 --backend cpu -o brick.nrrd --sheet "$out/brick-sheet.png"
+# The same two solids coloured by `--color fitted` (the triples, the solid itself, are the same).
+ss synth --size 64 --seed 5 --backend cpu --color fitted -o builtin-fitted.nrrd --sheet "$out/builtin-fitted-sheet.png"
+ss synth "$repo/tests/fixtures/cc0_brick64.png" --size 64 --seed 5 --backend cpu --color fitted -o brick-fitted.nrrd --sheet "$out/brick-fitted-sheet.png"
 # A cut at an angle, far from the origin: the infinite solid, synthesized on demand.
 ss cut --origin 1000,-500,77 --normal 1,2,3 --size 192 --seed 5 --backend cpu -o "$out/builtin-oblique-cut.png"
 # The bunny's surface baked lazily into its atlas and rendered with it (the library example

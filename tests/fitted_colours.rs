@@ -27,7 +27,7 @@ fn synth(a: &Analysis, params: &SynthParams, b: Box3, options: SynthOptions) -> 
 }
 
 /// The voxel at `p` (inside `b`) of the volume `v` of box `b`.
-fn at<'a>(v: &'a Volume, b: Box3, p: [i32; 3]) -> &'a [u8] {
+fn at(v: &Volume, b: Box3, p: [i32; 3]) -> &[u8] {
     v.at(
         (p[0] - b.lo[0]) as u32,
         (p[1] - b.lo[1]) as u32,
