@@ -8,7 +8,7 @@ mod common;
 use solidsynth::analysis::frame::unpack;
 use solidsynth::analysis::Analysis;
 use solidsynth::backend::Compute;
-use solidsynth::exemplar::Border;
+use solidsynth::exemplar::{Border, Image};
 use solidsynth::lazy::cut::{CutSession, CutSpec};
 use solidsynth::lazy::{Box3, ColorSource, SynthOptions, SynthParams, Synthesizer};
 use solidsynth::volume::Volume;
@@ -35,12 +35,32 @@ fn at(v: &Volume, b: Box3, p: [i32; 3]) -> &[u8] {
     )
 }
 
+/// Three different exemplars from one fixture: itself, its transpose and its channels rotated,
+/// so a rule that paired a plane with another plane's exemplar would fail.
+fn three_exemplars() -> Vec<Image> {
+    let img = common::fixture("cells32.png");
+    let (w, c) = (img.width, img.channels as usize);
+    let mut transposed = img.clone();
+    let mut rotated = img.clone();
+    for y in 0..img.height {
+        for x in 0..w {
+            let i = (y * w + x) as usize * c;
+            transposed.pixels[i..i + c].copy_from_slice(img.at(y, x));
+            for k in 0..c.min(3) {
+                rotated.pixels[i + k] = img.at(x, y)[(k + 1) % c.min(3)];
+            }
+        }
+    }
+    vec![img, transposed, rotated]
+}
+
 /// The rule, written out again from its description: for the voxels whose 5x5 planes lie
 /// inside the box, the colour from the triples (mean colours (sum + 1) / 3 per channel, misfits
-/// against the exemplars' windows, weights q^2 with q = 256 (D_min + 1) / (D_a + 1)).
+/// against the exemplars' windows with their border, weights q^2 with q = 256 (D_min + 1) /
+/// (D_a + 1)).
 #[test]
 fn fitted_colours_follow_the_rule() {
-    let a = common::analyze(vec![common::fixture("cells32.png")], Border::Wrap);
+    let a = common::analyze(three_exemplars(), Border::Mirror);
     let b = Box3::new([-4, 3, -6], [8, 15, 6]);
     let mut s = Synthesizer::new(&a, params(4), &Compute::Cpu).unwrap();
     let (v, triples) = s.synthesize_with_triples(b, &|_, _| {}).unwrap();
@@ -79,7 +99,7 @@ fn fitted_colours_follow_the_rule() {
                             n[ua] += du;
                             n[va] += dv;
                             let window =
-                                images[e].at_border(px as i32 + du, py as i32 + dv, Border::Wrap);
+                                images[e].at_border(px as i32 + du, py as i32 + dv, Border::Mirror);
                             for c in 0..channels {
                                 let d = at(&means, b, n)[c] as i64 - window[c] as i64;
                                 misfit[e] += (d * d) as u64;

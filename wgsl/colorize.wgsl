@@ -27,13 +27,8 @@ const FITTED_REACH: i32 = 2;
 // Index of voxel p in the state (wrapped into a tileable solid's period); ABSENT when its brick
 // is not stored.
 fn state_slot(pos: vec3<i32>) -> u32 {
-    var p = pos;
-    if (params.period != 0u) {
-        let n = i32(params.period);
-        p = vec3<i32>(rem_euclid(p.x, n), rem_euclid(p.y, n), rem_euclid(p.z, n));
-    }
-    return voxel_index(p, vec3<i32>(params.grid_lo_x, params.grid_lo_y, params.grid_lo_z),
-        vec3<u32>(params.grid_x, params.grid_y, params.grid_z), params.table_offset);
+    return voxel_index_wrapped(pos, vec3<i32>(params.grid_lo_x, params.grid_lo_y, params.grid_lo_z),
+        vec3<u32>(params.grid_x, params.grid_y, params.grid_z), params.table_offset, params.period);
 }
 
 // Word 0 of exemplar a's pixel at (x, y), resolved against its border.

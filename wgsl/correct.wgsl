@@ -58,13 +58,8 @@ override BLOCK_BRICKS: u32 = 8u;
 
 // Index of voxel p in the state (ABSENT when its brick is not stored).
 fn state_index(pos: vec3<i32>) -> u32 {
-    var p = pos;
-    if (params.period != 0u) {
-        let n = i32(params.period);
-        p = vec3<i32>(rem_euclid(p.x, n), rem_euclid(p.y, n), rem_euclid(p.z, n));
-    }
-    return voxel_index(p, vec3<i32>(params.grid_lo_x, params.grid_lo_y, params.grid_lo_z),
-        vec3<u32>(params.grid_x, params.grid_y, params.grid_z), params.table_offset);
+    return voxel_index_wrapped(pos, vec3<i32>(params.grid_lo_x, params.grid_lo_y, params.grid_lo_z),
+        vec3<u32>(params.grid_x, params.grid_y, params.grid_z), params.table_offset, params.period);
 }
 
 fn stride() -> u32 {

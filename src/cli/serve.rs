@@ -76,7 +76,7 @@ pub fn run(args: ServeArgs, quiet: bool) -> anyhow::Result<()> {
         // Uploads may have 1, 3 or 4 colour channels: one list cannot fit them all.
         return Err(Error::invalid(
             format!("--color {}", config.params.color),
-            "serve takes one colour source for every solid (average, matched, x, y or z), \
+            "serve takes one colour source for every solid (average, fitted, matched, x, y or z), \
              not one per channel",
         )
         .into());

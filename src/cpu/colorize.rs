@@ -4,7 +4,7 @@
 //! coordinate in it, 4 the cached value mapped through the `--color matched` table
 //! (`lazy::color_match`), 5 the fitted weighting of the three pixels ([`fitted`]).
 
-use super::synth_common::{brick_at, resolve, voxel_index};
+use super::synth_common::{brick_at, resolve, voxel_index_wrapped};
 use crate::contract::bricks::voxel_of;
 use crate::contract::uniforms::{ColorizeParams, FITTED_REACH};
 use rayon::prelude::*;
@@ -59,13 +59,9 @@ fn color_mask(color_channels: u32) -> u32 {
 /// Index of voxel `pos` in the finest level's state (wrapped into the period of a tileable
 /// solid); None when its brick is not stored.
 fn state_slot(p: &ColorizeParams, bricks: &[u32], pos: [i32; 3]) -> Option<usize> {
-    let pos = match p.period {
-        0 => pos,
-        n => pos.map(|v| v.rem_euclid(n as i32)),
-    };
     let lo = [p.grid_lo_x, p.grid_lo_y, p.grid_lo_z];
     let dims = [p.grid_x, p.grid_y, p.grid_z];
-    voxel_index(bricks, pos, lo, dims, p.table_offset)
+    voxel_index_wrapped(bricks, pos, lo, dims, p.table_offset, p.period)
 }
 
 /// Word 0 of exemplar `a`'s pixel at (x, y), resolved against its border.

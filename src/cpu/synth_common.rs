@@ -66,6 +66,36 @@ pub fn voxel_index(
         .then(|| slot as usize * 64 + crate::contract::bricks::local_index(p) as usize)
 }
 
+/// [`voxel_index`] of `p` wrapped into a periodic state's period `period` (0: not periodic)
+/// (`voxel_index_wrapped` in WGSL).
+#[inline(always)]
+pub fn voxel_index_wrapped(
+    bricks: &[u32],
+    p: [i32; 3],
+    grid_lo: [i32; 3],
+    dims: [u32; 3],
+    table: u32,
+    period: u32,
+) -> Option<usize> {
+    let p = match period {
+        0 => p,
+        n => {
+            let n = n as i32;
+            // (No division for the positions already inside the period: nearly all.)
+            p.map(|v| {
+                if (0..n).contains(&v) {
+                    v
+                } else if (-n..0).contains(&v) {
+                    v + n
+                } else {
+                    v.rem_euclid(n)
+                }
+            })
+        }
+    };
+    voxel_index(bricks, p, grid_lo, dims, table)
+}
+
 /// Byte `ch` of an exemplar pixel stored `pixel_words` words per pixel at word `base`.
 #[inline]
 pub fn pixel_byte(level: &[u32], base: u32, pixel_words: u32, width: u32, c: u32, ch: u32) -> u32 {

@@ -46,13 +46,14 @@ impl Synthesizer {
             .iter()
             .map(|p| (3 + p.pixel_words as u64) * 4)
             .collect();
-        // The finest level also delivers what the output's colours read around it.
-        let reach = match coarser_by {
-            0 => 2 * self.params.color.reach() as u64,
-            _ => 0,
+        // The finest level also delivers what the output's colours read around it: a brick
+        // more on every side for a sparse request (`plan_group`), which covers a box's reach.
+        let grow = match coarser_by == 0 && self.params.color.reach() > 0 {
+            true => 2 * bricks::BRICK as u64,
+            false => 0,
         };
         let bound = |extent: [u64; 3]| {
-            grouping::planned_state_bytes(extent.map(|e| e + reach), passes, &strides)
+            grouping::planned_state_bytes(extent.map(|e| e + grow), passes, &strides)
         };
         let sides = grouping::group_sides(all, cap, coarser_by > 0, self.state_limit(), bound);
         grouping::cubes(all, sides)

@@ -120,8 +120,9 @@ pub fn sparse_working_bytes(
     let requested = bricks * (256 + 32);
     // A group is a cube of the request: on a surface it holds about (side / extent)^2 of the
     // bricks, and stores their padding too, about eight times their voxels at the finest
-    // level (6 to 9 voxels of padding around a 4-voxel brick layer, so this over-estimates;
-    // the coarser levels halving), 16 bytes a voxel, two copies (the GPU's state and its
+    // level (6 to 9 voxels of padding around a 4-voxel brick layer, 4 more with `--color
+    // fitted`, whose colours read the next bricks; so this over-estimates or meets it; the
+    // coarser levels halving), 16 bytes a voxel, two copies (the GPU's state and its
     // pass-start copy; the CPU holds one).
     let share = (group_side as f64 / extent.max(1.0)).powi(2).min(1.0);
     let group_bricks = ((bricks as f64 * share) as u64).min((group_side as u64 / 4).pow(3));

@@ -16,7 +16,7 @@ pub const SOLID_PARAMETERS: &[&str] = &[
     "coarse_cache",
 ];
 
-/// `seed`, `jitter` (0..=4), `color` (`average`, `matched`, `x`, `y`, `z`), `passes` (`N` or
+/// `seed`, `jitter` (0..=4), `color` (`average`, `fitted`, `matched`, `x`, `y`, `z`), `passes` (`N` or
 /// `N0,N1,N2,N3`), `feature` (`auto`, `edges`, `none`) and `coarse_cache` (0: none, else a
 /// multiple of 64), each defaulting to the server's.
 pub fn solid_settings(server: &SynthParams, q: &Query) -> Result<SolidSettings, (u16, String)> {
@@ -35,7 +35,7 @@ pub fn solid_settings(server: &SynthParams, q: &Query) -> Result<SolidSettings, 
             return Err(invalid(
                 "color",
                 text,
-                "one source for the whole solid (average, matched, x, y or z)".into(),
+                "one source for the whole solid (average, fitted, matched, x, y or z)".into(),
             ));
         }
         params.color = color;

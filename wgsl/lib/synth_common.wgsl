@@ -117,6 +117,17 @@ fn voxel_index(p: vec3<i32>, grid_lo: vec3<i32>, dims: vec3<u32>, table: u32) ->
     return slot * 64u + u32(l.z * 16 + l.y * 4 + l.x);
 }
 
+// voxel_index of p wrapped into a periodic state's period (0: not periodic).
+fn voxel_index_wrapped(pos: vec3<i32>, grid_lo: vec3<i32>, dims: vec3<u32>, table: u32,
+        period: u32) -> u32 {
+    var p = pos;
+    if (period != 0u) {
+        let n = i32(period);
+        p = vec3<i32>(rem_euclid(p.x, n), rem_euclid(p.y, n), rem_euclid(p.z, n));
+    }
+    return voxel_index(p, grid_lo, dims, table);
+}
+
 fn rem_euclid(a: i32, n: i32) -> i32 {
     // Within a period of [0, n) (most calls) without the lane-by-lane divisions (see `resolve`).
     var r = select(a, a + n, a < 0);

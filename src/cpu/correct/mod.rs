@@ -46,7 +46,7 @@ mod scoring;
 pub use pass::correct_pass;
 pub use prepared::Prepared;
 
-use super::synth_common::{brick_at, coord, pack_resolved, voxel_index, write_voxel};
+use super::synth_common::{brick_at, coord, pack_resolved, voxel_index_wrapped, write_voxel};
 use crate::contract::triple::rotate_from_shared;
 use crate::contract::uniforms::CorrectParams;
 use neighbours::*;
@@ -103,29 +103,13 @@ impl Ctx<'_> {
 
     #[inline(always)]
     fn state_index(&self, pos: [i32; 3]) -> Option<usize> {
-        let pos = match self.p.period {
-            0 => pos,
-            // (No division for the positions already inside the period: nearly all.)
-            n => {
-                let n = n as i32;
-                let wrap = |v: i32| {
-                    if (0..n).contains(&v) {
-                        v
-                    } else if (-n..0).contains(&v) {
-                        v + n
-                    } else {
-                        v.rem_euclid(n)
-                    }
-                };
-                [wrap(pos[0]), wrap(pos[1]), wrap(pos[2])]
-            }
-        };
-        voxel_index(
+        voxel_index_wrapped(
             self.bricks,
             pos,
             self.grid_lo,
             self.grid_dims,
             self.p.table_offset,
+            self.p.period,
         )
     }
 
