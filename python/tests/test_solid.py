@@ -22,6 +22,8 @@ CELLS_FLAGS = ["--periodic", "--balance-rounds", "0", "--seed", "2", "--backend"
         ),
         # A fixture image with the command line's defaults (mirrored borders, balancing).
         ("marble32.png", [], {}, (0, 0, 0), (12, 10, 8)),
+        # The fitted colour rule (its colours read neighbours around the box).
+        ("marble32.png", ["--color", "fitted"], dict(color="fitted"), (-3, 2, 1), (9, 11, 7)),
         # The built-in exemplar (paper frame, feature masks, balancing).
         (None, [], {}, (-5, 3, -9), (11, 12, 4)),
     ],
