@@ -13,6 +13,8 @@ use solidsynth::lazy::cut::{CutSession, CutSpec};
 use solidsynth::lazy::{Box3, ColorSource, SynthOptions, SynthParams, Synthesizer};
 use solidsynth::volume::Volume;
 
+use common::voxel_at;
+
 fn params(seed: u64) -> SynthParams {
     SynthParams {
         seed,
@@ -24,15 +26,6 @@ fn params(seed: u64) -> SynthParams {
 fn synth(a: &Analysis, params: &SynthParams, b: Box3, options: SynthOptions) -> Volume {
     let mut s = Synthesizer::with_options(a, params.clone(), &Compute::Cpu, options).unwrap();
     s.synthesize(b, &|_, _| {}).unwrap()
-}
-
-/// The voxel at `p` (inside `b`) of the volume `v` of box `b`.
-fn at(v: &Volume, b: Box3, p: [i32; 3]) -> &[u8] {
-    v.at(
-        (p[0] - b.lo[0]) as u32,
-        (p[1] - b.lo[1]) as u32,
-        (p[2] - b.lo[2]) as u32,
-    )
 }
 
 /// Three different exemplars from one fixture: itself, its transpose and its channels rotated,
@@ -101,7 +94,7 @@ fn fitted_colours_follow_the_rule() {
                             let window =
                                 images[e].at_border(px as i32 + du, py as i32 + dv, Border::Mirror);
                             for c in 0..channels {
-                                let d = at(&means, b, n)[c] as i64 - window[c] as i64;
+                                let d = voxel_at(&means, b, n)[c] as i64 - window[c] as i64;
                                 misfit[e] += (d * d) as u64;
                             }
                         }
@@ -113,10 +106,10 @@ fn fitted_colours_follow_the_rule() {
                 for c in 0..channels {
                     let sum: u64 = (0..3).map(|e| w[e] * pixels[e][c] as u64).sum();
                     let want = ((sum + total / 2) / total) as u8;
-                    assert_eq!(at(&v, b, p)[c], want, "voxel {p:?} channel {c}");
+                    assert_eq!(voxel_at(&v, b, p)[c], want, "voxel {p:?} channel {c}");
                 }
                 checked += 1;
-                unlike_mean += usize::from(at(&v, b, p) != at(&means, b, p));
+                unlike_mean += usize::from(voxel_at(&v, b, p) != voxel_at(&means, b, p));
             }
         }
     }
@@ -148,7 +141,11 @@ fn fitted_solids_are_spatially_deterministic() {
             for y in small.lo[1]..small.hi[1] {
                 for x in small.lo[0]..small.hi[0] {
                     let p = [x, y, z];
-                    assert_eq!(at(&s, small, p), at(&v, big, p), "{p:?} of {small:?}");
+                    assert_eq!(
+                        voxel_at(&s, small, p),
+                        voxel_at(&v, big, p),
+                        "{p:?} of {small:?}"
+                    );
                 }
             }
         }
@@ -174,15 +171,7 @@ fn fitted_solids_are_spatially_deterministic() {
             spacing,
         };
         let img = session.cut(&spec).unwrap();
-        let channels = img.channels as usize;
-        for (k, p) in spec.voxels().unwrap().iter().enumerate() {
-            assert!(big.contains(*p), "{spec:?} leaves the box at {p:?}");
-            assert_eq!(
-                &img.pixels[k * channels..(k + 1) * channels],
-                at(&v, big, *p),
-                "{spec:?}: pixel {k}"
-            );
-        }
+        common::assert_cut_samples_box(&img, &spec, &v, big);
     }
 }
 

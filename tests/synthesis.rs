@@ -179,16 +179,8 @@ mod determinism {
         for z in sb.lo[2]..sb.hi[2] {
             for y in sb.lo[1]..sb.hi[1] {
                 for x in sb.lo[0]..sb.hi[0] {
-                    let s = small.at(
-                        (x - sb.lo[0]) as u32,
-                        (y - sb.lo[1]) as u32,
-                        (z - sb.lo[2]) as u32,
-                    );
-                    let g = big.at(
-                        (x - bb.lo[0]) as u32,
-                        (y - bb.lo[1]) as u32,
-                        (z - bb.lo[2]) as u32,
-                    );
+                    let p = [x, y, z];
+                    let (s, g) = (common::voxel_at(small, sb, p), common::voxel_at(big, bb, p));
                     assert_eq!(s, g, "voxel ({x},{y},{z}) of {sb:?} differs inside {bb:?}");
                 }
             }
@@ -226,20 +218,7 @@ mod determinism {
                 spacing,
             };
             let img = session.cut(&spec).unwrap();
-            let channels = img.channels as usize;
-            for (k, p) in spec.voxels().unwrap().iter().enumerate() {
-                assert!(big.contains(*p), "{spec:?} leaves the box at {p:?}");
-                let want = v.at(
-                    (p[0] - big.lo[0]) as u32,
-                    (p[1] - big.lo[1]) as u32,
-                    (p[2] - big.lo[2]) as u32,
-                );
-                assert_eq!(
-                    &img.pixels[k * channels..(k + 1) * channels],
-                    want,
-                    "{spec:?}: pixel {k}"
-                );
-            }
+            common::assert_cut_samples_box(&img, &spec, &v, big);
         }
     }
 

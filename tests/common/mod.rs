@@ -93,3 +93,31 @@ pub fn mutate(valid: &[u8], rng: &mut solidsynth::util::hash::SeededRng) -> Vec<
     }
     b
 }
+
+/// The voxel at `p` (inside the box `b`) of the volume `v` synthesized for that box.
+pub fn voxel_at(v: &solidsynth::volume::Volume, b: solidsynth::lazy::Box3, p: [i32; 3]) -> &[u8] {
+    v.at(
+        (p[0] - b.lo[0]) as u32,
+        (p[1] - b.lo[1]) as u32,
+        (p[2] - b.lo[2]) as u32,
+    )
+}
+
+/// Every pixel of the cut `img` (made by `spec`) equals the voxel it samples in the volume `v`
+/// of the box `b`, which holds them all.
+pub fn assert_cut_samples_box(
+    img: &Image,
+    spec: &solidsynth::lazy::cut::CutSpec,
+    v: &solidsynth::volume::Volume,
+    b: solidsynth::lazy::Box3,
+) {
+    let channels = img.channels as usize;
+    for (k, p) in spec.voxels().unwrap().iter().enumerate() {
+        assert!(b.contains(*p), "{spec:?} leaves the box at {p:?}");
+        assert_eq!(
+            &img.pixels[k * channels..(k + 1) * channels],
+            voxel_at(v, b, *p),
+            "{spec:?}: pixel {k}"
+        );
+    }
+}
