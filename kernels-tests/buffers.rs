@@ -1,6 +1,6 @@
 //! Buffer uploads: what goes up comes back.
 
-use solidsynth::gpu::context::UPLOAD_PIECE_BYTES;
+use solidsynth::gpu::context::buffers::UPLOAD_PIECE_BYTES;
 
 /// A buffer uploaded in pieces holds every byte, the last piece's padding included (a length
 /// neither a whole number of pieces nor of words), and a small one goes up whole.

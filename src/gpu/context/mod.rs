@@ -3,15 +3,13 @@
 //! process starts with (`driver_env`), the pipeline cache (`pipelines`), buffer creation and
 //! uploads (`buffers`) and read-backs (`readback`).
 
-mod buffers;
+pub mod buffers;
 mod driver_env;
 mod pipelines;
 mod readback;
 
-pub use buffers::{chunk_ranges, UPLOAD_PIECE_BYTES};
-pub use driver_env::{
-    prepare_driver_environment_for, user_driver_environment, DriverUse, RENDER_CRASHING_WIDTH,
-};
+pub use buffers::chunk_ranges;
+pub use driver_env::{prepare_driver_environment_for, user_driver_environment, DriverUse};
 pub use readback::PendingRead;
 
 use crate::error::{Error, Result};
