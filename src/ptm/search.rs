@@ -27,142 +27,19 @@
 //! is ever rejected. Both searches keep exactly the candidates with distance <= threshold(best):
 //! the same set, in index order, so the same seeded choice. Ties go to the smallest index.
 //!
-//! Length: about 660 lines because both searches (brute force and the projection-kernel scheme) and
-//! the threshold rule they share stay together: their equality is this module's contract.
+//! The features the searches compare ([`FeatureImage`]) and the neighbourhood shapes
+//! ([`template`]) are submodules of their own.
 
-use super::{legendre, Ptm, COEFFS};
+mod features;
+mod neighbourhood;
+
+pub use features::{
+    feature_dims, features, squared_difference, texel_features, FeatureImage, FEATURE_SCALE,
+};
+use neighbourhood::{part_rect, parts};
+pub use neighbourhood::{template, Rect, Shape};
+
 use rayon::prelude::*;
-
-/// Legendre coefficients (unit intensity) are stored as round(b * FEATURE_SCALE), clamped to
-/// i16 range (|b| <= 16): 1/2048 of full intensity is an eighth of an 8-bit level. With |f| <
-/// 2^15 a difference squared fits a u32, which keeps the inner loop narrow.
-pub const FEATURE_SCALE: f64 = 2048.0;
-
-/// Per pixel, the quantized orthonormal coefficients of its reflectance functions: 6 for LRGB
-/// (the luminance polynomial), 18 for RGB (the three channels stacked).
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub struct FeatureImage {
-    pub width: u32,
-    pub height: u32,
-    pub dims: usize,
-    pub data: Vec<i32>,
-}
-
-impl FeatureImage {
-    pub fn new(width: u32, height: u32, dims: usize) -> Self {
-        FeatureImage {
-            width,
-            height,
-            dims,
-            data: vec![0; width as usize * height as usize * dims],
-        }
-    }
-
-    /// The values of `len` pixels of row y starting at column x.
-    #[inline]
-    pub fn run(&self, x: u32, y: u32, len: u32) -> &[i32] {
-        let i = (y as usize * self.width as usize + x as usize) * self.dims;
-        &self.data[i..i + len as usize * self.dims]
-    }
-
-    pub fn pixel_mut(&mut self, x: u32, y: u32) -> &mut [i32] {
-        let i = (y as usize * self.width as usize + x as usize) * self.dims;
-        &mut self.data[i..i + self.dims]
-    }
-}
-
-/// Feature dimensions of a PTM's format.
-pub fn feature_dims(ptm: &Ptm) -> usize {
-    ptm.format.planes() * COEFFS
-}
-
-/// The features of one texel of `ptm` into `out` (`feature_dims` values).
-pub fn texel_features(ptm: &Ptm, texel: &[u8], out: &mut [i32]) {
-    for p in 0..ptm.format.planes() {
-        let a: [f64; COEFFS] = std::array::from_fn(|i| ptm.decode(i, texel[p * COEFFS + i]) as f64);
-        let b = legendre::to_legendre(&a);
-        for i in 0..COEFFS {
-            out[p * COEFFS + i] = (b[i] * FEATURE_SCALE).round().clamp(-32767.0, 32767.0) as i32;
-        }
-    }
-}
-
-/// The feature image of a whole PTM.
-pub fn features(ptm: &Ptm) -> FeatureImage {
-    let mut f = FeatureImage::new(ptm.width, ptm.height, feature_dims(ptm));
-    let d = f.dims;
-    let s = ptm.format.texel_bytes();
-    f.data
-        .par_chunks_mut(d)
-        .zip(ptm.texels.par_chunks(s))
-        .for_each(|(out, t)| texel_features(ptm, t, out));
-    f
-}
-
-/// A rectangle of pixels relative to a block's top-left corner.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub struct Rect {
-    pub x: u32,
-    pub y: u32,
-    pub w: u32,
-    pub h: u32,
-}
-
-/// Which neighbours a block overlaps: the shape of its causal neighbourhood.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum Shape {
-    /// A block of the first row (after the first): its left overlap.
-    Left,
-    /// A block of the first column: its top overlap.
-    Top,
-    /// Every other block: the L of top and left overlaps.
-    Both,
-}
-
-/// The three rectangles neighbourhoods are made of: the top strip (overlap x block), the corner
-/// (overlap x overlap) and the lower-left strip (below the corner).
-const TOP: usize = 0;
-const CORNER: usize = 1;
-const LOWER_LEFT: usize = 2;
-
-fn parts(shape: Shape) -> &'static [usize] {
-    match shape {
-        Shape::Left => &[CORNER, LOWER_LEFT],
-        Shape::Top => &[TOP],
-        Shape::Both => &[TOP, LOWER_LEFT],
-    }
-}
-
-fn part_rect(part: usize, block: u32, overlap: u32) -> Rect {
-    match part {
-        TOP => Rect {
-            x: 0,
-            y: 0,
-            w: block,
-            h: overlap,
-        },
-        CORNER => Rect {
-            x: 0,
-            y: 0,
-            w: overlap,
-            h: overlap,
-        },
-        _ => Rect {
-            x: 0,
-            y: overlap,
-            w: overlap,
-            h: block - overlap,
-        },
-    }
-}
-
-/// The disjoint rectangles of a neighbourhood shape for blocks of side `block`, overlap `overlap`.
-pub fn template(shape: Shape, block: u32, overlap: u32) -> Vec<Rect> {
-    parts(shape)
-        .iter()
-        .map(|&p| part_rect(p, block, overlap))
-        .collect()
-}
 
 /// Which candidates are acceptable: those with distance <= best + best * permille / 1000
 /// (Efros-Freeman's "within a tolerance of the best"; 0 keeps only the best, ties included).
@@ -645,17 +522,4 @@ fn dot_portable(a: &[i16], b: &[i16]) -> i64 {
         .zip(b)
         .map(|(&p, &x)| p as i32 * x as i32)
         .sum::<i32>() as i64
-}
-
-/// Sum of squared differences of two equal-length runs. |values| < 2^15, so each square fits a
-/// u32; the sum is exact in u64 whatever the order.
-#[inline]
-pub fn squared_difference(a: &[i32], b: &[i32]) -> u64 {
-    a.iter()
-        .zip(b)
-        .map(|(&x, &y)| {
-            let d = (x - y).unsigned_abs();
-            (d * d) as u64
-        })
-        .sum()
 }

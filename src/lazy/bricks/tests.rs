@@ -1,3 +1,4 @@
+use super::plans::*;
 use super::*;
 use std::collections::HashSet;
 
