@@ -113,7 +113,11 @@ pub fn gpu_synth(pack: &LevelPack) -> Option<solidsynth::gpu::synth::GpuSynth> {
     let ctx = solidsynth::gpu::GpuContext::new(&solidsynth::gpu::GpuOptions::from_env()).unwrap();
     let table = solidsynth::contract::jitter::table();
     Some(
-        solidsynth::gpu::synth::GpuSynth::new(std::sync::Arc::new(ctx), &[pack.clone()], &table)
-            .unwrap(),
+        solidsynth::gpu::synth::GpuSynth::new(
+            std::sync::Arc::new(ctx),
+            std::slice::from_ref(pack),
+            &table,
+        )
+        .unwrap(),
     )
 }

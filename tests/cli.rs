@@ -1738,24 +1738,22 @@ fn gradient_vectorize_with_a_mask_separates_regions() {
     let small = d.join("small.nrrd");
     solidsynth::io::nrrd::save(&Volume::new(8, 8, 8, 1), &small).unwrap();
     let no = d.join("no.gsolid");
-    for args in [vec![
+    let o = run(&[
         "gradient",
         "vectorize",
         vol.to_str().unwrap(),
         "--mask",
         small.to_str().unwrap(),
-    ]] {
-        let mut args = args;
-        args.extend(["-o", no.to_str().unwrap()]);
-        let o = run(&args);
-        assert_eq!(
-            o.status.code(),
-            Some(2),
-            "{}",
-            String::from_utf8_lossy(&o.stderr)
-        );
-        assert!(!no.exists());
-    }
+        "-o",
+        no.to_str().unwrap(),
+    ]);
+    assert_eq!(
+        o.status.code(),
+        Some(2),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert!(!no.exists());
     let strokes = d.join("s.json");
     std::fs::write(
         &strokes,

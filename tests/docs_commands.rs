@@ -19,7 +19,7 @@ fn binary() -> PathBuf {
 /// Whether a documented command is one this test runs (not the server, which never returns).
 fn runnable(command: &str) -> bool {
     let words: Vec<&str> = command.split_whitespace().collect();
-    !(words.get(1) == Some(&"serve"))
+    words.get(1) != Some(&"serve")
 }
 
 /// The `solidsynth ...` lines of `text`'s fenced `sh` blocks.

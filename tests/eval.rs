@@ -78,10 +78,10 @@ fn show(name: &str, r: &Report) {
 fn shuffled_and_extruded_volumes_score_clearly_worse_than_a_real_solid() {
     let (solid, ex) = control();
     let params = EvalParams::default();
-    let good = evaluate(&solid, &[ex.clone()], &params).unwrap();
-    let shuf = evaluate(&shuffled(&ex), &[ex.clone()], &params).unwrap();
-    let extr = evaluate(&extruded(&ex), &[ex.clone()], &params).unwrap();
-    let blur = evaluate(&blurred(&solid), &[ex.clone()], &params).unwrap();
+    let good = evaluate(&solid, std::slice::from_ref(&ex), &params).unwrap();
+    let shuf = evaluate(&shuffled(&ex), std::slice::from_ref(&ex), &params).unwrap();
+    let extr = evaluate(&extruded(&ex), std::slice::from_ref(&ex), &params).unwrap();
+    let blur = evaluate(&blurred(&solid), std::slice::from_ref(&ex), &params).unwrap();
     show("solid", &good);
     show("shuffled", &shuf);
     show("extruded", &extr);
@@ -113,8 +113,10 @@ fn shuffled_and_extruded_volumes_score_clearly_worse_than_a_real_solid() {
 fn evaluation_is_deterministic_and_seeded() {
     let (solid, ex) = control();
     let p = EvalParams::default();
-    let a = serde_json::to_string(&evaluate(&solid, &[ex.clone()], &p).unwrap()).unwrap();
-    let b = serde_json::to_string(&evaluate(&solid, &[ex.clone()], &p).unwrap()).unwrap();
+    let a =
+        serde_json::to_string(&evaluate(&solid, std::slice::from_ref(&ex), &p).unwrap()).unwrap();
+    let b =
+        serde_json::to_string(&evaluate(&solid, std::slice::from_ref(&ex), &p).unwrap()).unwrap();
     assert_eq!(a, b);
     let other = EvalParams {
         seed: 99,
@@ -136,7 +138,7 @@ fn multiscale_measures_separate_noise_blur_and_extrusion_from_a_real_solid() {
     let (solid, ex) = control();
     let params = EvalParams::default();
     let ratios = |v: &Volume| {
-        evaluate(v, &[ex.clone()], &params)
+        evaluate(v, std::slice::from_ref(&ex), &params)
             .unwrap()
             .multiscale
             .worst_ratio

@@ -71,7 +71,7 @@ pub fn is_zarr_output(args: &SolidArgs) -> bool {
 /// boxes split no brick of a box whose corner is on the brick grid.
 pub fn check_chunk(chunk: u32) -> crate::Result<u32> {
     let brick = crate::contract::bricks::BRICK as u32;
-    if !(8..=512).contains(&chunk) || chunk % brick != 0 {
+    if !(8..=512).contains(&chunk) || !chunk.is_multiple_of(brick) {
         return Err(Error::invalid(
             format!("--chunk {chunk}"),
             format!("must be 8..=512 voxels and a multiple of {brick} (the engine's brick edge)"),

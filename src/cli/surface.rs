@@ -152,7 +152,7 @@ pub fn run(args: SurfaceArgs, quiet: bool) -> anyhow::Result<()> {
     drop(baked);
     match &extra {
         None => atomic::write_with(&args.output, |f| {
-            mesh::glb::write_glb(f, &mesh, &atlas, &png)
+            mesh::glb::write_glb(f, &mesh, atlas, &png)
         })?,
         Some((mtl, png_path)) => {
             // The three files appear together or not at all.
@@ -162,7 +162,7 @@ pub fn run(args: SurfaceArgs, quiet: bool) -> anyhow::Result<()> {
             outputs.write_file(mtl, bake::mtl_text(&name(png_path)).as_bytes())?;
             outputs.write_file(
                 &args.output,
-                bake::obj_text(&mesh, &atlas, &name(mtl)).as_bytes(),
+                bake::obj_text(&mesh, atlas, &name(mtl)).as_bytes(),
             )?;
             outputs.commit()?;
         }

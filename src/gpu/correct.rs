@@ -95,7 +95,7 @@ impl GpuSynth {
     /// Tests: `n` listed bricks per block of `correct`'s k-major threads instead of the
     /// adapter's choice ([`block_bricks`]; a multiple of 8). The same results either way.
     pub(crate) fn set_block_bricks(&mut self, n: u32) {
-        assert!(n >= 8 && n % 8 == 0, "blocks of {n} bricks");
+        assert!(n >= 8 && n.is_multiple_of(8), "blocks of {n} bricks");
         self.block_bricks = n;
         for constants in &mut self.correct_constants {
             for (name, value) in constants.iter_mut() {

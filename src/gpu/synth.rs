@@ -264,7 +264,7 @@ impl GpuSynth {
     #[doc(hidden)]
     pub fn set_parameter_arena_bytes(&mut self, bytes: u64) -> Result<()> {
         // Room for the largest parameters (`CorrectParams`) at any offset alignment.
-        if bytes < 512 || bytes % 16 != 0 {
+        if bytes < 512 || !bytes.is_multiple_of(16) {
             return Err(Error::invalid(
                 "parameter arena",
                 format!("{bytes} bytes; it needs a multiple of 16, at least 512"),

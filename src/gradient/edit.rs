@@ -186,9 +186,9 @@ pub fn edit(
     reference: &[f64],
     propagation: Propagation,
 ) -> Result<f64> {
-    if !(propagation.alpha > 0.0 && propagation.alpha.is_finite())
-        || !(propagation.beta >= 0.0 && propagation.beta.is_finite())
-    {
+    let alpha_ok = propagation.alpha > 0.0 && propagation.alpha.is_finite();
+    let beta_ok = propagation.beta >= 0.0 && propagation.beta.is_finite();
+    if !(alpha_ok && beta_ok) {
         return Err(Error::invalid(
             "--alpha/--beta",
             "alpha must be positive and beta non-negative (finite numbers)",

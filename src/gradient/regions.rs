@@ -149,7 +149,7 @@ pub fn vectorize_regions(v: &Volume, mask: &Volume, mask_name: &str) -> Result<R
         .par_chunks_mut(4)
         .enumerate()
         .for_each(|(i, out)| {
-            let p = point_position(dims, i).map(|v| v.min(i64::MAX));
+            let p = point_position(dims, i);
             let p = [0, 1, 2].map(|a| p[a].min(n[a] as i64 - 1));
             out[0] = sample(p);
             for a in 0..3 {

@@ -482,12 +482,7 @@ where
     use image::ImageEncoder;
     let mut buf = Vec::new();
     PngEncoder::new_with_quality(&mut buf, CompressionType::Best, FilterType::Adaptive)
-        .write_image(
-            img.as_raw(),
-            img.width(),
-            img.height(),
-            P::COLOR_TYPE.into(),
-        )
+        .write_image(img.as_raw(), img.width(), img.height(), P::COLOR_TYPE)
         .map_err(|e| Error::Internal(format!("PNG encoding failed: {e}")))?;
     Ok(buf)
 }

@@ -108,7 +108,6 @@ pub fn to_bytes(v: &Volume) -> Result<Vec<u8>> {
         write_page(&mut encoder, v.nx, v.ny, v.channels, page, description)
             .map_err(|e| tiff_error(path, e))?;
     }
-    drop(encoder);
     Ok(cursor.into_inner())
 }
 

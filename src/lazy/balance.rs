@@ -51,7 +51,7 @@ pub fn analyze(
 
 /// Seed of the first calibration solid, the next rounds' are the following ones (any fixed
 /// values: the analysis must not depend on the user's synthesis seed).
-pub const CALIBRATION_SEED: u64 = 0xBA1A_4CE;
+pub const CALIBRATION_SEED: u64 = 0x0BA1_A4CE;
 
 /// Edge of the calibration solids for an exemplar of `pixels` pixels: large enough that the
 /// coarsest synthesized level (an eighth of the edge, against an eighth of the exemplar's) holds

@@ -41,7 +41,7 @@ pub fn dilate(
         }
     }
     let mut done = 0;
-    while !ring.is_empty() && rings.map_or(true, |r| done < r) {
+    while !ring.is_empty() && rings.is_none_or(|r| done < r) {
         let values: Vec<u8> = ring
             .iter()
             .flat_map(|&i| {

@@ -133,7 +133,7 @@ pub fn write_glb(
         ]
     });
     let mut json_bytes = serde_json::to_vec(&doc).expect("serializable");
-    while json_bytes.len() % 4 != 0 {
+    while !json_bytes.len().is_multiple_of(4) {
         json_bytes.push(b' ');
     }
     let total = 12 + 8 + json_bytes.len() + 8 + bin_len;

@@ -162,7 +162,7 @@ fn add_primitive(
         Some(i) => i.into_u32().collect(),
         None => (0..count).collect(),
     };
-    if indices.len() % 3 != 0 {
+    if !indices.len().is_multiple_of(3) {
         return Err(invalid(format!(
             "has a triangle primitive of {} indices, not a multiple of 3",
             indices.len()

@@ -244,7 +244,7 @@ pub fn parse_obj(bytes: &[u8], name: &str) -> Result<Mesh> {
         mesh.positions
             .extend(m.positions.chunks_exact(3).map(|c| [c[0], c[1], c[2]]));
         for t in m.indices.chunks_exact(3) {
-            let tri = [t[0], t[1], t[2]].map(|i| i.checked_add(base).unwrap_or(u32::MAX));
+            let tri = [t[0], t[1], t[2]].map(|i| i.saturating_add(base));
             mesh.triangles.push(tri);
         }
         let flip_v = |uv: [f32; 2]| [uv[0], 1.0 - uv[1]];

@@ -326,7 +326,7 @@ mod tests {
             assert_eq!(
                 (big.width, big.height),
                 (
-                    (200.0 / size as f64).ceil() as u32 + 1,
+                    (200.0 / size).ceil() as u32 + 1,
                     (200.0 / size).ceil() as u32 + 1
                 )
             );

@@ -176,7 +176,7 @@ pub fn evaluate(volume: &Volume, exemplars: &[Image], params: &EvalParams) -> Re
         if a == 0 || ex.len() == 3 {
             let (left, right) = slices::halves(reference);
             floors.push(score_images(
-                &[right.clone()],
+                std::slice::from_ref(&right),
                 &left,
                 params,
                 100 + a as u64,

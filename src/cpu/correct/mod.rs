@@ -334,7 +334,7 @@ impl Ctx<'_> {
         // A window costs ~100 index lookups and a few KiB copied per brick; a voxel read through
         // the index ~100 lookups. (The same values either way.)
         let windowed =
-            p.ex.pixel_words == 1 && p.period % 4 == 0 && (n > 1 || self.mask(i).count_ones() >= 3);
+            p.ex.pixel_words == 1 && p.period.is_multiple_of(4) && (n > 1 || self.mask(i).count_ones() >= 3);
         let class = [p.class_x as i32, p.class_y as i32, p.class_z as i32];
         if windowed {
             window.fill(self, first, n as i32, class);

@@ -11,7 +11,7 @@ impl GpuContext {
     pub fn storage_buffer(&self, label: &str, bytes: &[u8]) -> wgpu::Buffer {
         // (Copied to pad only when needed: most uploads are whole words, some of them large.)
         let padded;
-        let contents = if bytes.len() % 4 == 0 && !bytes.is_empty() {
+        let contents = if bytes.len().is_multiple_of(4) && !bytes.is_empty() {
             bytes
         } else {
             let mut p = bytes.to_vec();

@@ -55,8 +55,10 @@ impl Default for GpuOptions {
 impl GpuOptions {
     /// Defaults, with the adapter filter and timeout taken from the environment when set.
     pub fn from_env() -> Self {
-        let mut o = GpuOptions::default();
-        o.adapter_filter = std::env::var(ADAPTER_ENV).ok().filter(|s| !s.is_empty());
+        let mut o = GpuOptions {
+            adapter_filter: std::env::var(ADAPTER_ENV).ok().filter(|s| !s.is_empty()),
+            ..GpuOptions::default()
+        };
         if let Some(s) = std::env::var(TIMEOUT_ENV)
             .ok()
             .and_then(|s| s.parse::<f64>().ok())
@@ -225,7 +227,7 @@ impl GpuContext {
         opts: &GpuOptions,
     ) -> Self {
         // The largest binding: the device's, or less when the options ask for it.
-        let device_max = limits.max_storage_buffer_binding_size as u64;
+        let device_max = limits.max_storage_buffer_binding_size;
         let max_binding_bytes = opts
             .max_binding_bytes
             .map_or(device_max, |m| m.min(device_max));
