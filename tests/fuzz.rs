@@ -1,5 +1,5 @@
 //! Structured mutations of a valid file for every parser the project owns (NRRD, `.ssa`,
-//! `.gsolid`, PTM, `.lst`, OBJ, the constraints and strokes JSON): truncations, bit flips,
+//! `.gsolid`, PTM, `.lst`, OBJ, PLY, glTF, the constraints and strokes JSON): truncations, bit flips,
 //! length-like words set to huge values, duplicated sections. Each must give a clean error or a
 //! value, never a panic, and no single allocation above [`ALLOCATION_BOUND`] (a length field
 //! claiming gigabytes must be checked against the file's size before anything is allocated).
@@ -140,6 +140,27 @@ fn every_parser_survives_structured_mutations() {
     let obj = solidsynth::lapped::shapes::obj_text(&solidsynth::lapped::shapes::sphere(8, 4));
     fuzz("obj", obj.as_bytes(), |b| {
         solidsynth::mesh::parse_obj(b, "fuzz")
+    });
+    // PLY, ASCII and binary: the crate's parser and our reading of its elements (a count field
+    // set huge must not be allocated before the data runs out).
+    let ply_ascii =
+        b"ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n\
+        property float z\nelement face 2\nproperty list uchar int vertex_indices\nend_header\n\
+        0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 1 2\n4 0 1 3 2\n";
+    fuzz("ply", ply_ascii, |b| solidsynth::mesh::parse_ply(b, "fuzz"));
+    let mut ply_binary = b"ply\nformat binary_little_endian 1.0\nelement vertex 4\n\
+        property float x\nproperty float y\nproperty float z\nelement face 2\n\
+        property list uchar uint vertex_indices\nend_header\n"
+        .to_vec();
+    for v in [[0f32, 0., 0.], [1., 0., 0.], [0., 1., 0.], [0., 0., 1.]] {
+        ply_binary.extend(v.iter().flat_map(|c| c.to_le_bytes()));
+    }
+    for face in [&[0u32, 1, 2][..], &[0, 1, 3, 2]] {
+        ply_binary.push(face.len() as u8);
+        ply_binary.extend(face.iter().flat_map(|i| i.to_le_bytes()));
+    }
+    fuzz("ply binary", &ply_binary, |b| {
+        solidsynth::mesh::parse_ply(b, "fuzz")
     });
     // glTF in: the crate's parser and our reading of its primitives, from a .glb written here
     // (NPY, TIFF and KTX2 are only written, by the tool).
