@@ -1,5 +1,5 @@
 //! Structured mutations of a valid file for every parser the project owns (NRRD, `.ssa`,
-//! `.gsolid`, PTM, `.lst`, OBJ, PLY, glTF, the constraints and strokes JSON): truncations, bit flips,
+//! `.gsolid`, PTM, its light files, `.lst`, OBJ, PLY, glTF, the constraints and strokes JSON): truncations, bit flips,
 //! length-like words set to huge values, duplicated sections. Each must give a clean error or a
 //! value, never a panic, and no single allocation above [`ALLOCATION_BOUND`] (a length field
 //! claiming gigabytes must be checked against the file's size before anything is allocated).
@@ -169,6 +169,21 @@ fn every_parser_survives_structured_mutations() {
     let glb = solidsynth::mesh::glb::glb_bytes(&sphere, &atlas, &[0u8; 16]);
     fuzz("glb", &glb, |b| {
         solidsynth::mesh::gltf_in::parse_gltf(b, "fuzz", None)
+    });
+    // PTM light files: the `.lp` text and the JSON form.
+    fuzz(
+        "lights lp",
+        b"3\na.png 0 0 1\nb.png 1 0 1\nc.png 0 -1 1\n",
+        |b| {
+            let text = std::str::from_utf8(b).map_err(|e| e.to_string())?;
+            solidsynth::ptm::capture::parse_lights(text, "fuzz", false).map_err(|e| e.to_string())
+        },
+    );
+    let lights_json =
+        br#"{"lights": [{"file": "a.png", "lu": 0.1, "lv": 0.2}, {"file": "b.png", "direction": [0, 1, 1]}]}"#;
+    fuzz("lights json", lights_json, |b| {
+        let text = std::str::from_utf8(b).map_err(|e| e.to_string())?;
+        solidsynth::ptm::capture::parse_lights(text, "fuzz", true).map_err(|e| e.to_string())
     });
     // Constraints and strokes JSON.
     let constraints = std::fs::read(concat!(
