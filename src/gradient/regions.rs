@@ -15,7 +15,6 @@
 //! the negative set of the split points only (values encoded like a `.gsolid` payload), and a
 //! CRC-32 of everything before it.
 //!
-//! Length: about 440 lines of code; the rest are tests of the format and the blends.
 
 use super::format::{self, Encoding};
 use super::vectorize::{fit_point, grid_for, point_position};

@@ -11,7 +11,7 @@
 //!   1 = 2 B0,  lu = (2/sqrt3) B1,  lv = (2/sqrt3) B2,  lu lv = (2/3) B3,
 //!   lu^2 = (4/sqrt45) B4 + (2/3) B0,  lv^2 = (4/sqrt45) B5 + (2/3) B0.
 //! (The basis in the extracted paper text reads correctly; tested numerically below and in
-//! tests/ptm.rs.)
+//! tests/ptm/searches.rs.)
 
 const SQRT3: f64 = 1.732_050_807_568_877_2;
 const SQRT45: f64 = 6.708_203_932_499_369;

@@ -4,7 +4,6 @@
 //! lists whose centres lie nearest to it ([`IvfIndex::nearest`]). Deterministic: fixed initial
 //! centres, a fixed number of Lloyd iterations, sums in index order.
 //!
-//! Length: about 540 lines of code; the rest are tests.
 
 use super::pca::KEPT;
 use rayon::prelude::*;

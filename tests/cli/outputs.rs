@@ -1,0 +1,245 @@
+//! What every command does with its outputs and bad input in general: exit code 2, the input named, nothing left behind, existing files replaced only on success, interrupted runs.
+
+use super::*;
+
+#[test]
+fn bad_inputs_exit_2_naming_the_input_and_leave_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let out = d.join("out.ssa");
+    let out_s = out.to_str().unwrap();
+    let p = |n: &str| d.join(n).to_str().unwrap().to_string();
+
+    // Missing file.
+    let o = run(&["analyze", "--backend", "cpu", &p("nope.png"), "-o", out_s]);
+    assert_user_error(&o, "nope.png", d, &[]);
+
+    // Truncated / corrupt image.
+    let png = std::fs::read(fixture_path("cells32.png")).unwrap();
+    std::fs::write(d.join("trunc.png"), &png[..png.len() / 2]).unwrap();
+    let o = run(&["analyze", "--backend", "cpu", &p("trunc.png"), "-o", out_s]);
+    assert_user_error(&o, "trunc.png", d, &["trunc.png"]);
+    std::fs::write(d.join("garbage.png"), b"this is not an image").unwrap();
+    let o = run(&[
+        "analyze",
+        "--backend",
+        "cpu",
+        &p("garbage.png"),
+        "-o",
+        out_s,
+    ]);
+    assert_user_error(&o, "garbage.png", d, &["trunc.png", "garbage.png"]);
+    let keep = [
+        "trunc.png",
+        "garbage.png",
+        "tiny.png",
+        "wide.png",
+        "mask.png",
+    ];
+
+    // Tiny exemplar.
+    image::RgbImage::new(8, 8).save(d.join("tiny.png")).unwrap();
+    let o = run(&["analyze", "--backend", "cpu", &p("tiny.png"), "-o", out_s]);
+    assert_user_error(&o, "at least 16", d, &keep);
+
+    // Mismatched Ex/Ey/Ez sizes.
+    image::RgbImage::new(40, 32)
+        .save(d.join("wide.png"))
+        .unwrap();
+    let c = fixture_path("cells32.png");
+    let o = run(&[
+        "analyze",
+        "--backend",
+        "cpu",
+        c.to_str().unwrap(),
+        "--ey",
+        &p("wide.png"),
+        "--ez",
+        c.to_str().unwrap(),
+        "-o",
+        out_s,
+    ]);
+    assert_user_error(&o, "--ey", d, &keep);
+
+    // A mask of another size.
+    image::GrayImage::new(20, 20)
+        .save(d.join("mask.png"))
+        .unwrap();
+    let o = run(&[
+        "analyze",
+        "--backend",
+        "cpu",
+        c.to_str().unwrap(),
+        "--feature-mask",
+        &p("mask.png"),
+        "-o",
+        out_s,
+    ]);
+    assert_user_error(&o, "mask", d, &keep);
+
+    // Output path is a directory, or in a missing directory.
+    std::fs::create_dir(d.join("adir")).unwrap();
+    let keep_dir = [&keep[..], &["adir"]].concat();
+    let o = run(&[
+        "analyze",
+        "--backend",
+        "cpu",
+        c.to_str().unwrap(),
+        "-o",
+        &p("adir"),
+    ]);
+    assert_user_error(&o, "is a directory", d, &keep_dir);
+    let o = run(&[
+        "analyze",
+        "--backend",
+        "cpu",
+        c.to_str().unwrap(),
+        "-o",
+        &p("missing/out.ssa"),
+    ]);
+    assert_user_error(&o, "does not exist", d, &keep_dir);
+
+    // A corrupt .ssa given to inspect.
+    std::fs::write(d.join("bad.ssa"), b"SOLIDSSA garbage").unwrap();
+    let keep_bad = [&keep_dir[..], &["bad.ssa"]].concat();
+    let o = run(&["inspect", &p("bad.ssa")]);
+    assert_user_error(&o, "bad.ssa", d, &keep_bad);
+
+    // Bad flag values are clap's: also exit 2.
+    let o = run(&[
+        "analyze",
+        "--backend",
+        "quantum",
+        c.to_str().unwrap(),
+        "-o",
+        out_s,
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+}
+
+#[test]
+fn existing_output_is_replaced_only_on_success() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("keep.ssa");
+    std::fs::write(&out, b"precious").unwrap();
+    let o = run(&[
+        "analyze",
+        "--backend",
+        "cpu",
+        "/nonexistent.png",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    assert_eq!(std::fs::read(&out).unwrap(), b"precious");
+}
+
+/// An interrupt (Ctrl-C) while the volume is being streamed to its file deletes the partial file.
+#[test]
+#[cfg(unix)]
+fn an_interrupted_synthesis_leaves_no_partial_output() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let cache = tempfile::tempdir().unwrap();
+    let mut child = bin()
+        .env("SOLIDSYNTH_CACHE_DIR", cache.path())
+        .args(["synth", "--size", "256", "--backend", "cpu", "-q", "-o"])
+        .arg(d.join("v.nrrd"))
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let started = std::time::Instant::now();
+    let partial = loop {
+        let names: Vec<String> = std::fs::read_dir(d)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().to_string())
+            .collect();
+        if let Some(n) = names.iter().find(|n| n.ends_with(".partial")) {
+            break n.clone();
+        }
+        assert!(
+            child.try_wait().unwrap().is_none(),
+            "exited before writing: {names:?}"
+        );
+        assert!(
+            started.elapsed().as_secs() < 120,
+            "no partial output appeared"
+        );
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    };
+    let killed = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(killed.success());
+    let status = child.wait().unwrap();
+    assert_eq!(status.code(), Some(130), "{status:?}");
+    let left: Vec<_> = std::fs::read_dir(d).unwrap().collect();
+    assert!(left.is_empty(), "{partial} interrupted, left {left:?}");
+}
+
+/// llvmpipe runs 16 lanes wide on an AVX-512 host unless the user chose a width: the process
+/// sets `LP_NATIVE_VECTOR_WIDTH=512` only when it is unset (`adapters` names the width). Under
+/// `CI` lavapipe is the project's Vulkan device (.ci/run installs it), so its absence fails.
+#[test]
+fn lavapipe_runs_at_the_host_vector_width_unless_the_user_chose_one() {
+    let adapters = |width: Option<&str>| {
+        let mut c = bin();
+        c.arg("adapters");
+        match width {
+            Some(w) => c.env("LP_NATIVE_VECTOR_WIDTH", w),
+            None => c.env_remove("LP_NATIVE_VECTOR_WIDTH"),
+        };
+        let o = c.output().unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        String::from_utf8_lossy(&o.stdout).into_owned()
+    };
+    let listed = adapters(None);
+    if !listed.contains("llvmpipe") {
+        assert!(
+            std::env::var_os("CI").is_none(),
+            "no lavapipe adapter under CI: {listed}"
+        );
+        return;
+    }
+    #[cfg(target_arch = "x86_64")]
+    let wide = std::arch::is_x86_feature_detected!("avx512f")
+        && std::arch::is_x86_feature_detected!("avx512bw")
+        && std::arch::is_x86_feature_detected!("avx512dq")
+        && std::arch::is_x86_feature_detected!("avx512vl");
+    #[cfg(not(target_arch = "x86_64"))]
+    let wide = false;
+    if wide {
+        assert!(listed.contains("512 bits"), "{listed}");
+    }
+    let chosen = adapters(Some("256"));
+    assert!(chosen.contains("256 bits"), "{chosen}");
+}
+
+/// A subcommand's name is not a path: `ptm capture -o capture` writes ./capture (the check that
+/// no output is also an input reads the command's arguments only). An output that is an input
+/// is still refused.
+#[test]
+fn an_output_named_like_its_subcommand_is_written() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = bin()
+        .current_dir(dir.path())
+        .args([
+            "ptm", "capture", "--size", "40", "--lights", "12", "-o", "capture",
+        ])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(dir.path().join("capture").is_dir());
+    let image = dir.path().join("e.png");
+    std::fs::copy(fixture_path("cells32.png"), &image).unwrap();
+    let p = image.to_str().unwrap();
+    let o = run(&["analyze", p, "--backend", "cpu", "-o", p]);
+    assert_user_error(
+        &o,
+        "is also given as an input",
+        dir.path(),
+        &["capture", "e.png"],
+    );
+}
