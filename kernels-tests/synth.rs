@@ -349,7 +349,7 @@ fn synthesis_kernels_bit_exact_on_gpu_and_cpu() {
 }
 
 /// Spatial determinism on the GPU backend itself (the CPU backend's is tested in
-/// tests/synthesis.rs, and GPU = CPU above): seeded random boxes, on negative coordinates and
+/// tests/synthesis/determinism.rs, and GPU = CPU above): seeded random boxes, on negative coordinates and
 /// across brick boundaries as they fall, equal the same voxels of a larger box, and the larger box
 /// synthesized in groups (seams every 12 voxels, each group with its own dependency padding)
 /// equals the box in one piece.

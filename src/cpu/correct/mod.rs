@@ -31,7 +31,7 @@
 //!
 //! Optimized paths and their oracles: the whole-brick in-place pass is held to the sub-pass by
 //! sub-pass order (`correct_pass(.., false)`) by `kernels-tests/correct.rs` and
-//! `tests/synthesis.rs`; the AVX2 runs (16-bit multiply-adds, `scoring`, `pass`) to the scalar
+//! `tests/synthesis/correction.rs`; the AVX2 runs (16-bit multiply-adds, `scoring`, `pass`) to the scalar
 //! i32 sums by `scoring`'s tests.
 //!
 //! The per-voxel correction (gather, 2D search, 3D search, write) reads top to bottom as
