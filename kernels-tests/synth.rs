@@ -349,10 +349,10 @@ fn synthesis_kernels_bit_exact_on_gpu_and_cpu() {
 }
 
 /// Spatial determinism on the GPU backend itself (the CPU backend's is tested in
-/// tests/synthesis/determinism.rs, and GPU = CPU above): seeded random boxes, on negative coordinates and
-/// across brick boundaries as they fall, equal the same voxels of a larger box, and the larger box
-/// synthesized in groups (seams every 12 voxels, each group with its own dependency padding)
-/// equals the box in one piece.
+/// tests/synthesis/determinism.rs, and GPU = CPU above): seeded random boxes, on negative
+/// coordinates and across brick boundaries as they fall, equal the same voxels of a larger box, and
+/// the larger box synthesized in groups (seams every 12 voxels, each group with its own dependency
+/// padding) equals the box in one piece.
 #[test]
 fn gpu_boxes_are_windows_of_larger_gpu_boxes() {
     let _serial = crate::serial();

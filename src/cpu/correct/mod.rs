@@ -31,8 +31,8 @@
 //!
 //! Optimized paths and their oracles: the whole-brick in-place pass is held to the sub-pass by
 //! sub-pass order (`correct_pass(.., false)`) by `kernels-tests/correct.rs` and
-//! `tests/synthesis/correction.rs`; the AVX2 runs (16-bit multiply-adds, `scoring`, `pass`) to the scalar
-//! i32 sums by `scoring`'s tests.
+//! `tests/synthesis/correction.rs`; the AVX2 runs (16-bit multiply-adds, `scoring`, `pass`) to the
+//! scalar i32 sums by `scoring`'s tests.
 //!
 //! The per-voxel correction (gather, 2D search, 3D search, write) reads top to bottom as
 //! `wgsl/correct.wgsl` does; the plane projections, reads, tables, scoring and passes are
