@@ -552,6 +552,11 @@ fn cli_refuses_bad_input() {
             r#"{"type": "0", "scales": [{"at": [3, 0, 0], "scale": 1}]}"#,
             "outside the mesh",
         ),
+        (
+            "huge.json",
+            r#"{"type": "0", "scale": 1e30}"#,
+            "times the mesh's longest side",
+        ),
     ] {
         let field = write(name, text);
         assert_refused(&fill(&f.mesh, &f.exemplar, Some(&field)), needle, &out);

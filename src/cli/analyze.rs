@@ -175,9 +175,13 @@ impl InputArgs {
     pub fn builder(&self) -> crate::Result<SolidBuilder> {
         let builder = Solid::builder().backend(self.backend.backend, self.backend.gpu_options());
         if self.is_ssa() {
-            if self.ey.is_some() || self.feature_mask_given() || self.frame.is_some() {
+            if self.ey.is_some()
+                || self.feature_mask_given()
+                || self.frame.is_some()
+                || self.periodic
+            {
                 return Err(Error::invalid(
-                    "--ey/--frame/--feature-mask/--feature-weight",
+                    "--ey/--frame/--periodic/--feature-mask/--feature-weight",
                     "are analysis inputs; an .ssa file already holds them",
                 ));
             }

@@ -206,6 +206,9 @@ fn capture_cmd(a: CaptureArgs, quiet: bool) -> anyhow::Result<()> {
 
 fn fit_cmd(a: FitArgs, quiet: bool) -> anyhow::Result<()> {
     atomic::check_output_path(&a.output, "-o")?;
+    // The capture's own files are inputs the command line does not name.
+    let inputs = capture::input_files(&a.dir, a.lights.as_deref())?;
+    atomic::check_output_not_among(&a.output, "-o", &inputs)?;
     let start = Instant::now();
     let cap = capture::load(&a.dir, a.lights.as_deref())?;
     let what = format!("capture {}", a.dir.display());

@@ -379,6 +379,19 @@ fn run_box(args: &SolidArgs, region: Box3, tileable: bool, quiet: bool) -> anyho
     }
     if let Some(d) = &args.slices {
         atomic::check_output_dir(d, "--slices")?;
+        // The slices' directory is new or empty and holds the slices alone.
+        let files = [
+            ("-o", Some(&args.output)),
+            ("--flipbook", args.flipbook.as_ref()),
+            ("--vti", args.vti.as_ref()),
+            ("--sheet", args.sheet.as_ref()),
+            ("--triples", args.triples.as_ref()),
+        ];
+        for (flag, p) in files {
+            if let Some(p) = p {
+                atomic::check_output_outside(p, flag, d, "--slices")?;
+            }
+        }
     }
     let params = args.solid.synth_params();
     params.validate()?;

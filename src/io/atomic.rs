@@ -83,14 +83,73 @@ fn check_not_reused(path: &Path, flag: &str, own_mentions: usize) -> Result<()> 
     Ok(())
 }
 
-/// A path's identity: the canonical path of an existing file, or of a new file's directory
-/// joined with its name; None when neither resolves (not a path of this file system).
-fn file_key(path: &Path) -> Option<std::path::PathBuf> {
-    if let Ok(p) = path.canonicalize() {
-        return Some(p);
+/// Refuse an output that is one of `inputs`, files a command reads without the command line
+/// naming them (a capture directory's images and light file).
+pub fn check_output_not_among(
+    path: &Path,
+    flag: &str,
+    inputs: &[std::path::PathBuf],
+) -> Result<()> {
+    let Some(key) = file_key(path) else {
+        return Ok(());
+    };
+    if let Some(input) = inputs.iter().find(|i| file_key(i).as_ref() == Some(&key)) {
+        return Err(Error::invalid(
+            format!("{flag} {}", path.display()),
+            format!(
+                "is {}, which this command reads; nothing a command reads is overwritten: \
+                 choose another output path",
+                input.display()
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// Refuse an output file `path` inside the output directory `dir` (named by `dir_flag`), which
+/// the command fills with files of its own.
+pub fn check_output_outside(path: &Path, flag: &str, dir: &Path, dir_flag: &str) -> Result<()> {
+    let parent = parent_dir(path).canonicalize().ok();
+    if parent.is_some() && parent == dir.canonicalize().ok() {
+        return Err(Error::invalid(
+            format!("{flag} {}", path.display()),
+            format!(
+                "is inside {dir_flag} {}, which holds the slices alone: write it elsewhere",
+                dir.display()
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// A path's identity: an existing file's device and inode (so that a hard link is the file
+/// it links), or else the canonical path of a new file's directory joined with its name; None
+/// when neither resolves (not a path of this file system).
+fn file_key(path: &Path) -> Option<FileKey> {
+    if let Ok(meta) = std::fs::metadata(path) {
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::MetadataExt;
+            return Some(FileKey::Inode(meta.dev(), meta.ino()));
+        }
+        #[cfg(not(unix))]
+        {
+            let _ = meta;
+            return path.canonicalize().ok().map(FileKey::Path);
+        }
     }
     let name = path.file_name()?;
-    Some(parent_dir(path).canonicalize().ok()?.join(name))
+    Some(FileKey::Path(
+        parent_dir(path).canonicalize().ok()?.join(name),
+    ))
+}
+
+/// What [`file_key`] identifies a file by.
+#[derive(Debug, PartialEq, Eq)]
+enum FileKey {
+    #[cfg_attr(not(unix), allow(dead_code))]
+    Inode(u64, u64),
+    Path(std::path::PathBuf),
 }
 
 /// Refuse an output directory that cannot be one we create: anything but a new or an empty

@@ -126,24 +126,62 @@ pub fn gzip_bytes(data: &[u8]) -> Vec<u8> {
         .expect("compressing into memory cannot fail")
 }
 
-/// Read a volume file.
+/// Read a volume file. A volume larger than the memory available ([`available_memory`]) is
+/// refused before its data is decoded.
+///
+/// [`available_memory`]: crate::util::memory::available_memory
 pub fn load(path: &Path) -> Result<Volume> {
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-    parse(&bytes).map_err(|problem| Error::corrupt(path, problem))
+    let header = parse_header(&bytes).map_err(|problem| Error::corrupt(path, problem))?;
+    let available = crate::util::memory::available_memory();
+    if header.bytes > available {
+        return Err(Error::invalid(
+            path.display().to_string(),
+            format!(
+                "holds a {}x{}x{} volume of {:.1} GiB, more than the {:.1} GiB of memory available",
+                header.dims[0],
+                header.dims[1],
+                header.dims[2],
+                header.bytes as f64 / (1u64 << 30) as f64,
+                available as f64 / (1u64 << 30) as f64
+            ),
+        ));
+    }
+    decode(&bytes, header).map_err(|problem| Error::corrupt(path, problem))
+}
+
+/// What a NRRD header says about its volume, and where its data starts.
+#[derive(Clone, Copy, Debug)]
+struct Header {
+    dims: [u64; 3],
+    channels: u64,
+    /// The data's size decoded (channels x voxels).
+    bytes: u64,
+    gzip: bool,
+    data_start: usize,
 }
 
 /// Parse NRRD bytes; the error says what is wrong.
 pub fn parse(bytes: &[u8]) -> std::result::Result<Volume, String> {
+    let header = parse_header(bytes)?;
+    decode(bytes, header)
+}
+
+/// The header of NRRD bytes, checked.
+fn parse_header(bytes: &[u8]) -> std::result::Result<Header, String> {
     if !bytes.starts_with(b"NRRD000") || bytes.len() < 9 || !(b'1'..=b'5').contains(&bytes[7]) {
         return Err("not an NRRD file (expected magic NRRD0001..NRRD0005)".into());
     }
-    // The header ends at the first empty line.
-    let end = bytes
-        .windows(2)
-        .position(|w| w == b"\n\n")
+    // The header ends at the first empty line (its lines end in LF, or CRLF where a Windows
+    // tool wrote it).
+    let (end, blank) = (0..bytes.len())
+        .find_map(|i| match &bytes[i..] {
+            [b'\n', b'\n', ..] => Some((i, 2)),
+            [b'\n', b'\r', b'\n', ..] => Some((i, 3)),
+            _ => None,
+        })
         .ok_or("no end of header (blank line) found")?;
     let text = std::str::from_utf8(&bytes[..end]).map_err(|_| "header is not text")?;
-    let data = &bytes[end + 2..];
     let (mut ty, mut dimension, mut sizes, mut encoding) = (None, None, None, None);
     for line in text.lines().skip(1) {
         if line.starts_with('#') || line.trim().is_empty() {
@@ -213,18 +251,35 @@ pub fn parse(bytes: &[u8]) -> std::result::Result<Volume, String> {
             "volume of {want} bytes is larger than the {MAX_READ_BYTES}-byte limit"
         ));
     }
-    let raw: Vec<u8> = match encoding.as_deref().ok_or("missing 'encoding'")? {
-        "raw" => data.to_vec(),
-        "gzip" | "gz" => {
-            let mut out = Vec::new();
-            flate2::read::GzDecoder::new(data)
-                .take(want + 1)
-                .read_to_end(&mut out)
-                .map_err(|e| format!("gzip data is damaged: {e}"))?;
-            out
-        }
+    let gzip = match encoding.as_deref().ok_or("missing 'encoding'")? {
+        "raw" => false,
+        "gzip" | "gz" => true,
         other => return Err(format!("encoding '{other}' is not supported (raw or gzip)")),
     };
+    Ok(Header {
+        dims: [x, y, z],
+        channels: c,
+        bytes: want,
+        gzip,
+        data_start: end + blank,
+    })
+}
+
+/// The volume of `bytes` whose header is `header`.
+fn decode(bytes: &[u8], header: Header) -> std::result::Result<Volume, String> {
+    let data = &bytes[header.data_start..];
+    let want = header.bytes;
+    let raw: Vec<u8> = if header.gzip {
+        let mut out = Vec::new();
+        flate2::read::GzDecoder::new(data)
+            .take(want + 1)
+            .read_to_end(&mut out)
+            .map_err(|e| format!("gzip data is damaged: {e}"))?;
+        out
+    } else {
+        data.to_vec()
+    };
+    let ([x, y, z], c) = (header.dims, header.channels);
     if raw.len() as u64 != want {
         return Err(format!(
             "data is {} bytes but sizes {c} {x} {y} {z} need {want}",
@@ -251,6 +306,21 @@ mod tests {
             .enumerate()
             .for_each(|(i, b)| *b = (i * 7 % 256) as u8);
         v
+    }
+
+    #[test]
+    fn crlf_headers_read_like_lf_ones() {
+        let v = Volume {
+            nx: 2,
+            ny: 1,
+            nz: 1,
+            channels: 1,
+            data: vec![7, 9],
+        };
+        let text = header(&v).replace('\n', "\r\n");
+        let mut bytes = text.into_bytes();
+        bytes.extend(&v.data);
+        assert_eq!(parse(&bytes).unwrap(), v);
     }
 
     #[test]

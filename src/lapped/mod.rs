@@ -29,6 +29,26 @@ use std::time::Instant;
 
 /// Default lattice resolution (cells along the longest side): ~5,000 tets for a bunny.
 pub const DEFAULT_RESOLUTION: u32 = 12;
+/// Patch scales within this factor of the mesh's longest side either way: a patch ten thousand
+/// times smaller or larger than the model pastes nothing meaningful, and far beyond it the
+/// field's least-squares solves lose their precision.
+const SCALE_RANGE: f64 = 1e4;
+
+/// Refuse a patch scale (`what` names it) outside [`SCALE_RANGE`] of the mesh's `extent`.
+fn check_scale(scale: f64, what: &str, extent: f64) -> Result<()> {
+    let (lo, hi) = (extent / SCALE_RANGE, extent * SCALE_RANGE);
+    if !(scale >= lo && scale <= hi) {
+        return Err(crate::Error::invalid(
+            what,
+            format!(
+                "must be within {SCALE_RANGE:e} times the mesh's longest side ({extent:.4}) \
+                 either way: {lo:.3e} to {hi:.3e}"
+            ),
+        ));
+    }
+    Ok(())
+}
+
 /// Default patch scale: a third of the model's longest side per exemplar cube.
 pub const DEFAULT_SCALE_FRACTION: f64 = 1.0 / 3.0;
 /// Seed of the procedural splotch masks (part of the model: they are stored in it).
@@ -105,9 +125,21 @@ pub fn build(
     let winding = winding::Winding::new(mesh);
     constraints.check_inside(&winding, constraints_name)?;
     let (lo, hi) = mesh.bounds();
-    let default_scale = opts
-        .scale
-        .unwrap_or((hi - lo).max_element() * DEFAULT_SCALE_FRACTION);
+    let extent = (hi - lo).max_element();
+    if let Some(s) = opts.scale {
+        check_scale(s, &format!("--scale {s}"), extent)?;
+    }
+    if let Some(s) = constraints.scale {
+        check_scale(s, &format!("{constraints_name}: scale {s}"), extent)?;
+    }
+    for (i, &(_, s)) in constraints.scales.iter().enumerate() {
+        check_scale(
+            s,
+            &format!("{constraints_name}: scales[{i}].scale {s}"),
+            extent,
+        )?;
+    }
+    let default_scale = opts.scale.unwrap_or(extent * DEFAULT_SCALE_FRACTION);
     let field = Field::compute(&tets, constraints, default_scale)?;
     let masks = if constraints.kind.depth_varying() {
         exemplar::layered(MASK_SEED).to_vec()

@@ -224,6 +224,21 @@ fn image_files(dir: &Path) -> Result<Vec<String>> {
     Ok(names)
 }
 
+/// The files [`load`] reads for the capture in `dir`: its light file (`lights`, or found by
+/// [`find_light_file`]) and its image files, so that a command can refuse to overwrite any of
+/// them.
+pub fn input_files(dir: &Path, lights: Option<&Path>) -> Result<Vec<PathBuf>> {
+    if !dir.is_dir() {
+        return Ok(Vec::new());
+    }
+    let mut files = vec![match lights {
+        Some(p) => p.to_path_buf(),
+        None => find_light_file(dir)?,
+    }];
+    files.extend(image_files(dir)?.into_iter().map(|name| dir.join(name)));
+    Ok(files)
+}
+
 /// Load a capture directory with its light file (`lights`, or found by [`find_light_file`]).
 /// The light file must list every image of the directory, each once.
 pub fn load(dir: &Path, lights: Option<&Path>) -> Result<Capture> {
@@ -268,8 +283,15 @@ pub fn load(dir: &Path, lights: Option<&Path>) -> Result<Capture> {
             ),
         ));
     }
+    let mut listed = std::collections::HashSet::new();
     for (file, light) in entries {
         let path = dir.join(&file);
+        if !listed.insert(file.clone()) {
+            return Err(Error::invalid(
+                &what,
+                format!("lists {file} twice; every image of the directory is listed once"),
+            ));
+        }
         if !on_disk.contains(&file) {
             return Err(Error::invalid(
                 &what,

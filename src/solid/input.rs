@@ -168,6 +168,7 @@ impl ExemplarInput {
     /// Whether any analysis setting differs from the defaults (an `.ssa` file holds its own).
     pub fn analysis_settings_given(&self) -> bool {
         self.frame.is_some()
+            || self.periodic
             || self.feature_masks != FeatureMasks::Auto
             || self.feature_weight != DEFAULT_FEATURE_WEIGHT
             || self.balance_rounds != balance::DEFAULT_ROUNDS

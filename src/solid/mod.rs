@@ -266,7 +266,8 @@ impl SolidBuilder {
         if let Some(a) = &self.analysis {
             if self.input.analysis_settings_given() || !self.input.images.is_empty() {
                 return Err(Error::invalid(
-                    "--ey/--frame/--feature-mask/--feature-weight/--balance-rounds/--balance-strength",
+                    "--ey/--frame/--periodic/--feature-mask/--feature-weight/--balance-rounds/\
+                     --balance-strength",
                     "are analysis inputs; an .ssa file already holds them",
                 ));
             }

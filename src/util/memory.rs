@@ -55,14 +55,57 @@ pub fn limit_heap_arenas() {
 /// (`MemAvailable` of /proc/meminfo), the room left under this process's cgroup memory limits
 /// (v2 `memory.max - memory.current`, v1 `memory.limit_in_bytes - memory.usage_in_bytes`, this
 /// cgroup's and its ancestors': a container's or a CI runner's limit, which the kernel enforces
-/// by killing the process), and `SOLIDSYNTH_MEMORY_BUDGET_MIB` when that is set. u64::MAX when
-/// none is known.
+/// by killing the process), the room left in its address-space limit (`ulimit -v`, where
+/// allocations fail and the process aborts) and `SOLIDSYNTH_MEMORY_BUDGET_MIB` when that is
+/// set. u64::MAX when none is known.
 pub fn available_memory() -> u64 {
-    let budget = std::env::var("SOLIDSYNTH_MEMORY_BUDGET_MIB")
-        .ok()
-        .and_then(|v| v.trim().parse::<u64>().ok())
-        .map_or(u64::MAX, |mib| mib.saturating_mul(1 << 20));
-    available_memory_under(std::path::Path::new("/")).min(budget)
+    const BUDGET: &str = "SOLIDSYNTH_MEMORY_BUDGET_MIB";
+    let budget = match std::env::var(BUDGET) {
+        Ok(v) => match v.trim().parse::<u64>() {
+            Ok(mib) => mib.saturating_mul(1 << 20),
+            Err(_) => {
+                static WARNED: std::sync::Once = std::sync::Once::new();
+                WARNED.call_once(|| {
+                    tracing::warn!("{BUDGET}={v} ignored: not a whole number of MiB");
+                });
+                u64::MAX
+            }
+        },
+        Err(_) => u64::MAX,
+    };
+    available_memory_under(std::path::Path::new("/"))
+        .min(address_space_room())
+        .min(budget)
+}
+
+/// The room left under this process's address-space limit (`RLIMIT_AS`, `ulimit -v`): the limit
+/// less its virtual size now (`VmSize` of /proc/self/status). u64::MAX without a limit.
+fn address_space_room() -> u64 {
+    #[cfg(target_os = "linux")]
+    {
+        let mut limit = libc::rlimit {
+            rlim_cur: 0,
+            rlim_max: 0,
+        };
+        // SAFETY: getrlimit writes the limit into the struct it is given.
+        if unsafe { libc::getrlimit(libc::RLIMIT_AS, &mut limit) } != 0
+            || limit.rlim_cur == libc::RLIM_INFINITY
+        {
+            return u64::MAX;
+        }
+        let used = std::fs::read_to_string("/proc/self/status")
+            .ok()
+            .and_then(|s| {
+                let line = s.lines().find(|l| l.starts_with("VmSize:"))?.to_string();
+                line.split_whitespace().nth(1)?.parse::<u64>().ok()
+            })
+            .map_or(0, |kib| kib.saturating_mul(1024));
+        (limit.rlim_cur as u64).saturating_sub(used)
+    }
+    #[cfg(not(target_os = "linux"))]
+    {
+        u64::MAX
+    }
 }
 
 /// [`available_memory`] without the override, reading `/proc` and `/sys/fs/cgroup` under `root`

@@ -490,3 +490,42 @@ fn gradient_vectorize_with_a_mask_separates_regions() {
     assert_eq!(o.status.code(), Some(2));
     assert!(!no.exists());
 }
+
+/// An edit whose colour pushes the solid past what its encoding stores is refused, and
+/// nothing is written (the tool could not read such a file back).
+#[test]
+fn gradient_edit_refuses_a_colour_its_encoding_cannot_store() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    let solid = d.join("g.gsolid");
+    let o = run(&[
+        "gradient",
+        "synth",
+        "--size",
+        "16",
+        "--backend",
+        "cpu",
+        "-o",
+        &s(&solid),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let strokes = d.join("st.json");
+    std::fs::write(
+        &strokes,
+        br#"{"strokes":[{"position":[8,8,8],"strength":1}]}"#,
+    )
+    .unwrap();
+    let o = run(&[
+        "gradient",
+        "edit",
+        &s(&solid),
+        "--strokes",
+        &s(&strokes),
+        "--color",
+        "1e39,0,0",
+        "-o",
+        &s(&d.join("e.gsolid")),
+    ]);
+    assert_user_error(&o, "--color 1e39,0,0", d, &["g.gsolid", "st.json"]);
+}

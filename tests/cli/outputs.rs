@@ -243,3 +243,94 @@ fn an_output_named_like_its_subcommand_is_written() {
         &["capture", "e.png"],
     );
 }
+
+/// Conflicts found by the checks before any work: an output that is a hard link to an input,
+/// an output inside the `--slices` directory, an analysis flag beside an `.ssa`; and a volume
+/// larger than the memory budget refused before its data is decoded.
+#[test]
+fn conflicting_outputs_and_inputs_are_refused_up_front() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let ssa = analyze_cells(d);
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    // A hard link to the analysis, given as the output: the analysis is kept.
+    let link = d.join("link.ssa");
+    std::fs::hard_link(&ssa, &link).unwrap();
+    let before = std::fs::read(&ssa).unwrap();
+    let o = run(&[
+        "synth",
+        &s(&link),
+        "--size",
+        "8",
+        "--backend",
+        "cpu",
+        "--format",
+        "nrrd",
+        "-o",
+        &s(&ssa),
+    ]);
+    assert_user_error(&o, "is also given as an input", d, &["c.ssa", "link.ssa"]);
+    assert_eq!(std::fs::read(&ssa).unwrap(), before);
+    // An output inside the slices' directory.
+    let slices = d.join("slices");
+    std::fs::create_dir(&slices).unwrap();
+    for (flag, target) in [("--sheet", "slices/sheet.png"), ("-o", "slices/v.nrrd")] {
+        let target = s(&d.join(target));
+        let ssa_arg = s(&ssa);
+        let mut args = vec!["synth", &ssa_arg, "--size", "8", "--backend", "cpu"];
+        let slices_arg = s(&slices);
+        args.extend(["--slices", &slices_arg]);
+        let other = s(&d.join("v.nrrd"));
+        match flag {
+            "-o" => args.extend(["-o", &target]),
+            _ => args.extend(["-o", &other, flag, &target]),
+        }
+        let o = run(&args);
+        assert_user_error(
+            &o,
+            "holds the slices alone",
+            d,
+            &["c.ssa", "link.ssa", "slices"],
+        );
+        assert!(std::fs::read_dir(&slices).unwrap().next().is_none());
+    }
+    // `--periodic` is an analysis input, held by the .ssa.
+    let o = run(&[
+        "synth",
+        &s(&ssa),
+        "--periodic",
+        "--size",
+        "8",
+        "--backend",
+        "cpu",
+        "-o",
+        &s(&d.join("p.nrrd")),
+    ]);
+    assert_user_error(&o, "--periodic", d, &["c.ssa", "link.ssa", "slices"]);
+    // A gzip volume of 16 MiB declared, under a budget of 1 MiB.
+    let mut big =
+        b"NRRD0004\ntype: uint8\ndimension: 3\nsizes: 256 256 256\nencoding: gzip\n\n".to_vec();
+    big.extend(solidsynth::io::nrrd::gzip_bytes(&vec![
+        0u8;
+        256 * 256 * 256
+    ]));
+    let big_path = d.join("big.nrrd");
+    std::fs::write(&big_path, big).unwrap();
+    let o = bin()
+        .env("SOLIDSYNTH_MEMORY_BUDGET_MIB", "1")
+        .args([
+            "gradient",
+            "vectorize",
+            &s(&big_path),
+            "-o",
+            &s(&d.join("v.gsolid")),
+        ])
+        .output()
+        .unwrap();
+    assert_user_error(
+        &o,
+        "more than the 0.0 GiB of memory available",
+        d,
+        &["c.ssa", "link.ssa", "slices", "big.nrrd"],
+    );
+}

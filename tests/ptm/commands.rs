@@ -157,6 +157,45 @@ fn cli_bad_ptm_inputs_exit_2_and_write_nothing() {
         &out,
     );
     std::fs::remove_file(cap.join("zzz.png")).unwrap();
+    // The capture's own files are inputs: an output over one of them is refused, the files kept.
+    for own in ["img_000.png", "lights.lp"] {
+        let target = cap.join(own);
+        let before = std::fs::read(&target).unwrap();
+        let o = run(&["ptm", "fit", p(&cap), "-o", p(&target)]);
+        assert_eq!(o.status.code(), Some(2), "{own}");
+        assert!(String::from_utf8_lossy(&o.stderr).contains("which this command reads"));
+        assert_eq!(std::fs::read(&target).unwrap(), before, "{own} rewritten");
+    }
+    // A light file that lists one image twice (and so leaves another out).
+    let twice = d.join("twice");
+    std::fs::create_dir(&twice).unwrap();
+    for f in std::fs::read_dir(&cap).unwrap() {
+        let f = f.unwrap().path();
+        std::fs::copy(&f, twice.join(f.file_name().unwrap())).unwrap();
+    }
+    let lp = std::fs::read_to_string(twice.join("lights.lp")).unwrap();
+    let second = lp
+        .lines()
+        .nth(2)
+        .unwrap()
+        .replace("img_001.png", "img_000.png");
+    let lp: Vec<String> = lp
+        .lines()
+        .enumerate()
+        .map(|(i, l)| {
+            if i == 2 {
+                second.clone()
+            } else {
+                l.to_string()
+            }
+        })
+        .collect();
+    std::fs::write(twice.join("lights.lp"), lp.join("\n") + "\n").unwrap();
+    assert_refused(
+        &run(&["ptm", "fit", p(&twice), "-o", p(&out)]),
+        "lists img_000.png twice",
+        &out,
+    );
     // Fewer than 6 images.
     let few = d.join("few");
     std::fs::create_dir(&few).unwrap();

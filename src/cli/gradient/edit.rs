@@ -42,7 +42,21 @@ pub(super) fn edit(a: EditArgs, quiet: bool) -> anyhow::Result<()> {
     };
     let residual = edit::edit(&mut solid, &strokes, &reference, propagation)?;
     let seconds = start.elapsed().as_secs_f64();
-    atomic::write_file(&a.output, &format::to_bytes(&solid, a.encoding))?;
+    // The file must read back: a reference colour far outside the solid's values can push
+    // them past what the encoding holds (a u8 step that overflows to infinity).
+    let bytes = format::to_bytes(&solid, a.encoding);
+    if let Err(e) = format::from_bytes(&bytes, "edited solid") {
+        return Err(Error::invalid(
+            format!("--color {}", a.color),
+            format!(
+                "moves the solid's values where the {} encoding cannot store them ({e}); \
+                 choose a colour nearer the solid's own",
+                format!("{:?}", a.encoding).to_lowercase()
+            ),
+        )
+        .into());
+    }
+    atomic::write_file(&a.output, &bytes)?;
     if a.json {
         print_summary(&EditSummary {
             output: &a.output,
