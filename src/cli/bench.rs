@@ -56,7 +56,7 @@ pub struct BenchGradientArgs {
     #[arg(long, value_delimiter = ',', default_values_t = vec!["cpu".to_string()])]
     pub backends: Vec<String>,
     /// Runs per size and backend; the median is reported.
-    #[arg(long, default_value_t = 3)]
+    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..))]
     pub runs: u32,
     /// Print the results as JSON instead of a table.
     #[arg(help_heading = "Output", long)]
@@ -70,7 +70,7 @@ pub struct BenchRenderArgs {
     #[arg(long, value_delimiter = ',', default_values_t = vec![128u32, 256])]
     pub sizes: Vec<u32>,
     /// Timed renders per size and backend, after one untimed warm-up; the median is reported.
-    #[arg(long, default_value_t = 5)]
+    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..))]
     pub runs: u32,
     /// Skip the GPU backend (CPU times only).
     #[arg(long)]
@@ -95,7 +95,7 @@ pub struct BenchSynthArgs {
     #[arg(long, value_delimiter = ',', default_values_t = vec!["cpu".to_string(), "gpu".to_string()])]
     pub backends: Vec<String>,
     /// Runs per size and backend; the median is reported.
-    #[arg(long, default_value_t = 3)]
+    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..))]
     pub runs: u32,
     /// Treat the input exemplar as periodic.
     #[arg(long)]
@@ -117,15 +117,16 @@ pub struct BenchSynthArgs {
 #[derive(Args, Debug)]
 #[command(next_help_heading = "Benchmark")]
 pub struct BenchAnalyzeArgs {
-    /// Exemplar sizes (square), comma-separated.
-    #[arg(long, value_delimiter = ',', default_values_t = vec![64u32, 128, 256, 512])]
+    /// Exemplar sizes (square, 16 to 2048), comma-separated.
+    #[arg(long, value_delimiter = ',', default_values_t = vec![64u32, 128, 256, 512],
+          value_parser = clap::value_parser!(u32).range(16..=2048))]
     pub sizes: Vec<u32>,
     /// Crop the exemplars from this image (top-left corner; it must be at least as large as the
     /// biggest size). Default: procedural cobblestones generated at each size.
     #[arg(help_heading = "Benchmark", long)]
     pub exemplar: Option<PathBuf>,
     /// Runs per size; the median is reported.
-    #[arg(help_heading = "Benchmark", long, default_value_t = 3)]
+    #[arg(help_heading = "Benchmark", long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..))]
     pub runs: u32,
     /// Usage-balancing rounds of each analysis (see `analyze --balance-rounds`; 0 times the
     /// paper's precomputation alone).

@@ -314,6 +314,18 @@ fn cut(args: CutArgs, quiet: bool) -> anyhow::Result<()> {
             Error::invalid(format!("--extent {extent}"), "must be a positive number").into(),
         );
     }
+    let spacing = extent / args.size as f64;
+    let max_spacing = crate::lazy::cut::MAX_CUT_SPACING;
+    if spacing > max_spacing {
+        return Err(Error::invalid(
+            format!("--extent {extent}"),
+            format!(
+                "over --size {} is {spacing} world units a pixel; at most {max_spacing}",
+                args.size
+            ),
+        )
+        .into());
+    }
     let spec = CutSpec {
         origin: if args.origin == "center" {
             ((lo + hi) / 2.0).to_array()
@@ -323,7 +335,7 @@ fn cut(args: CutArgs, quiet: bool) -> anyhow::Result<()> {
         normal: triple(&args.normal, "--normal")?,
         up: args.up.as_deref().map(|u| triple(u, "--up")).transpose()?,
         size: args.size,
-        spacing: extent / args.size as f64,
+        spacing,
     };
     spec.frame()?;
     let mut latencies = Vec::new();

@@ -22,7 +22,7 @@ pub struct BenchLappedArgs {
     #[arg(long)]
     pub field: Option<PathBuf>,
     /// Fill runs (fresh processes); the median is reported.
-    #[arg(long, default_value_t = 5)]
+    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..))]
     pub runs: u32,
     /// Cuts of 512x512 through the centre (one process, warm); median and p95 reported.
     #[arg(long, default_value_t = 30)]

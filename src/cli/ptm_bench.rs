@@ -30,7 +30,7 @@ pub struct BenchPtmArgs {
     #[arg(long, default_value_t = 1024)]
     pub relight_size: u32,
     /// Runs per measurement; the median is reported.
-    #[arg(long, default_value_t = 3)]
+    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..))]
     pub runs: u32,
     /// Skip the GPU relight.
     #[arg(long)]

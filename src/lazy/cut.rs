@@ -18,6 +18,9 @@ use crate::volume::Volume;
 use glam::DVec3;
 use rayon::prelude::*;
 
+/// The largest distance between a cut's neighbouring pixels, in voxels.
+pub const MAX_CUT_SPACING: f64 = 1024.0;
+
 /// A planar cut request.
 #[derive(Clone, Debug, PartialEq)]
 pub struct CutSpec {
@@ -49,10 +52,10 @@ impl CutSpec {
                 format!("must be 1..={MAX_CUT_SIZE}"),
             ));
         }
-        if !(self.spacing.is_finite() && self.spacing > 0.0 && self.spacing <= 1024.0) {
+        if !(self.spacing.is_finite() && self.spacing > 0.0 && self.spacing <= MAX_CUT_SPACING) {
             return Err(Error::invalid(
                 format!("--spacing {}", self.spacing),
-                "must be a number in (0, 1024]",
+                format!("must be a number in (0, {MAX_CUT_SPACING}]"),
             ));
         }
         let n = DVec3::from_array(self.normal);
