@@ -16,7 +16,7 @@ pub const SOLID_PARAMETERS: &[&str] = &[
     "coarse_cache",
 ];
 
-/// `seed`, `jitter` (0..=4), `color` (`average`, `fitted`, `matched`, `x`, `y`, `z`), `passes` (`N` or
+/// `seed`, `jitter` (0..=8, as the command line), `color` (`average`, `fitted`, `matched`, `x`, `y`, `z`), `passes` (`N` or
 /// `N0,N1,N2,N3`), `feature` (`auto`, `edges`, `none`) and `coarse_cache` (0: none, else a
 /// multiple of 64), each defaulting to the server's.
 pub fn solid_settings(server: &SynthParams, q: &Query) -> Result<SolidSettings, (u16, String)> {
@@ -26,7 +26,7 @@ pub fn solid_settings(server: &SynthParams, q: &Query) -> Result<SolidSettings, 
         seed: q.u64_in("seed", 0, u32::MAX as u64)?.unwrap_or(0),
         ..server.clone()
     };
-    if let Some(j) = q.f64_in("jitter", 0.0, 4.0)? {
+    if let Some(j) = q.f64_in("jitter", 0.0, crate::contract::jitter::MAX_JITTER as f64)? {
         params.jitter = j as f32;
     }
     if let Some(text) = q.get("color") {
