@@ -100,7 +100,10 @@ fn address_space_room() -> u64 {
                 line.split_whitespace().nth(1)?.parse::<u64>().ok()
             })
             .map_or(0, |kib| kib.saturating_mul(1024));
-        (limit.rlim_cur as u64).saturating_sub(used)
+        // (rlim_t is u64 here, narrower on some 32-bit targets.)
+        #[allow(clippy::unnecessary_cast)]
+        let limit = limit.rlim_cur as u64;
+        limit.saturating_sub(used)
     }
     #[cfg(not(target_os = "linux"))]
     {
