@@ -215,10 +215,12 @@ impl SolidArgs {
             mips: self.mips,
         };
         let mut output = VolumeOutput::resolve(&self.output, "-o", self.format, texture)?;
-        if !(self.voxel_size.is_finite() && self.voxel_size > 0.0) {
+        // (The VDB transform stores 1 / size^2 too, so the size stays far from both ends of
+        // f64.)
+        if !(1e-6..=1e6).contains(&self.voxel_size) {
             return Err(Error::invalid(
                 format!("--voxel-size {}", self.voxel_size),
-                "must be a positive number",
+                "must be a number from 1e-6 to 1e6",
             ));
         }
         if output.format != crate::io::volume_file::VolumeFormat::Vdb && self.voxel_size != 1.0 {

@@ -37,12 +37,14 @@ impl Default for Propagation {
 pub const MAX_CENTRES: usize = 256;
 
 #[derive(Clone, Debug, PartialEq, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Stroke {
     pub position: [f64; 3],
     pub strength: f64,
 }
 
 #[derive(Clone, Debug, PartialEq, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Strokes {
     pub strokes: Vec<Stroke>,
 }
@@ -237,6 +239,22 @@ pub fn edit(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn strokes_with_unknown_fields_are_refused() {
+        let ok = r#"{"strokes": [{"position": [1, 2, 3], "strength": 0.5}]}"#;
+        assert_eq!(parse_strokes(ok, "s.json").unwrap().len(), 1);
+        for bad in [
+            r#"{"strokes": [{"position": [1, 2, 3], "strength": 0.5, "radius": 4}]}"#,
+            r#"{"strokes": [{"position": [1, 2, 3], "strength": 0.5}], "colour": 1}"#,
+        ] {
+            let err = parse_strokes(bad, "s.json").unwrap_err().to_string();
+            assert!(
+                err.contains("s.json") && err.contains("unknown field"),
+                "{err}"
+            );
+        }
+    }
 
     /// Two regions of different colour: a full-strength stroke in one turns it (near the stroke)
     /// to the reference colour; the other region, far in colour, is untouched.

@@ -225,6 +225,12 @@ pub fn parse_obj(bytes: &[u8], name: &str) -> Result<Mesh> {
         Err(tobj::LoadError::MaterialParseError)
     })
     .map_err(|e| Error::invalid(name, format!("not a valid OBJ file: {e}")))?;
+    if let Some((line, corners)) = obj_short_face(bytes) {
+        return Err(Error::invalid(
+            name,
+            format!("the face on line {line} has {corners} vertices; a face needs at least 3"),
+        ));
+    }
     let mut mesh = Mesh {
         positions: Vec::new(),
         triangles: Vec::new(),
@@ -296,6 +302,21 @@ fn add_obj_corners<const N: usize>(
         out.push(corners);
     }
     Some(())
+}
+
+/// The first `f` line with fewer than three corners (its 1-based number and corner count): the
+/// OBJ parser would make a degenerate triangle of it.
+fn obj_short_face(bytes: &[u8]) -> Option<(usize, usize)> {
+    String::from_utf8_lossy(bytes)
+        .lines()
+        .enumerate()
+        .find_map(|(i, line)| {
+            let mut words = line.split_whitespace();
+            (words.next() == Some("f"))
+                .then(|| words.count())
+                .filter(|&corners| corners < 3)
+                .map(|corners| (i + 1, corners))
+        })
 }
 
 /// Whether every corner of every `f` line names a texture coordinate (`v/vt`) and a normal
@@ -520,6 +541,17 @@ mod tests {
             normals: None,
         };
         assert!(out.validate("o").is_err());
+    }
+
+    #[test]
+    fn a_face_of_two_vertices_is_refused_by_line() {
+        let err = parse_obj(b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nf 1 2\n", "t.obj")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("t.obj") && err.contains("line 5 has 2 vertices"),
+            "{err}"
+        );
     }
 
     #[test]

@@ -528,4 +528,17 @@ fn gradient_edit_refuses_a_colour_its_encoding_cannot_store() {
         &s(&d.join("e.gsolid")),
     ]);
     assert_user_error(&o, "--color 1e39,0,0", d, &["g.gsolid", "st.json"]);
+    // The slice's placement flags without a slice.
+    let o = run(&[
+        "gradient",
+        "render",
+        &s(&solid),
+        "--origin",
+        "1,2,3",
+        "-o",
+        &s(&d.join("v.nrrd")),
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--normal"));
+    assert!(!d.join("v.nrrd").exists());
 }

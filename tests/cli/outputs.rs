@@ -294,6 +294,20 @@ fn conflicting_outputs_and_inputs_are_refused_up_front() {
         );
         assert!(std::fs::read_dir(&slices).unwrap().next().is_none());
     }
+    // A voxel size whose VDB transform (1 / size^2) would not be finite.
+    let o = run(&[
+        "synth",
+        &s(&ssa),
+        "--size",
+        "8",
+        "--backend",
+        "cpu",
+        "--voxel-size",
+        "1e-300",
+        "-o",
+        &s(&d.join("v.vdb")),
+    ]);
+    assert_user_error(&o, "--voxel-size", d, &["c.ssa", "link.ssa", "slices"]);
     // `--periodic` is an analysis input, held by the .ssa.
     let o = run(&[
         "synth",

@@ -168,11 +168,7 @@ fn cli_bad_ptm_inputs_exit_2_and_write_nothing() {
     }
     // A light file that lists one image twice (and so leaves another out).
     let twice = d.join("twice");
-    std::fs::create_dir(&twice).unwrap();
-    for f in std::fs::read_dir(&cap).unwrap() {
-        let f = f.unwrap().path();
-        std::fs::copy(&f, twice.join(f.file_name().unwrap())).unwrap();
-    }
+    copy_capture(&cap, &twice);
     let lp = std::fs::read_to_string(twice.join("lights.lp")).unwrap();
     let second = lp
         .lines()
@@ -216,11 +212,7 @@ fn cli_bad_ptm_inputs_exit_2_and_write_nothing() {
     );
     // Images of different sizes.
     let mixed = d.join("mixed");
-    std::fs::create_dir(&mixed).unwrap();
-    for e in std::fs::read_dir(&cap).unwrap() {
-        let e = e.unwrap();
-        std::fs::copy(e.path(), mixed.join(e.file_name())).unwrap();
-    }
+    copy_capture(&cap, &mixed);
     image::RgbImage::new(24, 20)
         .save(mixed.join("img_004.png"))
         .unwrap();
@@ -332,4 +324,13 @@ fn cli_bad_ptm_inputs_exit_2_and_write_nothing() {
     ]);
     assert_eq!(o.status.code(), Some(2));
     assert_eq!(std::fs::read(&tex).unwrap(), bytes);
+}
+
+/// A copy of the capture directory `from` at `to` (a new directory).
+fn copy_capture(from: &Path, to: &Path) {
+    std::fs::create_dir(to).unwrap();
+    for e in std::fs::read_dir(from).unwrap() {
+        let e = e.unwrap();
+        std::fs::copy(e.path(), to.join(e.file_name())).unwrap();
+    }
 }

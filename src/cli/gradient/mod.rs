@@ -182,14 +182,29 @@ pub struct RenderArgs {
     /// Render a planar slice instead (PNG): its normal NX,NY,NZ, with the conventions of `cut`.
     #[arg(help_heading = "Rendering", long, allow_hyphen_values = true)]
     pub normal: Option<String>,
-    /// Slice centre X,Y,Z (voxels; default the solid's centre).
-    #[arg(help_heading = "Rendering", long, allow_hyphen_values = true)]
+    /// Slice centre X,Y,Z (voxels; default the solid's centre). With --normal only.
+    #[arg(
+        help_heading = "Rendering",
+        long,
+        allow_hyphen_values = true,
+        requires = "normal"
+    )]
     pub origin: Option<String>,
-    /// Slice up direction (default +y, or +z when the normal is along y).
-    #[arg(help_heading = "Rendering", long, allow_hyphen_values = true)]
+    /// Slice up direction (default +y, or +z when the normal is along y). With --normal only.
+    #[arg(
+        help_heading = "Rendering",
+        long,
+        allow_hyphen_values = true,
+        requires = "normal"
+    )]
     pub up: Option<String>,
-    /// Voxels per slice pixel.
-    #[arg(help_heading = "Rendering", long, default_value_t = 1.0)]
+    /// Voxels per slice pixel. With --normal only.
+    #[arg(
+        help_heading = "Rendering",
+        long,
+        default_value_t = 1.0,
+        requires = "normal"
+    )]
     pub spacing: f64,
     /// Region solids: colour each sample with its own region's set only (no anti-aliasing
     /// blend within half a voxel of the boundary).
