@@ -126,10 +126,9 @@ pub fn gzip_bytes(data: &[u8]) -> Vec<u8> {
         .expect("compressing into memory cannot fail")
 }
 
-/// Read a volume file. A volume larger than the memory available ([`available_memory`]) is
-/// refused before its data is decoded.
-///
-/// [`available_memory`]: crate::util::memory::available_memory
+/// Read a volume file. A volume larger than the memory available (the machine's, its cgroup's
+/// and `ulimit -v`'s room, or `SOLIDSYNTH_MEMORY_BUDGET_MIB`) is refused before its data is
+/// decoded.
 pub fn load(path: &Path) -> Result<Volume> {
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
     let header = parse_header(&bytes).map_err(|problem| Error::corrupt(path, problem))?;
