@@ -34,6 +34,30 @@ pub const DEFAULT_RESOLUTION: u32 = 12;
 /// field's least-squares solves lose their precision.
 const SCALE_RANGE: f64 = 1e4;
 
+/// Refuse `--scale` (`scale`) or a scale of the constraints file outside [`SCALE_RANGE`] of the
+/// mesh's `extent`.
+fn check_scales(
+    scale: Option<f64>,
+    constraints: &Constraints,
+    constraints_name: &str,
+    extent: f64,
+) -> Result<()> {
+    if let Some(s) = scale {
+        check_scale(s, &format!("--scale {s}"), extent)?;
+    }
+    if let Some(s) = constraints.scale {
+        check_scale(s, &format!("{constraints_name}: scale {s}"), extent)?;
+    }
+    for (i, &(_, s)) in constraints.scales.iter().enumerate() {
+        check_scale(
+            s,
+            &format!("{constraints_name}: scales[{i}].scale {s}"),
+            extent,
+        )?;
+    }
+    Ok(())
+}
+
 /// Refuse a patch scale (`what` names it) outside [`SCALE_RANGE`] of the mesh's `extent`.
 fn check_scale(scale: f64, what: &str, extent: f64) -> Result<()> {
     let (lo, hi) = (extent / SCALE_RANGE, extent * SCALE_RANGE);
@@ -108,13 +132,12 @@ pub fn build(
         constraints,
         constraints_name,
     } = inputs;
-    if let Some(s) = opts.scale {
-        if !(s.is_finite() && s > 0.0) {
-            return Err(crate::Error::invalid(
-                format!("--scale {s}"),
-                "must be a positive number",
-            ));
-        }
+    // The scales are checked before the mesh is stuffed (a mesh without finite bounds is
+    // refused by the stuffing, which names it).
+    let (lo, hi) = mesh.bounds();
+    let extent = (hi - lo).max_element();
+    if extent.is_finite() && extent > 0.0 {
+        check_scales(opts.scale, constraints, constraints_name, extent)?;
     }
     let start = Instant::now();
     let (tets, stuffing) = stuffing::stuff(mesh, opts.resolution, mesh_name)?;
@@ -124,21 +147,6 @@ pub fn build(
     let start = Instant::now();
     let winding = winding::Winding::new(mesh);
     constraints.check_inside(&winding, constraints_name)?;
-    let (lo, hi) = mesh.bounds();
-    let extent = (hi - lo).max_element();
-    if let Some(s) = opts.scale {
-        check_scale(s, &format!("--scale {s}"), extent)?;
-    }
-    if let Some(s) = constraints.scale {
-        check_scale(s, &format!("{constraints_name}: scale {s}"), extent)?;
-    }
-    for (i, &(_, s)) in constraints.scales.iter().enumerate() {
-        check_scale(
-            s,
-            &format!("{constraints_name}: scales[{i}].scale {s}"),
-            extent,
-        )?;
-    }
     let default_scale = opts.scale.unwrap_or(extent * DEFAULT_SCALE_FRACTION);
     let field = Field::compute(&tets, constraints, default_scale)?;
     let masks = if constraints.kind.depth_varying() {
