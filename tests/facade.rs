@@ -117,7 +117,7 @@ fn bad_input_through_the_facade_is_refused_by_name() {
     // Beyond any machine's memory: refused before allocating, naming the estimate.
     refused(
         solid.region(Box3::new([0; 3], [1 << 20; 3])),
-        "GiB of memory",
+        "TiB of memory",
     );
     refused(solid.tileable(48), "multiple of 32");
     // A device lacking a limit the kernels need: the limit is named.

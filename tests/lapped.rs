@@ -584,16 +584,17 @@ fn cli_refuses_bad_input() {
     };
     assert_refused(&cut("0,0,0", "0,0,0"), "--normal", &png);
     assert_refused(&cut("0,nan,0", "0,0,1"), "--origin", &png);
-    let o = run(&[
-        "lapped",
-        "render",
-        p(&model),
-        "--camera",
-        "0,95",
-        "-o",
-        p(&png),
-    ]);
-    assert_refused(&o, "--camera", &png);
+    for (camera, problem) in [
+        ("0,95", "strictly between -90 and 90"),
+        ("0,90", "strictly between -90 and 90"),
+        ("0,20,0.5", "over 1 bounding radius"),
+        ("0,inf", "finite"),
+        ("0", "expected AZ,EL"),
+    ] {
+        let camera = format!("--camera={camera}");
+        let o = run(&["lapped", "render", p(&model), &camera, "-o", p(&png)]);
+        assert_refused(&o, problem, &png);
+    }
     let damaged = write("bad.lst", "SSLST001 and then nothing useful");
     let o = run(&[
         "lapped",

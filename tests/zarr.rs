@@ -443,6 +443,18 @@ fn bad_zarr_flags_exit_2_naming_the_flag_and_write_nothing() {
     let mut args = common.to_vec();
     args.extend_from_slice(&["-o", "a.zarr", "--chunks-of", "1/2"]);
     refused(&run(d, &args), "would compute none");
+    // An array larger than any disk (768 TiB): refused before it is made, not when the disk
+    // fills.
+    let huge = [
+        "region",
+        "--box",
+        "0,0,0,65536,65536,65536",
+        "--backend",
+        "cpu",
+        "-o",
+        "huge.zarr",
+    ];
+    refused(&run(d, &huge), "on disk, and");
     // The Zarr flags belong to Zarr outputs, and outputs made from the whole volume do not go
     // with one.
     for (extra, flag) in [

@@ -233,6 +233,7 @@ pub struct AnalyzeArgs {
 
 pub fn run(args: AnalyzeArgs, quiet: bool) -> anyhow::Result<()> {
     atomic::check_output_path(&args.output, "-o")?;
+    atomic::check_output_extension(&args.output, "-o", "an analysis", &["ssa"])?;
     if args.input.is_ssa() {
         anyhow::bail!(Error::invalid(
             "input",

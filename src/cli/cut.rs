@@ -72,7 +72,7 @@ pub fn triple(text: &str, flag: &str) -> crate::Result<[f64; 3]> {
 }
 
 pub fn run(args: CutArgs, quiet: bool) -> anyhow::Result<()> {
-    atomic::check_output_path(&args.output, "-o")?;
+    atomic::check_png_output(&args.output, "-o")?;
     let spec = CutSpec {
         origin: triple(&args.origin, "--origin")?,
         normal: triple(&args.normal, "--normal")?,

@@ -44,7 +44,7 @@ pub struct EvalArgs {
 
 pub fn run(args: EvalArgs) -> anyhow::Result<()> {
     if let Some(s) = &args.sheet {
-        atomic::check_output_path(s, "--sheet")?;
+        atomic::check_png_output(s, "--sheet")?;
     }
     let start = Instant::now();
     let mut exemplars = vec![exemplar::load_image(&args.exemplar, "exemplar")?];

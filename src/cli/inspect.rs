@@ -24,7 +24,7 @@ pub fn run(args: InspectArgs) -> anyhow::Result<()> {
         .slab
         .clone()
         .unwrap_or_else(|| args.file.with_extension("slab.png"));
-    atomic::check_output_path(&slab_path, "--slab")?;
+    atomic::check_png_output(&slab_path, "--slab")?;
     let axes = if a.shared { 1 } else { 3 };
     let mut levels_json = Vec::new();
     let mut table = String::new();

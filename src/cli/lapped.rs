@@ -197,6 +197,7 @@ pub fn run(cmd: LappedCommand, quiet: bool) -> anyhow::Result<()> {
 
 fn fill(args: FillArgs, quiet: bool) -> anyhow::Result<()> {
     atomic::check_output_path(&args.output, "-o")?;
+    atomic::check_output_extension(&args.output, "-o", "a lapped model", &["lst"])?;
     let mesh_name = args.mesh.display().to_string();
     let surface = load_mesh(&args.mesh)?;
     let exemplar_name = args.exemplar.display().to_string();
@@ -302,7 +303,7 @@ fn load_mesh(path: &std::path::Path) -> crate::Result<mesh::Mesh> {
 }
 
 fn cut(args: CutArgs, quiet: bool) -> anyhow::Result<()> {
-    atomic::check_output_path(&args.output, "-o")?;
+    atomic::check_png_output(&args.output, "-o")?;
     let model = LstModel::load(&args.model)?;
     let (lo, hi) = model.mesh.vertices.iter().fold(
         (glam::DVec3::INFINITY, glam::DVec3::NEG_INFINITY),
@@ -372,7 +373,7 @@ fn cut(args: CutArgs, quiet: bool) -> anyhow::Result<()> {
 }
 
 fn render(args: RenderArgs, quiet: bool) -> anyhow::Result<()> {
-    atomic::check_output_path(&args.output, "-o")?;
+    atomic::check_png_output(&args.output, "-o")?;
     let model = LstModel::load(&args.model)?;
     let camera = Camera::orbit(&model, &args.camera)?;
     if args.backend.backend == BackendChoice::Cpu {
@@ -414,17 +415,7 @@ fn render(args: RenderArgs, quiet: bool) -> anyhow::Result<()> {
 
 fn bake(args: BakeArgs, quiet: bool) -> anyhow::Result<()> {
     atomic::check_output_path(&args.output, "-o")?;
-    let is_glb = args
-        .output
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("glb"));
-    if !is_glb {
-        return Err(Error::invalid(
-            format!("-o {}", args.output.display()),
-            "the output must end in .glb",
-        )
-        .into());
-    }
+    atomic::check_output_extension(&args.output, "-o", "a glTF binary", &["glb"])?;
     let model = LstModel::load(&args.model)?;
     let start = Instant::now();
     let (surface, tets) = lapped::bake::surface(&model);

@@ -224,6 +224,13 @@ fn adapters(args: AdaptersArgs) -> anyhow::Result<()> {
 /// Write `solidsynth.1` and a page per subcommand (`solidsynth-synth.1`, ...) into `dir`.
 fn man_pages(dir: &std::path::Path) -> anyhow::Result<()> {
     use clap::CommandFactory;
+    if dir.exists() && !dir.is_dir() {
+        return Err(crate::Error::invalid(
+            format!("-o {}", dir.display()),
+            "exists and is not a directory; man pages are written into a directory",
+        )
+        .into());
+    }
     std::fs::create_dir_all(dir).map_err(|e| crate::Error::io(dir, e))?;
     let command = Cli::command();
     clap_mangen::generate_to(command, dir).map_err(|e| crate::Error::io(dir, e))?;

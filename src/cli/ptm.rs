@@ -3,7 +3,7 @@
 
 use super::output::print_summary;
 use crate::io::atomic;
-use crate::ptm::quilt::{Boundary, QuiltParams, SearchMethod};
+use crate::ptm::quilt::{Boundary, QuiltParams, SearchMethod, MIN_BLOCK};
 use crate::ptm::search::Tolerance;
 use crate::ptm::Lighting;
 use crate::ptm::{capture, fit, format, relight, PtmFormat};
@@ -209,6 +209,7 @@ fn fit_cmd(a: FitArgs, quiet: bool) -> anyhow::Result<()> {
     // The capture's own files are inputs the command line does not name.
     let inputs = capture::input_files(&a.dir, a.lights.as_deref())?;
     atomic::check_output_not_among(&a.output, "-o", &inputs)?;
+    atomic::check_output_extension(&a.output, "-o", "a PTM", &["ptm"])?;
     let start = Instant::now();
     let cap = capture::load(&a.dir, a.lights.as_deref())?;
     let what = format!("capture {}", a.dir.display());
@@ -241,6 +242,7 @@ fn fit_cmd(a: FitArgs, quiet: bool) -> anyhow::Result<()> {
 
 fn synth_cmd(a: SynthArgs, quiet: bool) -> anyhow::Result<()> {
     atomic::check_output_path(&a.output, "-o")?;
+    atomic::check_output_extension(&a.output, "-o", "a PTM", &["ptm"])?;
     check_not_input(&a.output, &a.input)?;
     if !(0.0..=10.0).contains(&a.tolerance) {
         return Err(
@@ -248,6 +250,17 @@ fn synth_cmd(a: SynthArgs, quiet: bool) -> anyhow::Result<()> {
         );
     }
     let src = format::load(&a.input)?;
+    if src.width.min(src.height) < MIN_BLOCK {
+        return Err(Error::invalid(
+            a.input.display().to_string(),
+            format!(
+                "is a {}x{} PTM; synthesis copies blocks of at least {MIN_BLOCK}x{MIN_BLOCK} \
+                 texels from it",
+                src.width, src.height
+            ),
+        )
+        .into());
+    }
     let params = QuiltParams {
         width: a.size,
         height: a.size,
@@ -318,7 +331,7 @@ fn synth_cmd(a: SynthArgs, quiet: bool) -> anyhow::Result<()> {
 }
 
 fn relight_cmd(a: RelightArgs, quiet: bool) -> anyhow::Result<()> {
-    atomic::check_output_path(&a.output, "-o")?;
+    atomic::check_png_output(&a.output, "-o")?;
     check_not_input(&a.output, &a.input)?;
     if !(a.specular.is_finite() && (0.0..=100.0).contains(&a.specular)) {
         return Err(Error::invalid(format!("--specular {}", a.specular), "must be 0..=100").into());

@@ -213,6 +213,7 @@ pub fn write_zarr(
             format!("the array has {total} chunks, so share {first} would compute none; use N <= {total}"),
         ));
     }
+    check_disk_space(job.out, &layout, ours(), job.resume)?;
     let may_join = job.resume || job.share.is_some();
     let metadata = zarr::metadata(&layout, &job.attributes);
     let opened = zarr::open(job.out, "-o", &metadata, may_join)?;
@@ -263,6 +264,45 @@ pub fn write_zarr(
         created: opened == Opened::Created,
         synthesis_seconds: start.elapsed().as_secs_f64(),
     })
+}
+
+/// Refuse a share of `chunks` that cannot fit on the output's file system, before the array is
+/// made or joined: each chunk file holds a whole chunk (the `bytes` codec stores no less), and
+/// with `--resume` the chunks already complete need no room. (Processes sharing one array each
+/// check their own share.)
+fn check_disk_space(
+    out: &Path,
+    layout: &Layout,
+    chunks: impl Iterator<Item = u64> + Clone,
+    resume: bool,
+) -> crate::Result<()> {
+    let Some(free) = crate::util::disk::free_bytes(out) else {
+        return Ok(());
+    };
+    let bytes = layout.chunk_bytes() as u64;
+    let needed = |count: usize| (count as u64).saturating_mul(bytes);
+    if needed(chunks.clone().count()) <= free {
+        return Ok(());
+    }
+    let missing = if resume && out.is_dir() {
+        chunks
+            .filter(|&k| !zarr::chunk_is_complete(out, layout.chunk_at(k), bytes as usize))
+            .count()
+    } else {
+        chunks.count()
+    };
+    if needed(missing) > free {
+        use crate::util::memory::human_bytes;
+        return Err(Error::invalid(
+            format!("-o {}", out.display()),
+            format!(
+                "the {missing} chunks to write need {} on disk, and {} is free there",
+                human_bytes(needed(missing)),
+                human_bytes(free)
+            ),
+        ));
+    }
+    Ok(())
 }
 
 /// The voxels of box `b` (at most a chunk: clipped at the volume's far edges) into `buffer`, a

@@ -143,7 +143,14 @@ pub struct BenchServeArgs {
     #[command(flatten)]
     pub backend: super::BackendArgs,
     /// Coarse-level cache period for the solid (as `serve`, default 64).
-    #[arg(help_heading = "Load", long, value_name = "N", default_value_t = DEFAULT_COARSE_CACHE)]
+    #[arg(
+        help_heading = "Load",
+        long,
+        value_name = "N",
+        default_value_t = DEFAULT_COARSE_CACHE,
+        value_parser = super::synth::parse_coarse_cache,
+        allow_hyphen_values = true
+    )]
     pub coarse_cache: u32,
     /// No coarse-level cache (as `serve --full-levels`).
     #[arg(help_heading = "Load", long)]

@@ -90,7 +90,13 @@ pub struct SolidParams {
     /// Coarse-level cache (paper 6.2): the levels above the finest come from one tileable solid
     /// of period N (a multiple of 64), synthesized once and read through the jitter warp; each
     /// request then synthesizes only the finest level. A different solid, as deterministic.
-    #[arg(help_heading = "Solid", long, value_name = "N")]
+    #[arg(
+        help_heading = "Solid",
+        long,
+        value_name = "N",
+        value_parser = parse_coarse_cache,
+        allow_hyphen_values = true
+    )]
     pub coarse_cache: Option<u32>,
     /// Largest group of the request synthesized at once: a cube of this edge in voxels (a
     /// multiple of 4). Smaller groups bound the working memory of large boxes and surfaces, at
@@ -274,6 +280,21 @@ impl TriplesWriter {
     }
 }
 
+/// `--coarse-cache N`: a period the cache can have (checked again with the other parameters),
+/// so that `-1` or `x` are named as such rather than as numbers out of u32's range.
+pub fn parse_coarse_cache(text: &str) -> Result<u32, String> {
+    text.trim()
+        .parse::<u32>()
+        .ok()
+        .filter(|n| crate::lazy::check_coarse_cache(*n).is_ok())
+        .ok_or_else(|| {
+            format!(
+                "expected a multiple of 64 in {:?}",
+                crate::lazy::COARSE_CACHE_PERIODS
+            )
+        })
+}
+
 /// Largest --size accepted before the memory estimate is even computed.
 pub const MAX_SIZE: u32 = limits::MAX_BOX_SIDE;
 
@@ -369,14 +390,18 @@ pub fn run_region(args: RegionArgs, quiet: bool) -> anyhow::Result<()> {
 
 fn run_box(args: &SolidArgs, region: Box3, tileable: bool, quiet: bool) -> anyhow::Result<()> {
     atomic::check_output_path(&args.output, "-o")?;
-    for (flag, p) in [
-        ("--flipbook", &args.flipbook),
-        ("--vti", &args.vti),
-        ("--sheet", &args.sheet),
-        ("--triples", &args.triples),
+    // (The triples' own format takes any name.)
+    for (flag, p, format, extension) in [
+        ("--flipbook", &args.flipbook, "a PNG image", Some("png")),
+        ("--vti", &args.vti, "VTK image data", Some("vti")),
+        ("--sheet", &args.sheet, "a PNG image", Some("png")),
+        ("--triples", &args.triples, "", None),
     ] {
         if let Some(p) = p {
             atomic::check_output_path(p, flag)?;
+            if let Some(extension) = extension {
+                atomic::check_output_extension(p, flag, format, &[extension])?;
+            }
         }
     }
     if let Some(d) = &args.slices {

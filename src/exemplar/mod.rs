@@ -201,8 +201,17 @@ pub fn load_image(path: &Path, what: &str) -> Result<Image> {
 
 /// Decode image bytes (see [`load_image`]).
 pub fn decode_image(bytes: &[u8], what: &str) -> Result<Image> {
-    let decoded = image::load_from_memory(bytes)
-        .map_err(|e| Error::invalid(what, format!("cannot decode image: {e}")))?;
+    let decoded = image::load_from_memory(bytes).map_err(|e| {
+        let problem = match (&e, image_dimensions(bytes)) {
+            // The decoder's memory limit (512 MiB by default) says only "Memory limit exceeded".
+            (image::ImageError::Limits(_), Some((w, h))) => format!(
+                "image is {w}x{h}, too large to decode; exemplars are at most \
+                 {MAX_EXEMPLAR_SIDE} pixels a side"
+            ),
+            _ => format!("cannot decode image: {e}"),
+        };
+        Error::invalid(what, problem)
+    })?;
     let (w, h) = (decoded.width(), decoded.height());
     if w == 0 || h == 0 {
         return Err(Error::invalid(what, format!("image is {w}x{h}")));
@@ -223,6 +232,15 @@ pub fn decode_image(bytes: &[u8], what: &str) -> Result<Image> {
         channels,
         pixels,
     })
+}
+
+/// The width and height an image's header declares, if it can be read.
+fn image_dimensions(bytes: &[u8]) -> Option<(u32, u32)> {
+    image::ImageReader::new(std::io::Cursor::new(bytes))
+        .with_guessed_format()
+        .ok()?
+        .into_dimensions()
+        .ok()
 }
 
 /// Check an exemplar's size against the accepted range.

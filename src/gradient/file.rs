@@ -108,9 +108,9 @@ impl GradientFile {
             return Err(Error::invalid(
                 what(),
                 format!(
-                    "needs about {:.1} GiB of memory, {:.1} GiB is available",
-                    estimate as f64 / (1u64 << 30) as f64,
-                    available as f64 / (1u64 << 30) as f64
+                    "needs about {} of memory, {}",
+                    crate::util::memory::human_bytes(estimate),
+                    crate::util::memory::available_text(available)
                 ),
             ));
         }

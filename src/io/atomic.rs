@@ -22,6 +22,42 @@ pub fn check_output_path(path: &Path, flag: &str) -> Result<()> {
     check_file_output(path, flag, 1)
 }
 
+/// Refuse an output whose name does not end in one of `extensions` (lower case, without the
+/// dot; compared ignoring case), the format the command writes there (`format` names it for the
+/// message: "a PNG image"): `cut -o c.nrrd` would otherwise write a PNG under an NRRD's name. An
+/// existing device or pipe (`/dev/null`) is taken whatever its name.
+pub fn check_output_extension(
+    path: &Path,
+    flag: &str,
+    format: &str,
+    extensions: &[&str],
+) -> Result<()> {
+    if std::fs::metadata(path).is_ok_and(|m| !m.is_file() && !m.is_dir()) {
+        return Ok(());
+    }
+    let extension = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    if extension.is_some_and(|e| extensions.contains(&e.as_str())) {
+        return Ok(());
+    }
+    let names: Vec<String> = extensions.iter().map(|e| format!(".{e}")).collect();
+    Err(Error::invalid(
+        format!("{flag} {}", path.display()),
+        format!(
+            "is written as {format}: give a name ending in {}",
+            names.join(" or ")
+        ),
+    ))
+}
+
+/// [`check_output_path`] and [`check_output_extension`] for a PNG picture.
+pub fn check_png_output(path: &Path, flag: &str) -> Result<()> {
+    check_output_path(path, flag)?;
+    check_output_extension(path, flag, "a PNG image", &["png"])
+}
+
 /// [`check_output_path`] for an output the command derives from another one (an OBJ's .mtl
 /// and .png): the command line should not name it at all.
 pub fn check_derived_output_path(path: &Path, flag: &str) -> Result<()> {
@@ -33,6 +69,12 @@ fn check_file_output(path: &Path, flag: &str, own_mentions: usize) -> Result<()>
         return Err(Error::invalid(
             format!("{flag} {}", path.display()),
             "is a directory; give a file path",
+        ));
+    }
+    if path.as_os_str().as_encoded_bytes().ends_with(b"/") {
+        return Err(Error::invalid(
+            format!("{flag} {}", path.display()),
+            "ends in /, which names a directory; give a file path",
         ));
     }
     check_not_reused(path, flag, own_mentions)?;
@@ -182,9 +224,14 @@ fn check_parent(path: &Path, flag: &str) -> Result<()> {
     }
     let parent = parent_dir(&resolved);
     if !parent.is_dir() {
+        let problem = if parent.exists() {
+            format!("{} is a file, not a directory", parent.display())
+        } else {
+            format!("directory {} does not exist", parent.display())
+        };
         return Err(Error::invalid(
             format!("{flag} {}", path.display()),
-            format!("directory {} does not exist", parent.display()),
+            problem,
         ));
     }
     // Outputs are staged beside their target: try that now, before any work, so an

@@ -137,12 +137,12 @@ pub fn load(path: &Path) -> Result<Volume> {
         return Err(Error::invalid(
             path.display().to_string(),
             format!(
-                "holds a {}x{}x{} volume of {:.1} GiB, more than the {:.1} GiB of memory available",
+                "holds a {}x{}x{} volume of {}, more memory than there is: {}",
                 header.dims[0],
                 header.dims[1],
                 header.dims[2],
-                header.bytes as f64 / (1u64 << 30) as f64,
-                available as f64 / (1u64 << 30) as f64
+                crate::util::memory::human_bytes(header.bytes),
+                crate::util::memory::available_text(available)
             ),
         ));
     }

@@ -27,9 +27,18 @@ impl Camera {
             [a, e, d] => (*a, *e, *d),
             _ => return Err(bad()),
         };
-        if !(az.is_finite() && el.is_finite() && dist.is_finite() && dist > 1.0 && el.abs() < 90.0)
-        {
-            return Err(bad());
+        let problem = if !(az.is_finite() && el.is_finite() && dist.is_finite()) {
+            Some("numbers must be finite")
+        } else if el.abs() >= 90.0 {
+            // The orbit camera keeps +y up, which a view straight up or down does not have.
+            Some("the elevation EL must be strictly between -90 and 90 degrees")
+        } else if dist <= 1.0 {
+            Some("the distance DIST must be over 1 bounding radius (outside the model)")
+        } else {
+            None
+        };
+        if let Some(problem) = problem {
+            return Err(Error::invalid(format!("--camera {spec}"), problem));
         }
         let (lo, hi) = model
             .mesh

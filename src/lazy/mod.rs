@@ -48,8 +48,8 @@ pub use options::SynthOptions;
 use pack::LevelPack;
 use params::periods_below;
 pub use params::{
-    check_tileable_size, CandidateMode, ChannelSource, ChannelSources, ColorSource, PassSchedule,
-    SynthParams, MAX_PASSES,
+    check_coarse_cache, check_tileable_size, CandidateMode, ChannelSource, ChannelSources, ColorSource, PassSchedule,
+    SynthParams, COARSE_CACHE_PERIODS, MAX_PASSES,
 };
 pub use plan::Box3;
 use rayon::prelude::*;

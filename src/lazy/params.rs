@@ -298,12 +298,7 @@ impl SynthParams {
             ));
         }
         if let Some(n) = self.coarse_cache {
-            if !(64..=1024).contains(&n) || n % 64 != 0 {
-                return Err(Error::invalid(
-                    format!("--coarse-cache {n}"),
-                    "must be a multiple of 64 in 64..=1024",
-                ));
-            }
+            check_coarse_cache(n)?;
         }
         if self.passes.0.iter().any(|&p| p > MAX_PASSES) {
             return Err(Error::invalid(
@@ -337,6 +332,20 @@ pub fn check_tileable_size(n: u32) -> Result<()> {
                 "must be a multiple of {step} (each of the {ANALYSED_LEVELS} levels halves the \
                  period, and the coarsest needs whole 4-voxel bricks)"
             ),
+        ));
+    }
+    Ok(())
+}
+
+/// The periods the coarse-level cache (`--coarse-cache`) can have: multiples of 64 in this range.
+pub const COARSE_CACHE_PERIODS: std::ops::RangeInclusive<u32> = 64..=1024;
+
+/// Refuse a coarse-level cache period outside [`COARSE_CACHE_PERIODS`] or not a multiple of 64.
+pub fn check_coarse_cache(n: u32) -> Result<()> {
+    if !COARSE_CACHE_PERIODS.contains(&n) || !n.is_multiple_of(64) {
+        return Err(Error::invalid(
+            format!("--coarse-cache {n}"),
+            format!("must be a multiple of 64 in {COARSE_CACHE_PERIODS:?}"),
         ));
     }
     Ok(())

@@ -14,7 +14,12 @@ use super::search::{self, FeatureImage, Matches, SearchStats, Searcher, Shape, T
 use super::Ptm;
 use crate::error::{Error, Result};
 use crate::util::hash::{mix64, SeededRng};
+use crate::util::memory;
 use rayon::prelude::*;
+
+/// The smallest block side: a block's overlap strips (at least one texel on each side) must
+/// leave texels of its own.
+pub const MIN_BLOCK: u32 = 4;
 
 /// How a block joins its neighbours in the overlap.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -74,11 +79,20 @@ impl QuiltParams {
                 "must be 8..=4096",
             ));
         }
-        if self.block < 4 || self.block > src.width.min(src.height) {
+        if src.width.min(src.height) < MIN_BLOCK {
+            return Err(Error::invalid(
+                "the source PTM",
+                format!(
+                    "is {}x{}; blocks are at least {MIN_BLOCK}x{MIN_BLOCK} texels",
+                    src.width, src.height
+                ),
+            ));
+        }
+        if self.block < MIN_BLOCK || self.block > src.width.min(src.height) {
             return Err(Error::invalid(
                 format!("--block {}", self.block),
                 format!(
-                    "must be 4..={} (the source is {}x{})",
+                    "must be {MIN_BLOCK}..={} (the source is {}x{})",
                     src.width.min(src.height),
                     src.width,
                     src.height
@@ -97,7 +111,44 @@ impl QuiltParams {
                 "must be 0..=10 (a fraction of the best distance)",
             ));
         }
+        let (estimate, available) = (self.memory_bytes(src), memory::available_memory());
+        if estimate > available {
+            return Err(Error::invalid(
+                format!("--size {}x{}", self.width, self.height),
+                format!(
+                    "needs about {} of memory, {}",
+                    memory::human_bytes(estimate),
+                    memory::available_text(available)
+                ),
+            ));
+        }
         Ok(())
+    }
+
+    /// Blocks per row and column, and the canvas they cover (the output and the last blocks'
+    /// overhang).
+    fn canvas(&self) -> ((u32, u32), (u32, u32)) {
+        let (b, ov) = (self.block, self.overlap);
+        let step = b - ov;
+        let nbx = (self.width.saturating_sub(ov)).div_ceil(step).max(1);
+        let nby = (self.height.saturating_sub(ov)).div_ceil(step).max(1);
+        ((nbx, nby), (nbx * step + ov, nby * step + ov))
+    }
+
+    /// The bytes a synthesis from `src` holds at most, about: the source's features (as i32
+    /// and i16) and the three overlap parts' projections of every candidate block, the canvas's
+    /// texels and features, and the output with its encoded file.
+    pub fn memory_bytes(&self, src: &Ptm) -> u64 {
+        let dims = search::feature_dims(src) as u64;
+        let texel = src.format.texel_bytes() as u64;
+        let source = src.width as u64 * src.height as u64 * dims * (4 + 2);
+        let candidates = (src.width.saturating_sub(self.block) + 1) as u64
+            * (src.height.saturating_sub(self.block) + 1) as u64;
+        let projections = 3 * candidates * (search::KERNELS + search::STAGES[0]) as u64 * 4;
+        let (_, (cw, ch)) = self.canvas();
+        let canvas = cw as u64 * ch as u64 * (texel + dims * 4);
+        let output = 2 * self.width as u64 * self.height as u64 * texel;
+        source + projections + canvas + output
     }
 }
 
@@ -134,11 +185,8 @@ pub fn synthesize_with(
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<(Ptm, QuiltReport)> {
     p.validate(src)?;
-    let (b, ov) = (p.block, p.overlap);
-    let step = b - ov;
-    let nbx = (p.width.saturating_sub(ov)).div_ceil(step).max(1);
-    let nby = (p.height.saturating_sub(ov)).div_ceil(step).max(1);
-    let (cw, ch) = (nbx * step + ov, nby * step + ov);
+    let ((nbx, nby), (cw, ch)) = p.canvas();
+    let step = p.block - p.overlap;
     let s = src.format.texel_bytes();
     let dims = searcher.source.dims;
     let mut texels = vec![0u8; cw as usize * ch as usize * s];

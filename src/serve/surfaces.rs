@@ -132,7 +132,8 @@ impl Store {
     /// Parse, check and keep an uploaded mesh of `format` (`obj`, `ply`, `glb`; `gltf` with
     /// its buffers embedded).
     pub fn add_mesh(&self, bytes: &[u8], format: &str, name: &str) -> Result<Arc<StoredMesh>> {
-        let what = format!("upload {name}");
+        // (One mesh a request: the request's own body, whatever name it is stored under.)
+        let what = format!("uploaded {format} mesh");
         let mesh = match format {
             "obj" => mesh::parse_obj(bytes, &what)?,
             "ply" => mesh::parse_ply(bytes, &what)?,

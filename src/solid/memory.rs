@@ -5,6 +5,7 @@
 use crate::backend::BackendChoice;
 use crate::error::{Error, Result};
 use crate::lazy::memory;
+use crate::util::memory::{available_text, human_bytes};
 
 /// The group edge a request's estimate assumes before a backend is open: `max_group` when given,
 /// else the CPU backend's (host memory) group, else the largest a GPU may use (conservative).
@@ -33,17 +34,17 @@ pub fn check_box(
         let cache = memory::coarse_cache_bytes(coarse_cache);
         let cache_note = match coarse_cache {
             Some(n) if cache > 0 => {
-                format!(", of which {:.1} GiB for --coarse-cache {n}", gib(cache))
+                format!(", of which {} for --coarse-cache {n}", human_bytes(cache))
             }
             _ => String::new(),
         };
         return Err(Error::invalid(
             what,
             format!(
-                "needs about {:.1} GiB of memory{cache_note}, {:.1} GiB is available (a \
-                 smaller --max-group bounds the working memory)",
-                gib(estimate),
-                gib(available)
+                "needs about {} of memory{cache_note}, {} (a smaller --max-group bounds the \
+                 working memory)",
+                human_bytes(estimate),
+                available_text(available)
             ),
         ));
     }
@@ -100,16 +101,11 @@ pub fn check_sparse(
         return Err(Error::invalid(
             what,
             format!(
-                "needs about {:.1} GiB of memory ({bricks} bricks of 4^3 voxels), {:.1} GiB \
-                 is available",
-                gib(estimate),
-                gib(available)
+                "needs about {} of memory ({bricks} bricks of 4^3 voxels), {}",
+                human_bytes(estimate),
+                available_text(available)
             ),
         ));
     }
     Ok(estimate)
-}
-
-fn gib(bytes: u64) -> f64 {
-    bytes as f64 / (1u64 << 30) as f64
 }

@@ -105,17 +105,16 @@ impl SurfacePlan {
             AtlasLayout::MeshUvs { .. } => "a smaller --texture-size",
         };
         let estimate = atlas.texel_count() * BYTES_PER_TEXEL;
-        let gib = |b: u64| b as f64 / (1u64 << 30) as f64;
+        use crate::util::memory::{available_text, human_bytes};
         if estimate > available {
             return Err(Error::invalid(
                 flag,
                 format!(
-                    "a {}x{} atlas needs about {:.1} GiB, {:.1} GiB is available; use fewer \
-                     texels ({fewer})",
+                    "a {}x{} atlas needs about {}, {}; use fewer texels ({fewer})",
                     atlas.width,
                     atlas.height,
-                    gib(estimate),
-                    gib(available)
+                    human_bytes(estimate),
+                    available_text(available)
                 ),
             ));
         }
@@ -135,11 +134,10 @@ impl SurfacePlan {
             return Err(Error::invalid(
                 format!("surface --resolution {resolution}"),
                 format!(
-                    "needs about {:.1} GiB of memory ({} bricks of 4^3 voxels), {:.1} GiB is \
-                     available",
-                    gib(total),
+                    "needs about {} of memory ({} bricks of 4^3 voxels), {}",
+                    human_bytes(total),
                     wanted.len(),
-                    gib(available)
+                    available_text(available)
                 ),
             ));
         }

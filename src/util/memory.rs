@@ -59,23 +59,58 @@ pub fn limit_heap_arenas() {
 /// allocations fail and the process aborts) and `SOLIDSYNTH_MEMORY_BUDGET_MIB` when that is
 /// set. u64::MAX when none is known.
 pub fn available_memory() -> u64 {
-    const BUDGET: &str = "SOLIDSYNTH_MEMORY_BUDGET_MIB";
-    let budget = match std::env::var(BUDGET) {
-        Ok(v) => match v.trim().parse::<u64>() {
-            Ok(mib) => mib.saturating_mul(1 << 20),
-            Err(_) => {
-                static WARNED: std::sync::Once = std::sync::Once::new();
-                WARNED.call_once(|| {
-                    tracing::warn!("{BUDGET}={v} ignored: not a whole number of MiB");
-                });
-                u64::MAX
-            }
-        },
-        Err(_) => u64::MAX,
-    };
     available_memory_under(std::path::Path::new("/"))
         .min(address_space_room())
-        .min(budget)
+        .min(budget().unwrap_or(u64::MAX))
+}
+
+/// The variable that sets a memory budget of its own (in MiB).
+const BUDGET: &str = "SOLIDSYNTH_MEMORY_BUDGET_MIB";
+
+/// The budget `SOLIDSYNTH_MEMORY_BUDGET_MIB` sets, in bytes; None when unset or unreadable
+/// (warned about once).
+fn budget() -> Option<u64> {
+    let v = std::env::var(BUDGET).ok()?;
+    match v.trim().parse::<u64>() {
+        Ok(mib) => Some(mib.saturating_mul(1 << 20)),
+        Err(_) => {
+            static WARNED: std::sync::Once = std::sync::Once::new();
+            WARNED.call_once(|| {
+                tracing::warn!("{BUDGET}={v} ignored: not a whole number of MiB");
+            });
+            None
+        }
+    }
+}
+
+/// A byte count for a message, in the largest binary unit it fills at least once: "18.9 GiB",
+/// "350.0 MiB", "0 bytes".
+pub fn human_bytes(bytes: u64) -> String {
+    const UNITS: [&str; 4] = ["KiB", "MiB", "GiB", "TiB"];
+    let mut value = bytes as f64;
+    let mut unit = None;
+    for name in UNITS {
+        if value < 1024.0 {
+            break;
+        }
+        value /= 1024.0;
+        unit = Some(name);
+    }
+    match unit {
+        Some(name) => format!("{value:.1} {name}"),
+        None => format!("{bytes} bytes"),
+    }
+}
+
+/// "N is available" for a refusal of `available` bytes (what [`available_memory`] gave), naming
+/// `SOLIDSYNTH_MEMORY_BUDGET_MIB` when that budget is what limits it.
+pub fn available_text(available: u64) -> String {
+    let set_by_budget = budget() == Some(available);
+    let mut text = format!("{} is available", human_bytes(available));
+    if set_by_budget {
+        text.push_str(&format!(" under {BUDGET}={}", available >> 20));
+    }
+    text
 }
 
 /// The room left under this process's address-space limit (`RLIMIT_AS`, `ulimit -v`): the limit
@@ -191,6 +226,16 @@ mod tests {
     }
 
     const MEMINFO: &str = "MemTotal: 16000000 kB\nMemAvailable: 8000000 kB\n";
+
+    #[test]
+    fn byte_counts_read_in_the_unit_they_fill() {
+        assert_eq!(human_bytes(0), "0 bytes");
+        assert_eq!(human_bytes(1023), "1023 bytes");
+        assert_eq!(human_bytes(1536), "1.5 KiB");
+        assert_eq!(human_bytes(350 << 20), "350.0 MiB");
+        assert_eq!(human_bytes(19 << 30), "19.0 GiB");
+        assert_eq!(human_bytes(3 << 40), "3.0 TiB");
+    }
 
     /// A container's cgroup limit is the budget when it is tighter than the machine's memory:
     /// v2 (the cgroup's own and an ancestor's), v1, and none.

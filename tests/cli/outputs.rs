@@ -343,8 +343,133 @@ fn conflicting_outputs_and_inputs_are_refused_up_front() {
         .unwrap();
     assert_user_error(
         &o,
-        "more than the 0.0 GiB of memory available",
+        "16.0 MiB, more memory than there is: 1.0 MiB is available under \
+         SOLIDSYNTH_MEMORY_BUDGET_MIB=1",
         d,
         &["c.ssa", "link.ssa", "slices", "big.nrrd"],
+    );
+}
+
+/// A PNG that declares `width` x `height` RGB pixels and holds none: its signature, header and
+/// end chunks and no pixel data.
+fn png_header_only(width: u32, height: u32) -> Vec<u8> {
+    fn crc32(bytes: &[u8]) -> u32 {
+        let mut crc = !0u32;
+        for &b in bytes {
+            crc ^= b as u32;
+            for _ in 0..8 {
+                crc = if crc & 1 == 1 {
+                    (crc >> 1) ^ 0xEDB8_8320
+                } else {
+                    crc >> 1
+                };
+            }
+        }
+        !crc
+    }
+    let chunk = |kind: &[u8], data: &[u8]| {
+        let mut c = (data.len() as u32).to_be_bytes().to_vec();
+        let body: Vec<u8> = kind.iter().chain(data).copied().collect();
+        c.extend_from_slice(&body);
+        c.extend_from_slice(&crc32(&body).to_be_bytes());
+        c
+    };
+    let mut header = width.to_be_bytes().to_vec();
+    header.extend_from_slice(&height.to_be_bytes());
+    header.extend_from_slice(&[8, 2, 0, 0, 0]);
+    let mut png = b"\x89PNG\r\n\x1a\n".to_vec();
+    png.extend(chunk(b"IHDR", &header));
+    // An empty zlib stream.
+    png.extend(chunk(
+        b"IDAT",
+        &[0x78, 0x9c, 0x03, 0x00, 0x00, 0x00, 0x00, 0x01],
+    ));
+    png.extend(chunk(b"IEND", &[]));
+    png
+}
+
+#[test]
+fn output_names_and_values_get_messages_that_say_what_is_wrong() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let in_dir = |args: &[&str]| bin().current_dir(d).args(args).output().unwrap();
+    std::fs::write(d.join("file"), b"kept").unwrap();
+    let kept = ["file", "huge.png"];
+    let cut = [
+        "cut",
+        "--backend",
+        "cpu",
+        "--origin",
+        "0,0,0",
+        "--normal",
+        "0,0,1",
+        "--size",
+        "8",
+    ];
+    let with = |base: &[&str], extra: &[&str]| -> Vec<String> {
+        base.iter().chain(extra).map(|a| a.to_string()).collect()
+    };
+    let cases: Vec<(Vec<String>, &str)> = vec![
+        // An output named for another format than the one written there.
+        (
+            with(&cut, &["-o", "c.nrrd"]),
+            "is written as a PNG image: give a name ending in .png",
+        ),
+        (
+            with(&["analyze", "-o", "a.png"], &[]),
+            "is written as an analysis",
+        ),
+        (
+            with(
+                &["synth", "--size", "16", "--sheet", "s.tif", "-o", "v.nrrd"],
+                &[],
+            ),
+            "--sheet s.tif: is written as a PNG image",
+        ),
+        (
+            with(&["gradient", "synth", "--size", "16", "-o", "g.nrrd"], &[]),
+            "ending in .gsolid",
+        ),
+        // A path that cannot be a file, named as such.
+        (with(&cut, &["-o", "newdir/"]), "ends in /"),
+        (
+            with(&cut, &["-o", "file/c.png"]),
+            "file is a file, not a directory",
+        ),
+        (
+            with(&["man", "-o", "file"], &[]),
+            "exists and is not a directory",
+        ),
+        // Values named for what they must be, not for their type's range.
+        (
+            with(&cut, &["--coarse-cache", "-1", "-o", "c.png"]),
+            "a multiple of 64 in 64..=1024",
+        ),
+        (
+            with(&cut, &["--coarse-cache=100", "-o", "c.png"]),
+            "a multiple of 64 in 64..=1024",
+        ),
+    ];
+    for (args, needle) in cases {
+        let o = in_dir(&args.iter().map(String::as_str).collect::<Vec<_>>());
+        assert_user_error(&o, needle, d, &kept);
+    }
+    assert_eq!(std::fs::read(d.join("file")).unwrap(), b"kept");
+    // An image too large to decode is named by its size, not by the decoder's memory limit.
+    std::fs::write(d.join("huge.png"), png_header_only(100_000, 100_000)).unwrap();
+    let o = in_dir(&["analyze", "--backend", "cpu", "huge.png", "-o", "h.ssa"]);
+    assert_user_error(&o, "image is 100000x100000, too large to decode", d, &kept);
+    // A memory budget of nothing is named as the limit.
+    let o = bin()
+        .current_dir(d)
+        .env("SOLIDSYNTH_MEMORY_BUDGET_MIB", "0")
+        .args(["synth", "--backend", "cpu", "--size", "16", "-o", "v.nrrd"])
+        .output()
+        .unwrap();
+    assert_user_error(
+        &o,
+        "0 bytes is available under SOLIDSYNTH_MEMORY_BUDGET_MIB=0",
+        d,
+        &kept,
     );
 }

@@ -293,6 +293,32 @@ fn cli_bad_ptm_inputs_exit_2_and_write_nothing() {
         "--block 64",
         &out,
     );
+    let named_png = d.join("synth.png");
+    assert_refused(
+        &run(&["ptm", "synth", p(&tex), "-o", p(&named_png)]),
+        "is written as a PTM: give a name ending in .ptm",
+        &named_png,
+    );
+    // The largest output over a small memory budget: refused before any work, naming both.
+    let o = bin()
+        .env("SOLIDSYNTH_MEMORY_BUDGET_MIB", "64")
+        .args([
+            "ptm",
+            "synth",
+            p(&tex),
+            "--size",
+            "4096",
+            "--block",
+            "8",
+            "--overlap",
+            "2",
+            "-o",
+        ])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert_refused(&o, "--size 4096x4096: needs about", &out);
+    assert_refused(&o, "64.0 MiB is available", &out);
     assert_refused(
         &run(&[
             "ptm",

@@ -56,6 +56,11 @@ fn blending_and_rgb_quilting_work() {
             .to_string();
         assert!(e.contains("--block") || e.contains("--overlap"), "{e}");
     }
+    // A source smaller than the smallest block is named as the problem, not the block.
+    let e = quilt::synthesize(&source(3, PtmFormat::Rgb, 6), &p, &mut |_, _| {})
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("the source PTM: is 3x3"), "{e}");
 }
 
 #[test]

@@ -11,6 +11,7 @@ use std::time::Instant;
 /// `gradient edit`: apply the strokes' recolouring and write the edited solid.
 pub(super) fn edit(a: EditArgs, quiet: bool) -> anyhow::Result<()> {
     atomic::check_output_path(&a.output, "-o")?;
+    atomic::check_output_extension(&a.output, "-o", "a gradient solid", &["gsolid"])?;
     let mut solid = load(&a.input)?;
     if solid.detail > 0 {
         return Err(Error::invalid(

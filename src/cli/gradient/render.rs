@@ -21,11 +21,14 @@ pub(super) fn render(a: RenderArgs, quiet: bool) -> anyhow::Result<()> {
             a.format,
             Default::default(),
         )?,
-        Some(_) => crate::io::volume_file::VolumeOutput {
-            format: crate::io::volume_file::VolumeFormat::Png,
-            texture: Default::default(),
-            vdb: Default::default(),
-        },
+        Some(_) => {
+            atomic::check_output_extension(&a.output, "-o", "a PNG slice", &["png"])?;
+            crate::io::volume_file::VolumeOutput {
+                format: crate::io::volume_file::VolumeFormat::Png,
+                texture: Default::default(),
+                vdb: Default::default(),
+            }
+        }
     };
     let solid = GradientFile::load(&a.input)?;
     if let Some(normal) = &a.normal {

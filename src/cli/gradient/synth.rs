@@ -11,6 +11,7 @@ use std::path::Path;
 pub(super) fn synth(a: SynthArgs, quiet: bool) -> anyhow::Result<()> {
     use crate::gradient::synth::{self, Field, GradientSynthParams, SliceSearch};
     atomic::check_output_path(&a.output, "-o")?;
+    atomic::check_output_extension(&a.output, "-o", "a gradient solid", &["gsolid"])?;
     let exemplar = match &a.input {
         Some(path) => crate::exemplar::load_image(path, &path.display().to_string())?,
         None => crate::exemplar::default_exemplar(),

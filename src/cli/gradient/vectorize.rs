@@ -13,6 +13,7 @@ use std::time::Instant;
 /// `gradient vectorize`: fit, store, and report the stored file's error.
 pub(super) fn vectorize(a: VectorizeArgs, quiet: bool) -> anyhow::Result<()> {
     atomic::check_output_path(&a.output, "-o")?;
+    atomic::check_output_extension(&a.output, "-o", "a gradient solid", &["gsolid"])?;
     let volume = nrrd::load(&a.input)?;
     if let Some(mask) = &a.mask {
         if a.detail {
