@@ -156,7 +156,7 @@ pub fn check_output_outside(path: &Path, flag: &str, dir: &Path, dir_flag: &str)
         return Err(Error::invalid(
             format!("{flag} {}", path.display()),
             format!(
-                "is inside {dir_flag} {}, which holds the slices alone: write it elsewhere",
+                "is inside {dir_flag} {}, which holds that output alone: write it elsewhere",
                 dir.display()
             ),
         ));

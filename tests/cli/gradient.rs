@@ -198,6 +198,22 @@ fn gradient_synth_writes_a_tileable_solid_and_refuses_bad_input() {
         all.extend_from_slice(args);
         assert_user_error(&run(&all), needle, b, &[]);
     }
+    // Over a small memory budget: refused before any work (the estimate is about 113 MiB).
+    let o = bin()
+        .env("SOLIDSYNTH_MEMORY_BUDGET_MIB", "64")
+        .args([
+            "gradient",
+            "synth",
+            "--size",
+            "256",
+            "--backend",
+            "cpu",
+            "-o",
+            t,
+        ])
+        .output()
+        .unwrap();
+    assert_user_error(&o, "--size 256: needs about", b, &[]);
 }
 
 #[test]

@@ -288,7 +288,7 @@ fn conflicting_outputs_and_inputs_are_refused_up_front() {
         let o = run(&args);
         assert_user_error(
             &o,
-            "holds the slices alone",
+            "holds that output alone",
             d,
             &["c.ssa", "link.ssa", "slices"],
         );

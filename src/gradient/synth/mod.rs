@@ -361,6 +361,45 @@ impl GradientSynthParams {
         }
         Ok(())
     }
+
+    /// The bytes a synthesis from `exemplar` (with `masked`, its distance channel included)
+    /// holds at most, about, from peaks measured on the 2-core Xeon development machine: the
+    /// exemplar's patch index (40 MB at 128^2 pixels, 190 MB at 2048^2), four copies of the
+    /// control points (the current and next iterations, the solid and its file: 88 MB at
+    /// `--size 256`), and the dense samples the region separation (44 bytes a voxel at 128^3)
+    /// and eq. 3 (114, and about 400 with both at 128^3) keep. Rounded up from those.
+    pub fn memory_bytes(&self, exemplar: &Image, masked: bool) -> u64 {
+        let channels = exemplar.channels as u64;
+        let index = (64 << 20) + 48 * exemplar.pixel_count() as u64;
+        let points = (self.cells() as u64).pow(3);
+        let solid = 4 * points * channels * 4 * 4;
+        let voxels = (self.cells() as u64 * SPACING as u64).pow(3);
+        let samples = match (masked, self.optimize_iterations > 0) {
+            (false, false) => 0,
+            (true, false) => 48,
+            (false, true) => 40 * channels,
+            (true, true) => 420,
+        } * voxels;
+        index + solid + samples
+    }
+
+    /// Refuse a synthesis whose [`memory_bytes`](Self::memory_bytes) exceed the memory
+    /// available, before it starts.
+    pub fn check_memory(&self, exemplar: &Image, masked: bool) -> Result<()> {
+        use crate::util::memory::{available_memory, available_text, human_bytes};
+        let (estimate, available) = (self.memory_bytes(exemplar, masked), available_memory());
+        if estimate > available {
+            return Err(Error::invalid(
+                format!("--size {}", self.size),
+                format!(
+                    "needs about {} of memory, {}",
+                    human_bytes(estimate),
+                    available_text(available)
+                ),
+            ));
+        }
+        Ok(())
+    }
 }
 
 /// Synthesize a periodic gradient solid from `exemplar` (paper section 4).
@@ -371,6 +410,7 @@ pub fn synthesize(
     progress: Progress,
 ) -> Result<(PeriodicSolid, SynthReport)> {
     params.validate()?;
+    params.check_memory(exemplar, false)?;
     let (solid, report, _) = iterate(&colour_exemplar(exemplar), false, params, compute, progress)?;
     Ok((solid, report))
 }
@@ -386,6 +426,7 @@ pub fn synthesize_regions(
     progress: Progress,
 ) -> Result<(RegionSolid, SynthReport)> {
     params.validate_with_mask()?;
+    params.check_memory(&exemplar.image, true)?;
     let start = Instant::now();
     let (solid, mut report, targets) = iterate(&exemplar.image, true, params, compute, progress)?;
     let targets = targets.expect("a synthesis with a mask keeps its last samples");
