@@ -396,6 +396,35 @@ impl PendingFile {
             .map_err(|e| Error::io(&self.path, e.error))?;
         sync_parent(&self.path)
     }
+
+    /// Put the file in place so that [`outputs::Placed`] can take it back: an existing target
+    /// is swapped with the temporary, which then holds the former contents.
+    fn place(mut self) -> Result<outputs::Placed> {
+        use outputs::Placed;
+        if self.direct.take().is_some() {
+            return Ok(Placed::InPlace);
+        }
+        let tmp = self.tmp.take().expect("committed once").into_temp_path();
+        let path = std::mem::take(&mut self.path);
+        let existed = std::fs::symlink_metadata(&path).is_ok();
+        if existed {
+            match outputs::exchange(&tmp, &path) {
+                Ok(true) => return Ok(Placed::Exchanged { path, old: tmp }),
+                Ok(false) => {}
+                Err(e) => {
+                    forget_pending(&tmp);
+                    return Err(Error::io(&path, e));
+                }
+            }
+        }
+        forget_pending(&tmp);
+        tmp.persist(&path).map_err(|e| Error::io(&path, e.error))?;
+        Ok(if existed {
+            Placed::Replaced(path)
+        } else {
+            Placed::New(path)
+        })
+    }
 }
 
 /// Directory syncs made (tests: every commit syncs its target's directory).
@@ -468,17 +497,24 @@ impl PendingDir {
         Ok(())
     }
 
-    fn persist(mut self) -> Result<()> {
+    /// Rename the staging directory into place (see [`outputs::Placed`]).
+    fn place(mut self) -> Result<outputs::Placed> {
         let tmp = self.tmp.take().expect("committed once");
         forget_pending(tmp.path());
         let staged = tmp.keep();
+        let over_empty_dir = self.path.is_dir();
         // rename(2) replaces an empty directory; anything else at the target is left as it
         // was, and the staged copy deleted.
         std::fs::rename(&staged, &self.path).map_err(|e| {
             let _ = std::fs::remove_dir_all(&staged);
             Error::io(&self.path, e)
         })?;
-        sync_parent(&self.path)
+        let path = std::mem::take(&mut self.path);
+        Ok(if over_empty_dir {
+            outputs::Placed::OverEmptyDir(path)
+        } else {
+            outputs::Placed::New(path)
+        })
     }
 }
 
@@ -488,68 +524,6 @@ impl Drop for PendingDir {
         if let Some(tmp) = &self.tmp {
             forget_pending(tmp.path());
         }
-    }
-}
-
-/// The outputs of one command, each staged as a temporary beside its target and all put in
-/// place together by [`Outputs::commit`] once every one is complete: a command that fails or is
-/// interrupted on the way (a later output's error, a full disk) leaves none of them behind, not
-/// merely no half-written one.
-#[derive(Default)]
-pub struct Outputs {
-    files: Vec<PendingFile>,
-    dirs: Vec<PendingDir>,
-}
-
-impl Outputs {
-    pub fn new() -> Outputs {
-        Outputs::default()
-    }
-
-    /// Add a file written piece by piece (complete when staged).
-    pub fn stage(&mut self, file: PendingFile) {
-        self.files.push(file);
-    }
-
-    /// Stage `bytes` as the file `path`.
-    pub fn write_file(&mut self, path: &Path, bytes: &[u8]) -> Result<()> {
-        let mut file = PendingFile::create(path)?;
-        file.write_all(bytes)?;
-        self.stage(file);
-        Ok(())
-    }
-
-    /// Stage an RGBA image as the PNG file `path` (RGB when it is opaque: see [`rgba_png_bytes`]).
-    pub fn save_png(&mut self, path: &Path, img: &image::RgbaImage) -> Result<()> {
-        self.write_file(path, &rgba_png_bytes(img)?)
-    }
-
-    /// Stage a new directory `path`: returns the temporary directory to fill in its place.
-    pub fn directory(&mut self, path: &Path) -> Result<std::path::PathBuf> {
-        let dir = PendingDir::create(path)?;
-        let staging = dir.staging().to_path_buf();
-        self.dirs.push(dir);
-        Ok(staging)
-    }
-
-    /// Flush everything staged to disk, then rename each into place: directories first, since
-    /// their rename is the one that can be refused (the target was given files meanwhile), and
-    /// then no file has replaced its target yet. (An interrupt between the renames of one commit,
-    /// a window of microseconds, can still leave some in place.)
-    pub fn commit(self) -> Result<()> {
-        for f in &self.files {
-            f.sync()?;
-        }
-        for d in &self.dirs {
-            d.sync()?;
-        }
-        for d in self.dirs {
-            d.persist()?;
-        }
-        for f in self.files {
-            f.persist()?;
-        }
-        Ok(())
     }
 }
 
@@ -592,6 +566,9 @@ where
         .map_err(|e| Error::Internal(format!("PNG encoding failed: {e}")))?;
     Ok(buf)
 }
+
+mod outputs;
+pub use outputs::Outputs;
 
 #[cfg(test)]
 mod tests;

@@ -137,7 +137,9 @@ impl QuiltParams {
 
     /// The bytes a synthesis from `src` holds at most, about: the source's features (as i32
     /// and i16) and the three overlap parts' projections of every candidate block, the canvas's
-    /// texels and features, and the output with its encoded file.
+    /// texels and features, and the output with its encoded file. For a 64^2 LRGB source with
+    /// 16-texel blocks it is 10-20% above the peaks measured on the 2-core Xeon development
+    /// machine at 1024^2 to 4096^2 (684 MiB at 4096^2).
     pub fn memory_bytes(&self, src: &Ptm) -> u64 {
         let dims = search::feature_dims(src) as u64;
         let texel = src.format.texel_bytes() as u64;

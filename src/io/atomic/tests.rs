@@ -146,3 +146,33 @@ fn an_uncommitted_output_leaves_the_target_untouched() {
     assert_eq!(std::fs::read(&path).unwrap(), b"new");
     assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
 }
+
+/// When an output cannot be put in place (here a name too long for the file system), the
+/// outputs already placed are taken back: a replaced file has its former contents again, a new
+/// file and a new directory are gone, an empty directory stays, and no temporary is left.
+#[test]
+fn a_failed_commit_restores_the_outputs_it_had_placed() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(d.join("kept.bin"), b"the user's").unwrap();
+    std::fs::create_dir(d.join("empty")).unwrap();
+    let mut outputs = Outputs::new();
+    let slices = outputs.directory(&d.join("empty")).unwrap();
+    std::fs::write(slices.join("slice.png"), b"s").unwrap();
+    let fresh = outputs.directory(&d.join("fresh")).unwrap();
+    std::fs::write(fresh.join("slice.png"), b"s").unwrap();
+    outputs.write_file(&d.join("kept.bin"), b"new").unwrap();
+    outputs.write_file(&d.join("new.bin"), b"new").unwrap();
+    outputs
+        .write_file(&d.join(format!("{}.bin", "x".repeat(300))), b"never placed")
+        .unwrap();
+    assert!(outputs.commit().is_err());
+    assert_eq!(std::fs::read(d.join("kept.bin")).unwrap(), b"the user's");
+    let mut left: Vec<String> = std::fs::read_dir(d)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    left.sort();
+    assert_eq!(left, ["empty", "kept.bin"]);
+    assert_eq!(std::fs::read_dir(d.join("empty")).unwrap().count(), 0);
+}
