@@ -50,10 +50,12 @@ pub struct BenchGradientArgs {
     /// Exemplar image (default: the built-in exemplar).
     pub input: Option<PathBuf>,
     /// Solid periods, comma-separated.
-    #[arg(long, value_delimiter = ',', default_values_t = vec![64u32, 128])]
+    #[arg(long, value_delimiter = ',', default_values_t = vec![64u32, 128],
+          value_parser = clap::value_parser!(u32).range(16..=crate::gradient::synth::MAX_SIZE as i64))]
     pub sizes: Vec<u32>,
     /// Backends to compare, comma-separated (gpu: the bucket kernel on the GPU).
-    #[arg(long, value_delimiter = ',', default_values_t = vec!["cpu".to_string()])]
+    #[arg(long, value_delimiter = ',', default_values_t = vec!["cpu".to_string()],
+          value_parser = ["cpu", "gpu"])]
     pub backends: Vec<String>,
     /// Runs per size and backend; the median is reported.
     #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..))]
@@ -67,7 +69,8 @@ pub struct BenchGradientArgs {
 #[command(next_help_heading = "Benchmark")]
 pub struct BenchRenderArgs {
     /// Rendered volume edges (each from a random 3-channel solid of that extent).
-    #[arg(long, value_delimiter = ',', default_values_t = vec![128u32, 256])]
+    #[arg(long, value_delimiter = ',', default_values_t = vec![128u32, 256],
+          value_parser = clap::value_parser!(u32).range(4..=1024))]
     pub sizes: Vec<u32>,
     /// Timed renders per size and backend, after one untimed warm-up; the median is reported.
     #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..))]
@@ -89,10 +92,12 @@ pub struct BenchSynthArgs {
     /// Exemplar image or .ssa (default: the built-in exemplar).
     pub input: Option<PathBuf>,
     /// Volume edges, comma-separated.
-    #[arg(long, value_delimiter = ',', default_values_t = vec![64u32, 128])]
+    #[arg(long, value_delimiter = ',', default_values_t = vec![64u32, 128],
+          value_parser = clap::value_parser!(u32).range(1..=super::synth::MAX_SIZE as i64))]
     pub sizes: Vec<u32>,
     /// Backends to compare, comma-separated.
-    #[arg(long, value_delimiter = ',', default_values_t = vec!["cpu".to_string(), "gpu".to_string()])]
+    #[arg(long, value_delimiter = ',', default_values_t = vec!["cpu".to_string(), "gpu".to_string()],
+          value_parser = ["cpu", "gpu"])]
     pub backends: Vec<String>,
     /// Runs per size and backend; the median is reported.
     #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..))]

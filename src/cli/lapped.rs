@@ -105,7 +105,8 @@ pub struct CutArgs {
     #[arg(long, allow_hyphen_values = true)]
     pub up: Option<String>,
     /// Pixels per side.
-    #[arg(long, default_value_t = 512)]
+    #[arg(long, default_value_t = 512,
+          value_parser = clap::value_parser!(u32).range(1..=crate::lazy::cut::MAX_CUT_SIZE as i64))]
     pub size: u32,
     /// Model units across the image (default: the model's bounding-box diagonal).
     #[arg(long)]
@@ -310,16 +311,22 @@ fn cut(args: CutArgs, quiet: bool) -> anyhow::Result<()> {
         |(l, h), p| (l.min(*p), h.max(*p)),
     );
     let extent = args.extent.unwrap_or((hi - lo).length());
+    // Without --extent, the model's size is what is wrong.
+    let what = match args.extent {
+        Some(_) => format!("--extent {extent}"),
+        None => format!(
+            "{} (its bounding-box diagonal, {extent}, is the default --extent)",
+            args.model.display()
+        ),
+    };
     if !(extent.is_finite() && extent > 0.0) {
-        return Err(
-            Error::invalid(format!("--extent {extent}"), "must be a positive number").into(),
-        );
+        return Err(Error::invalid(what, "must be a positive number").into());
     }
     let spacing = extent / args.size as f64;
     let max_spacing = crate::lazy::cut::MAX_CUT_SPACING;
     if spacing > max_spacing {
         return Err(Error::invalid(
-            format!("--extent {extent}"),
+            what,
             format!(
                 "over --size {} is {spacing} world units a pixel; at most {max_spacing}",
                 args.size

@@ -13,7 +13,8 @@ pub struct BenchLappedArgs {
     #[arg(long, default_value = "builtin:sphere")]
     pub mesh: PathBuf,
     /// Tet lattice resolution (builtin:sphere at 10: ~5,000 tets).
-    #[arg(long, default_value_t = 10)]
+    #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u32)
+        .range(crate::lapped::stuffing::MIN_RESOLUTION as i64..=crate::lapped::stuffing::MAX_RESOLUTION as i64))]
     pub resolution: u32,
     /// Solid exemplar (default: `synth --tileable --size 64` of the built-in exemplar).
     #[arg(long)]
@@ -25,7 +26,7 @@ pub struct BenchLappedArgs {
     #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..))]
     pub runs: u32,
     /// Cuts of 512x512 through the centre (one process, warm); median and p95 reported.
-    #[arg(long, default_value_t = 30)]
+    #[arg(long, default_value_t = 30, value_parser = clap::value_parser!(u32).range(1..=10000))]
     pub cuts: u32,
     /// Also time a 1024x1024 GPU render (`--backend gpu`).
     #[arg(long)]

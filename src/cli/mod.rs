@@ -231,9 +231,38 @@ fn man_pages(dir: &std::path::Path) -> anyhow::Result<()> {
         )
         .into());
     }
-    std::fs::create_dir_all(dir).map_err(|e| crate::Error::io(dir, e))?;
-    let command = Cli::command();
-    clap_mangen::generate_to(command, dir).map_err(|e| crate::Error::io(dir, e))?;
+    // The pages are made in a scratch directory, then staged beside their targets and put in
+    // place together: a page that cannot be written leaves the others as they were.
+    let scratch = tempfile::tempdir().map_err(|e| crate::Error::io(std::env::temp_dir(), e))?;
+    clap_mangen::generate_to(Cli::command(), scratch.path())
+        .map_err(|e| crate::Error::io(scratch.path(), e))?;
+    let mut pages: Vec<_> = std::fs::read_dir(scratch.path())
+        .and_then(|entries| entries.map(|e| e.map(|e| e.file_name())).collect())
+        .map_err(|e| crate::Error::io(scratch.path(), e))?;
+    pages.sort();
+    for name in &pages {
+        let target = dir.join(name);
+        if target.is_dir() {
+            return Err(crate::Error::invalid(
+                format!("-o {}", dir.display()),
+                format!("holds a directory {}, where a page goes", target.display()),
+            )
+            .into());
+        }
+    }
+    std::fs::create_dir_all(dir).map_err(|e| {
+        crate::Error::invalid(
+            format!("-o {}", dir.display()),
+            format!("cannot make the directory ({e})"),
+        )
+    })?;
+    let mut outputs = crate::io::atomic::Outputs::new();
+    for name in &pages {
+        let page = std::fs::read(scratch.path().join(name))
+            .map_err(|e| crate::Error::io(scratch.path().join(name), e))?;
+        outputs.write_file(&dir.join(name), &page)?;
+    }
+    outputs.commit()?;
     Ok(())
 }
 

@@ -14,10 +14,10 @@ use std::time::Instant;
 #[command(next_help_heading = "Benchmark")]
 pub struct BenchPtmArgs {
     /// Side of the synthetic source capture (and its fitted PTM).
-    #[arg(long, default_value_t = 128)]
+    #[arg(long, default_value_t = 128, value_parser = clap::value_parser!(u32).range(16..=2048))]
     pub source: u32,
     /// Side of the synthesized PTM.
-    #[arg(long, default_value_t = 512)]
+    #[arg(long, default_value_t = 512, value_parser = clap::value_parser!(u32).range(8..=4096))]
     pub size: u32,
     #[arg(long, default_value_t = 32)]
     pub block: u32,
@@ -27,7 +27,7 @@ pub struct BenchPtmArgs {
     #[arg(long, value_enum, default_value = "lrgb")]
     pub format: PtmFormat,
     /// Side of the PTM relit (the source tiled).
-    #[arg(long, default_value_t = 1024)]
+    #[arg(long, default_value_t = 1024, value_parser = clap::value_parser!(u32).range(8..=4096))]
     pub relight_size: u32,
     /// Runs per measurement; the median is reported.
     #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..))]

@@ -36,6 +36,25 @@ pub struct CutSpec {
 /// Largest cut side accepted.
 pub const MAX_CUT_SIZE: u32 = 4096;
 
+/// A direction flag's vector, of any length but zero: finite components, not all zero. A vector
+/// whose length overflows or is below 1e-9 is scaled by its largest component first (others
+/// keep their exact value, so their frames, and cuts, are unchanged).
+fn direction(v: [f64; 3], flag: &str) -> Result<DVec3> {
+    if !v.iter().all(|c| c.is_finite()) {
+        return Err(Error::invalid(flag, "components must be finite numbers"));
+    }
+    let d = DVec3::from_array(v);
+    if d == DVec3::ZERO {
+        return Err(Error::invalid(flag, "must not be the zero vector"));
+    }
+    let length = d.length();
+    Ok(if length.is_finite() && length >= 1e-9 {
+        d
+    } else {
+        d / d.abs().max_element()
+    })
+}
+
 impl CutSpec {
     /// The in-plane axes (u, v) and the normal, validated.
     pub fn frame(&self) -> Result<(DVec3, DVec3, DVec3)> {
@@ -58,21 +77,9 @@ impl CutSpec {
                 format!("must be a number in (0, {MAX_CUT_SPACING}]"),
             ));
         }
-        let n = DVec3::from_array(self.normal);
-        if !finite(&self.normal) || n.length() < 1e-9 {
-            return Err(Error::invalid(
-                "--normal",
-                "must be a finite, non-zero vector",
-            ));
-        }
-        let n = n.normalize();
+        let n = direction(self.normal, "--normal")?.normalize();
         let up = match self.up {
-            Some(u) => {
-                if !finite(&u) {
-                    return Err(Error::invalid("--up", "must be finite"));
-                }
-                DVec3::from_array(u)
-            }
+            Some(u) => direction(u, "--up")?,
             None if n.y.abs() > 1.0 - 1e-9 => DVec3::Z,
             None => DVec3::Y,
         };
@@ -339,6 +346,16 @@ mod tests {
             .frame()
             .is_err());
         assert!(spec([f64::NAN, 0.0, 1.0], None).frame().is_err());
+        // Any length but zero: a normal or up whose length overflows or underflows gives the
+        // frame of the same direction at a usual length.
+        let frame = |normal, up| spec(normal, up).frame().unwrap();
+        let diagonal = frame([1.0, 1.0, 0.0], Some([0.0, 0.0, 1.0]));
+        for scale in [1e308, 1e-20, 1e-300] {
+            let scaled = frame([scale, scale, 0.0], Some([0.0, 0.0, scale]));
+            assert_eq!(scaled, diagonal, "{scale}");
+        }
+        let zero_up = spec([0.0, 0.0, 1.0], Some([0.0; 3])).frame().unwrap_err();
+        assert!(zero_up.to_string().contains("--up: must not be the zero vector"));
     }
 
     /// An axis-aligned cut at spacing 1 is taken as a box: the box holds exactly the voxels its

@@ -449,12 +449,43 @@ fn output_names_and_values_get_messages_that_say_what_is_wrong() {
             with(&cut, &["--coarse-cache=100", "-o", "c.png"]),
             "a multiple of 64 in 64..=1024",
         ),
+        (
+            with(&cut, &["--up", "0,0,0", "-o", "c.png"]),
+            "--up: must not be the zero vector",
+        ),
+        // Standard output is not a file name, and not shared with a --json summary.
+        (with(&cut, &["-o", "-"]), "outputs are files"),
+        (
+            with(&cut, &["--json", "-o", "/dev/stdout"]),
+            "where --json prints its summary too",
+        ),
+        // Benchmarks check their sizes up front too (a size 0 panicked).
+        (
+            with(
+                &["bench", "gradient-render", "--sizes", "0", "--no-gpu"],
+                &[],
+            ),
+            "--sizes",
+        ),
+        (
+            with(
+                &["bench", "ptm", "--relight-size", "1000000", "--no-gpu"],
+                &[],
+            ),
+            "--relight-size",
+        ),
     ];
     for (args, needle) in cases {
         let o = in_dir(&args.iter().map(String::as_str).collect::<Vec<_>>());
         assert_user_error(&o, needle, d, &kept);
     }
     assert_eq!(std::fs::read(d.join("file")).unwrap(), b"kept");
+    // A directory where one man page goes: refused before any page is written.
+    std::fs::create_dir_all(d.join("man/solidsynth-synth.1")).unwrap();
+    let o = in_dir(&["man", "-o", "man"]);
+    assert_user_error(&o, "holds a directory", d, &["file", "man"]);
+    assert_eq!(std::fs::read_dir(d.join("man")).unwrap().count(), 1);
+    std::fs::remove_dir_all(d.join("man")).unwrap();
     // An image too large to decode is named by its size, not by the decoder's memory limit.
     std::fs::write(d.join("huge.png"), png_header_only(100_000, 100_000)).unwrap();
     let o = in_dir(&["analyze", "--backend", "cpu", "huge.png", "-o", "h.ssa"]);

@@ -176,3 +176,21 @@ fn a_failed_commit_restores_the_outputs_it_had_placed() {
     assert_eq!(left, ["empty", "kept.bin"]);
     assert_eq!(std::fs::read_dir(d.join("empty")).unwrap().count(), 0);
 }
+
+/// A directory output named by a symbolic link to an empty directory fills that directory and
+/// keeps the link (as a file output keeps its link).
+#[test]
+#[cfg(unix)]
+fn a_link_to_an_empty_directory_is_filled_through() {
+    let dir = tempfile::tempdir().unwrap();
+    let (real, link) = (dir.path().join("real"), dir.path().join("link"));
+    std::fs::create_dir(&real).unwrap();
+    std::os::unix::fs::symlink(&real, &link).unwrap();
+    check_output_dir(&link, "--slices").unwrap();
+    let mut outputs = Outputs::new();
+    let staging = outputs.directory(&link).unwrap();
+    std::fs::write(staging.join("slice.png"), b"s").unwrap();
+    outputs.commit().unwrap();
+    assert!(link.is_symlink());
+    assert_eq!(std::fs::read(real.join("slice.png")).unwrap(), b"s");
+}
