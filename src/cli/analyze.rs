@@ -57,7 +57,7 @@ pub struct InputArgs {
     /// Usage-balancing rounds of the analysis: small calibration solids that find the exemplar
     /// pixels the correction over-uses, which it then penalizes (keeps photographs from washing
     /// out to a few flat pixels). 0: the paper's unmodified search.
-    #[arg(help_heading = "Input and analysis", long, default_value_t = crate::analysis::balance::DEFAULT_ROUNDS)]
+    #[arg(help_heading = "Input and analysis", long, default_value_t = crate::analysis::balance::DEFAULT_ROUNDS, value_parser = super::whole_number_in::<0, { crate::analysis::balance::MAX_ROUNDS }>)]
     pub balance_rounds: u32,
     /// Strength of the usage penalty (0..=8).
     #[arg(help_heading = "Input and analysis", long, default_value_t = 1.0)]

@@ -58,7 +58,7 @@ pub struct BenchGradientArgs {
           value_parser = ["cpu", "gpu"])]
     pub backends: Vec<String>,
     /// Runs per size and backend; the median is reported.
-    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..))]
+    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..=1000))]
     pub runs: u32,
     /// Print the results as JSON instead of a table.
     #[arg(help_heading = "Output", long)]
@@ -73,7 +73,7 @@ pub struct BenchRenderArgs {
           value_parser = clap::value_parser!(u32).range(4..=1024))]
     pub sizes: Vec<u32>,
     /// Timed renders per size and backend, after one untimed warm-up; the median is reported.
-    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..))]
+    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..=1000))]
     pub runs: u32,
     /// Skip the GPU backend (CPU times only).
     #[arg(long)]
@@ -100,7 +100,7 @@ pub struct BenchSynthArgs {
           value_parser = ["cpu", "gpu"])]
     pub backends: Vec<String>,
     /// Runs per size and backend; the median is reported.
-    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..))]
+    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..=1000))]
     pub runs: u32,
     /// Treat the input exemplar as periodic.
     #[arg(long)]
@@ -131,11 +131,11 @@ pub struct BenchAnalyzeArgs {
     #[arg(help_heading = "Benchmark", long)]
     pub exemplar: Option<PathBuf>,
     /// Runs per size; the median is reported.
-    #[arg(help_heading = "Benchmark", long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..))]
+    #[arg(help_heading = "Benchmark", long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..=1000))]
     pub runs: u32,
     /// Usage-balancing rounds of each analysis (see `analyze --balance-rounds`; 0 times the
     /// paper's precomputation alone).
-    #[arg(help_heading = "Benchmark", long, default_value_t = crate::analysis::balance::DEFAULT_ROUNDS)]
+    #[arg(help_heading = "Benchmark", long, default_value_t = crate::analysis::balance::DEFAULT_ROUNDS, value_parser = super::whole_number_in::<0, { crate::analysis::balance::MAX_ROUNDS }>)]
     pub balance_rounds: u32,
     /// The feature channel, as `analyze --feature-mask` (auto, edges or none).
     #[arg(long, default_value = "auto", value_parser = ["auto", "edges", "none"])]

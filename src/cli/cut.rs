@@ -25,7 +25,7 @@ pub struct CutArgs {
     #[arg(help_heading = "Cut", long, allow_hyphen_values = true)]
     pub up: Option<String>,
     /// Pixels per side of the (square) cut.
-    #[arg(help_heading = "Cut", long, default_value_t = 256)]
+    #[arg(help_heading = "Cut", long, default_value_t = 256, value_parser = super::whole_number_in::<1, { crate::lazy::cut::MAX_CUT_SIZE }>)]
     pub size: u32,
     /// Voxels per pixel.
     #[arg(

@@ -151,7 +151,7 @@ pub struct BakeArgs {
     /// The model (.lst).
     pub model: PathBuf,
     /// Texels per triangle cell side (default: about one per exemplar voxel).
-    #[arg(long)]
+    #[arg(long, value_parser = super::whole_number_in::<2, 256>)]
     pub texels: Option<u32>,
     /// Output: .glb.
     #[arg(help_heading = "Output", short, long)]

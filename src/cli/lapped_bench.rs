@@ -23,7 +23,7 @@ pub struct BenchLappedArgs {
     #[arg(long)]
     pub field: Option<PathBuf>,
     /// Fill runs (fresh processes); the median is reported.
-    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..))]
+    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..=1000))]
     pub runs: u32,
     /// Cuts of 512x512 through the centre (one process, warm); median and p95 reported.
     #[arg(long, default_value_t = 30, value_parser = clap::value_parser!(u32).range(1..=10000))]

@@ -266,6 +266,15 @@ fn man_pages(dir: &std::path::Path) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// A whole-number flag's value: numbers past u32 are refused with the flag's own range
+/// (`MIN..=MAX`) rather than the type's; values within u32 are checked by the command, in the
+/// same words, with the value named.
+pub fn whole_number_in<const MIN: u32, const MAX: u32>(text: &str) -> Result<u32, String> {
+    let expected = || format!("expected a whole number in {MIN}..={MAX}");
+    let value = text.trim().parse::<u64>().map_err(|_| expected())?;
+    u32::try_from(value).map_err(|_| expected())
+}
+
 /// A command's progress on stderr ([`output::Progress`]: a bar on a terminal, a line per stage
 /// otherwise, nothing when `quiet`).
 pub fn progress_bar(quiet: bool) -> output::Progress {

@@ -30,7 +30,7 @@ pub struct BenchPtmArgs {
     #[arg(long, default_value_t = 1024, value_parser = clap::value_parser!(u32).range(8..=4096))]
     pub relight_size: u32,
     /// Runs per measurement; the median is reported.
-    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..))]
+    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..=1000))]
     pub runs: u32,
     /// Skip the GPU relight.
     #[arg(long)]

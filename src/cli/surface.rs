@@ -27,7 +27,7 @@ pub struct SurfaceArgs {
     pub texel_size: Option<f64>,
     /// Instead of cells sized to their triangles, the same square cell of T x T texels for every
     /// triangle (2..=256).
-    #[arg(help_heading = "Surface", long)]
+    #[arg(help_heading = "Surface", long, value_parser = super::whole_number_in::<2, 256>)]
     pub texels: Option<u32>,
     /// The texture layout: `packed` (an atlas of its own: every triangle a cell, any mesh) or
     /// `own` (the mesh's own texture coordinates, as Blender's and Substance's bakers use them:
@@ -36,7 +36,8 @@ pub struct SurfaceArgs {
     pub uv: UvLayout,
     /// With `--uv own`: the texture's side in texels (default: the power of two giving about
     /// one texel per voxel).
-    #[arg(help_heading = "Surface", long, conflicts_with_all = ["texels", "texel_size"])]
+    #[arg(help_heading = "Surface", long, conflicts_with_all = ["texels", "texel_size"],
+          value_parser = super::whole_number_in::<1, { crate::mesh::bake::MAX_ATLAS_SIDE }>)]
     pub texture_size: Option<u32>,
     /// Mip levels the packed atlas keeps apart: each cell gets a gutter of 2^K texels filled by
     /// dilation, and the .glb asks for mipmapped filtering (0..=6; 0: no gutter, and the .glb is

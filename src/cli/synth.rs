@@ -16,7 +16,7 @@ use std::time::Instant;
 #[derive(Args, Debug)]
 pub struct SynthArgs {
     /// Edge of the cube [0, N)^3 to synthesize, in finest-level voxels.
-    #[arg(long)]
+    #[arg(long, value_parser = super::whole_number_in::<8, { limits::MAX_BOX_SIDE }>)]
     pub size: u32,
     /// A periodic solid of period N (copies of the volume tile space seamlessly): its own
     /// deterministic solid, not the box [0, N)^3 of the infinite one. N a multiple of 32.

@@ -49,7 +49,7 @@ pub struct SynthArgs {
     /// Exemplar image (PNG, JPEG, ...); without it, the built-in exemplar.
     pub input: Option<PathBuf>,
     /// Period of the solid in voxels (its edge); rounded up to a multiple of 4.
-    #[arg(help_heading = "Gradient synthesis", long)]
+    #[arg(help_heading = "Gradient synthesis", long, value_parser = crate::cli::whole_number_in::<16, { crate::gradient::synth::MAX_SIZE }>)]
     pub size: u32,
     #[arg(help_heading = "Gradient synthesis", long, default_value_t = 0)]
     pub seed: u64,
@@ -68,7 +68,8 @@ pub struct SynthArgs {
     /// Nearest-patch search: P > 0 approximate (the paper's ANN step), scanning the P lists (of
     /// about sqrt(candidates), k-means of the patches' projections) nearest to each query; 0
     /// exact (exhaustive, about 3x slower; the same quality by `eval`).
-    #[arg(help_heading = "Gradient synthesis", long, default_value_t = crate::gradient::synth::DEFAULT_PROBES)]
+    #[arg(help_heading = "Gradient synthesis", long, default_value_t = crate::gradient::synth::DEFAULT_PROBES,
+          value_parser = crate::cli::whole_number_in::<0, 65536>)]
     pub probes: u32,
     /// Slices matched per check point: 3, or 2 (orthogonal to x and y only) for anisotropic
     /// exemplars such as brick walls or strata.
