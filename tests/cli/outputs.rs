@@ -453,6 +453,10 @@ fn output_names_and_values_get_messages_that_say_what_is_wrong() {
             with(&cut, &["--up", "0,0,0", "-o", "c.png"]),
             "--up: must not be the zero vector",
         ),
+        (
+            with(&["synth", "--size", "4294967296", "-o", "v.nrrd"], &[]),
+            "expected a whole number in 8..=2048",
+        ),
         // Standard output is not a file name, and not shared with a --json summary.
         (with(&cut, &["-o", "-"]), "outputs are files"),
         (
