@@ -111,7 +111,11 @@ fn check_sender(config: &super::ServeConfig, request: &Request) -> Result<(), Re
     if !host_allowed(config, host) {
         return Err(Reply::error(
             421,
-            format!("this server does not answer to host {host} (see --allow-host)"),
+            format!(
+                "this server does not answer to host {host}: it answers to its address with its \
+                 port ({}:{}) and the names --allow-host gives",
+                config.bind, config.port
+            ),
         ));
     }
     let changes_state = !matches!(request.method.as_str(), "GET" | "HEAD" | "OPTIONS");
@@ -160,6 +164,17 @@ fn route(state: &Arc<State>, request: &Request) -> Reply {
     if let Some(answer) = super::api_objects::route(state, method, &segments, &query, &request.body)
     {
         return answer.unwrap_or_else(|(status, message)| Reply::error(status, message));
+    }
+    // Of these endpoints only new solids, cuts and volumes take parameters; elsewhere in the API
+    // one is a mistake. (Pages ignore theirs.)
+    let takes_parameters = matches!(
+        segments.as_slice(),
+        ["api", "solids"] | ["api", "solids", _, "cut" | "volume"]
+    );
+    if segments.first() == Some(&"api") && !takes_parameters {
+        if let Err((status, message)) = query.only(&[]) {
+            return Reply::error(status, message);
+        }
     }
     let result = match (segments.as_slice(), get) {
         (["api", "health"], true) => Ok(Reply::json(200, serde_json::json!({"ok": true}))),
@@ -475,6 +490,10 @@ impl Query {
     /// Refuse parameters the endpoint does not know (a typo would otherwise be ignored).
     pub(super) fn only(&self, known: &[&str]) -> Result<(), (u16, String)> {
         match self.0.iter().find(|(k, _)| !known.contains(&k.as_str())) {
+            Some((k, _)) if known.is_empty() => Err((
+                400,
+                format!("unknown parameter {k:?}: this takes no parameters"),
+            )),
             Some((k, _)) => Err((
                 400,
                 format!("unknown parameter {k:?} (known: {})", known.join(", ")),

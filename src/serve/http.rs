@@ -140,7 +140,11 @@ fn read_request(stream: &mut TcpStream, max_body: usize) -> Result<Request, Resp
     let mut buf = Vec::with_capacity(1024);
     let mut chunk = [0u8; 4096];
     let head_end = loop {
+        // (A head that arrived in one read is measured too, not only one still arriving.)
         if let Some(i) = buf.windows(4).position(|w| w == b"\r\n\r\n") {
+            if i + 4 > MAX_HEAD {
+                return Err(Response::error(431, "request head over 16 KiB"));
+            }
             break i;
         }
         if buf.len() > MAX_HEAD {
@@ -163,7 +167,7 @@ fn read_request(stream: &mut TcpStream, max_body: usize) -> Result<Request, Resp
     if !version.starts_with("HTTP/1.") || !target.starts_with('/') {
         return Err(Response::error(400, "expected METHOD /path HTTP/1.x"));
     }
-    let mut length = 0usize;
+    let mut length: Option<usize> = None;
     let mut expect_continue = false;
     let mut headers = Vec::new();
     for line in lines {
@@ -173,9 +177,17 @@ fn read_request(stream: &mut TcpStream, max_body: usize) -> Result<Request, Resp
         let (name, value) = (name.trim().to_ascii_lowercase(), value.trim());
         match name.as_str() {
             "content-length" => {
-                length = value
+                let value: usize = value
                     .parse()
                     .map_err(|_| Response::error(400, "bad Content-Length"))?;
+                // RFC 9112 6.3: lengths that differ leave the body's end unknown.
+                if length.is_some_and(|l| l != value) {
+                    return Err(Response::error(
+                        400,
+                        "Content-Length given twice, differently",
+                    ));
+                }
+                length = Some(value);
             }
             "transfer-encoding" if !value.eq_ignore_ascii_case("identity") => {
                 return Err(Response::error(
@@ -193,6 +205,7 @@ fn read_request(stream: &mut TcpStream, max_body: usize) -> Result<Request, Resp
             _ => {}
         }
     }
+    let length = length.unwrap_or(0);
     if length > max_body {
         return Err(Response::error(
             413,

@@ -89,6 +89,20 @@ fn hostile_requests_are_refused_without_reading_or_allocating_them() {
     head.extend(std::iter::repeat_n(b'a', 40 << 10));
     head.extend_from_slice(b"\r\n\r\n");
     assert_eq!(raw_status(addr, &head), 431);
+    // A head a little over the limit, arriving whole in one read, too.
+    let mut head = b"GET / HTTP/1.1\r\nX-Long: ".to_vec();
+    head.extend(std::iter::repeat_n(b'a', 20_000));
+    head.extend_from_slice(b"\r\n\r\n");
+    assert_eq!(raw_status(addr, &head), 431);
+    // Two lengths that differ leave the body's end unknown.
+    let lengths =
+        b"POST /api/solids HTTP/1.1\r\nContent-Length: 5\r\nContent-Length: 10\r\n\r\nhello";
+    assert_eq!(raw_status(addr, lengths), 400);
+    // An endpoint without parameters refuses one (a typo would otherwise go unseen).
+    let request = format!("GET /api/state?verbose=1 HTTP/1.1\nHost: {addr}\n\n");
+    let (status, answer) = raw(addr, &request);
+    assert_eq!(status, 400, "{answer}");
+    assert!(answer.contains("takes no parameters"), "{answer}");
     assert_eq!(raw_status(addr, b"garbage\r\n\r\n"), 400);
     assert_eq!(raw_status(addr, b"GET http://x/ HTTP/1.1\r\n\r\n"), 400);
     let chunked =
