@@ -312,10 +312,11 @@ fn cut(args: CutArgs, quiet: bool) -> anyhow::Result<()> {
     );
     let extent = args.extent.unwrap_or((hi - lo).length());
     // Without --extent, the model's size is what is wrong.
+    let shown = crate::util::number_text(extent);
     let what = match args.extent {
-        Some(_) => format!("--extent {extent}"),
+        Some(_) => format!("--extent {shown}"),
         None => format!(
-            "{} (its bounding-box diagonal, {extent}, is the default --extent)",
+            "{} (its bounding-box diagonal, {shown}, is the default --extent)",
             args.model.display()
         ),
     };
@@ -328,8 +329,9 @@ fn cut(args: CutArgs, quiet: bool) -> anyhow::Result<()> {
         return Err(Error::invalid(
             what,
             format!(
-                "over --size {} is {spacing} world units a pixel; at most {max_spacing}",
-                args.size
+                "over --size {} is {} world units a pixel; at most {max_spacing}",
+                args.size,
+                crate::util::number_text(spacing)
             ),
         )
         .into());

@@ -116,9 +116,9 @@ pub struct RelightArgs {
     /// Instead: a contact sheet of N lights in a ring at --elevation.
     #[arg(help_heading = "Lighting", long, value_parser = clap::value_parser!(u32).range(1..=256))]
     pub sweep: Option<u32>,
-    /// Elevation of the --sweep ring above the surface, degrees.
-    #[arg(help_heading = "Lighting", long, default_value_t = 35.0)]
-    pub elevation: f64,
+    /// Elevation of the --sweep ring above the surface, degrees (default 35).
+    #[arg(help_heading = "Lighting", long)]
+    pub elevation: Option<f64>,
     /// Strength of a Blinn-Phong highlight around the PTM's normals (0: none).
     #[arg(help_heading = "Lighting", long, default_value_t = 0.0)]
     pub specular: f32,
@@ -336,10 +336,16 @@ fn relight_cmd(a: RelightArgs, quiet: bool) -> anyhow::Result<()> {
     if !(a.specular.is_finite() && (0.0..=100.0).contains(&a.specular)) {
         return Err(Error::invalid(format!("--specular {}", a.specular), "must be 0..=100").into());
     }
-    if !(0.0..=90.0).contains(&a.elevation) {
-        return Err(
-            Error::invalid(format!("--elevation {}", a.elevation), "must be 0..=90").into(),
-        );
+    if a.elevation.is_some() && a.sweep.is_none() {
+        return Err(Error::invalid(
+            "--elevation",
+            "sets the --sweep ring's elevation: give --sweep N with it",
+        )
+        .into());
+    }
+    let elevation = a.elevation.unwrap_or(35.0);
+    if !(0.0..=90.0).contains(&elevation) {
+        return Err(Error::invalid(format!("--elevation {elevation}"), "must be 0..=90").into());
     }
     let single = match (&a.light, a.sweep) {
         (Some(l), None) => Some(parse_light(l)?),
@@ -362,7 +368,7 @@ fn relight_cmd(a: RelightArgs, quiet: bool) -> anyhow::Result<()> {
             relight::to_image(ptm.width, ptm.height, &rgb)
         }
         None => {
-            let lights = relight::ring(a.sweep.unwrap() as usize, a.elevation, a.specular);
+            let lights = relight::ring(a.sweep.unwrap() as usize, elevation, a.specular);
             let bar = super::progress_bar(quiet || a.json);
             bar.set_message("relighting");
             let sheet = relight::contact_sheet(&compute, &ptm, &lights, &mut |done, total| {

@@ -225,7 +225,7 @@ impl SolidArgs {
         // f64.)
         if !(1e-6..=1e6).contains(&self.voxel_size) {
             return Err(Error::invalid(
-                format!("--voxel-size {}", self.voxel_size),
+                format!("--voxel-size {}", crate::util::number_text(self.voxel_size)),
                 "must be a number from 1e-6 to 1e6",
             ));
         }

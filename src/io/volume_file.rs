@@ -77,6 +77,20 @@ impl VolumeFormat {
         }
     }
 
+    /// The format's name for messages.
+    pub fn name(self) -> &'static str {
+        match self {
+            VolumeFormat::Nrrd => "NRRD",
+            VolumeFormat::NrrdGzip => "gzip-compressed NRRD",
+            VolumeFormat::Npy => "a NumPy array",
+            VolumeFormat::Tiff => "a TIFF stack",
+            VolumeFormat::Ktx2 => "a KTX2 texture",
+            VolumeFormat::Vdb => "OpenVDB",
+            VolumeFormat::Vti => "VTK image data",
+            VolumeFormat::Png => "a PNG flipbook",
+        }
+    }
+
     /// Whether the writer holds the whole volume before writing (memory estimates count it).
     pub fn holds_whole_volume(self) -> bool {
         matches!(
@@ -112,8 +126,9 @@ impl VolumeOutput {
             return Err(Error::invalid(
                 "--srgb/--mips",
                 format!(
-                    "only KTX2 textures have them; {} is written as {format:?}",
-                    path.display()
+                    "only KTX2 textures have them; {} is written as {}",
+                    path.display(),
+                    format.name()
                 ),
             ));
         }

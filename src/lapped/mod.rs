@@ -43,7 +43,11 @@ fn check_scales(
     extent: f64,
 ) -> Result<()> {
     if let Some(s) = scale {
-        check_scale(s, &format!("--scale {s}"), extent)?;
+        check_scale(
+            s,
+            &format!("--scale {}", crate::util::number_text(s)),
+            extent,
+        )?;
     }
     if let Some(s) = constraints.scale {
         check_scale(s, &format!("{constraints_name}: scale {s}"), extent)?;

@@ -73,7 +73,7 @@ impl CutSpec {
         }
         if !(self.spacing.is_finite() && self.spacing > 0.0 && self.spacing <= MAX_CUT_SPACING) {
             return Err(Error::invalid(
-                format!("--spacing {}", self.spacing),
+                format!("--spacing {}", crate::util::number_text(self.spacing)),
                 format!("must be a number in (0, {MAX_CUT_SPACING}]"),
             ));
         }

@@ -10,6 +10,7 @@
 
 use crate::error::{Error, Result};
 use crate::util::hash::{hash32, SeededRng};
+use crate::util::number_text;
 use std::path::{Path, PathBuf};
 
 /// The fewest images a biquadratic fit (6 unknowns) can use.
@@ -106,7 +107,9 @@ pub fn parse_lights(text: &str, what: &str, json: bool) -> Result<Vec<(String, L
         Light::from_direction(d).ok_or_else(|| {
             bad(format!(
                 "light {i} ({}, {}, {}) is not a direction above the surface (needs z > 0)",
-                d[0], d[1], d[2]
+                number_text(d[0]),
+                number_text(d[1]),
+                number_text(d[2])
             ))
         })
     };
@@ -123,6 +126,11 @@ pub fn parse_lights(text: &str, what: &str, json: bool) -> Result<Vec<(String, L
                 .get("file")
                 .and_then(|f| f.as_str())
                 .ok_or_else(|| bad(format!("light {i} has no \"file\"")))?;
+            if e.get("direction").is_some() && (e.get("lu").is_some() || e.get("lv").is_some()) {
+                return Err(bad(format!(
+                    "light {i} gives both \"direction\" and \"lu\"/\"lv\": give one of them"
+                )));
+            }
             let light = if let Some(d) = e.get("direction").and_then(|d| d.as_array()) {
                 let d: Vec<f64> = d.iter().filter_map(|x| x.as_f64()).collect();
                 if d.len() != 3 {

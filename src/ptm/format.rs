@@ -118,7 +118,11 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Ptm, String> {
         pos += 1;
     }
     if pos >= bytes.len() || bytes[pos] != b'\n' {
-        return Err("header: expected a newline after the 6 biases".into());
+        return Err(
+            "header: expected 14 numbers (width, height, 6 scales, 6 biases) and then \
+                    a newline: a count is missing or extra"
+                .into(),
+        );
     }
     pos += 1;
     let side = |t: &str, what: &str| -> Result<u32, String> {
@@ -140,7 +144,9 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Ptm, String> {
             .parse::<f32>()
             .ok()
             .filter(|s| s.is_finite())
-            .ok_or_else(|| format!("header: scale {i} {t:?} is not a finite number"))?;
+            .ok_or_else(|| {
+                format!("header: scale {i} {t:?} is not a number within a 32-bit float's range")
+            })?;
         let t = &tokens[8 + i];
         bias[i] = t
             .parse::<i32>()

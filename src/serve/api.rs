@@ -377,7 +377,14 @@ fn cut(state: &State, solid: &jobs::Solid, q: &Query) -> Answer {
         size,
         spacing,
     };
-    let (u, v, n) = spec.frame().map_err(from_error)?;
+    // The frame's checks name the command line's flags; here they are parameters.
+    let (u, v, n) = spec.frame().map_err(|e| match e {
+        crate::Error::InvalidInput { what, problem } => (
+            400,
+            format!("invalid {}: {problem}", what.trim_start_matches("--")),
+        ),
+        other => from_error(other),
+    })?;
     let ticket = state.enqueue().map_err(|jobs::Busy(m)| (503, m))?;
     let (img, queue_ms, synth_ms) = state.cut(&ticket, solid, &spec).map_err(from_error)?;
     drop(ticket);

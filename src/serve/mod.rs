@@ -96,6 +96,16 @@ impl ServeConfig {
                 "must be a multiple of 4 in 8..=256",
             ));
         }
+        if let Some(bad) = self.allow_hosts.iter().find(|h| {
+            h.is_empty()
+                || h.chars()
+                    .any(|c| c.is_whitespace() || c.is_control() || c == '/')
+        }) {
+            return Err(Error::invalid(
+                format!("--allow-host {bad:?}"),
+                "must be a host name, optionally NAME:PORT (no spaces or slashes)",
+            ));
+        }
         if self.workers <= self.max_queued || self.max_queued == 0 {
             return Err(Error::invalid(
                 "workers",

@@ -394,7 +394,8 @@ fn output_names_and_values_get_messages_that_say_what_is_wrong() {
     let d = dir.path();
     let in_dir = |args: &[&str]| bin().current_dir(d).args(args).output().unwrap();
     std::fs::write(d.join("file"), b"kept").unwrap();
-    let kept = ["file", "huge.png"];
+    let kept = ["file", "huge.png", "loop.nrrd"];
+    std::os::unix::fs::symlink("loop.nrrd", d.join("loop.nrrd")).unwrap();
     let cut = [
         "cut",
         "--backend",
@@ -460,6 +461,10 @@ fn output_names_and_values_get_messages_that_say_what_is_wrong() {
         // Standard output is not a file name, and not shared with a --json summary.
         (with(&cut, &["-o", "-"]), "outputs are files"),
         (
+            with(&["synth", "--size", "8", "-o", "loop.nrrd"], &[]),
+            "a symbolic link that leads back to itself",
+        ),
+        (
             with(&cut, &["--json", "-o", "/dev/stdout"]),
             "where --json prints its summary too",
         ),
@@ -487,7 +492,7 @@ fn output_names_and_values_get_messages_that_say_what_is_wrong() {
     // A directory where one man page goes: refused before any page is written.
     std::fs::create_dir_all(d.join("man/solidsynth-synth.1")).unwrap();
     let o = in_dir(&["man", "-o", "man"]);
-    assert_user_error(&o, "holds a directory", d, &["file", "man"]);
+    assert_user_error(&o, "holds a directory", d, &["file", "man", "loop.nrrd"]);
     assert_eq!(std::fs::read_dir(d.join("man")).unwrap().count(), 1);
     std::fs::remove_dir_all(d.join("man")).unwrap();
     // An image too large to decode is named by its size, not by the decoder's memory limit.

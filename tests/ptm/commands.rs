@@ -319,6 +319,27 @@ fn cli_bad_ptm_inputs_exit_2_and_write_nothing() {
         .unwrap();
     assert_refused(&o, "--size 4096x4096: needs about", &out);
     assert_refused(&o, "64.0 MiB is available", &out);
+    // --elevation belongs to --sweep; it was ignored beside --light.
+    let relit = d.join("relit.png");
+    assert_refused(
+        &run(&[
+            "ptm",
+            "relight",
+            p(&tex),
+            "--light",
+            "0,0",
+            "--elevation",
+            "10",
+            "-o",
+            p(&relit),
+        ]),
+        "give --sweep N with it",
+        &relit,
+    );
+    // A light given both ways is ambiguous (the direction used to win).
+    let both = r#"{"lights": [{"file": "a.png", "direction": [0, 0, 1], "lu": 0.1, "lv": 0.1}]}"#;
+    let e = capture::parse_lights(both, "lights.json", true).unwrap_err();
+    assert!(e.to_string().contains("gives both"), "{e}");
     assert_refused(
         &run(&[
             "ptm",

@@ -62,6 +62,13 @@ fn check_file_output(path: &Path, flag: &str, own_mentions: usize) -> Result<()>
             "is a directory; give a file path",
         ));
     }
+    #[cfg(unix)]
+    if std::fs::metadata(path).is_err_and(|e| e.raw_os_error() == Some(libc::ELOOP)) {
+        return Err(Error::invalid(
+            format!("{flag} {}", path.display()),
+            "is a symbolic link that leads back to itself: give a file path",
+        ));
+    }
     if path.as_os_str() == "-" {
         return Err(Error::invalid(
             format!("{flag} -"),
