@@ -18,6 +18,7 @@ pub mod assets;
 pub mod client;
 pub mod http;
 pub mod jobs;
+pub mod query;
 pub mod settings;
 pub mod surfaces;
 
