@@ -69,7 +69,7 @@ impl Error {
         let mut cause = std::error::Error::source(self);
         while let Some(c) = cause {
             text.push_str(": ");
-            text.push_str(&c.to_string());
+            text.push_str(&without_os_code(&c.to_string()));
             cause = c.source();
         }
         text
@@ -96,5 +96,69 @@ impl Error {
     }
 }
 
+/// A message without the " (os error 2)" the standard library appends to a system error's
+/// description, wherever it stands: the description says what went wrong, and the number adds
+/// nothing for a user.
+pub fn without_os_code(message: &str) -> std::borrow::Cow<'_, str> {
+    const MARK: &str = " (os error ";
+    if !message.contains(MARK) {
+        return message.into();
+    }
+    let mut text = String::with_capacity(message.len());
+    let mut rest = message;
+    while let Some(at) = rest.find(MARK) {
+        let after = &rest[at + MARK.len()..];
+        let digits = after
+            .find(|c: char| !(c.is_ascii_digit() || c == '-'))
+            .unwrap_or(after.len());
+        if digits > 0 && after[digits..].starts_with(')') {
+            text.push_str(&rest[..at]);
+            rest = &after[digits + 1..];
+        } else {
+            text.push_str(&rest[..at + MARK.len()]);
+            rest = after;
+        }
+    }
+    text.push_str(rest);
+    text.into()
+}
+
+/// What a system error says went wrong, for a message that names the file itself: the
+/// description alone, without its number or the path `tempfile` appends to its errors
+/// ("... at path \"/dir/.tmpXXXX\"", a name the user never gave).
+pub fn io_problem(e: &std::io::Error) -> String {
+    let text = e.to_string();
+    let text = match (e.get_ref().is_some(), text.rfind(" at path \"")) {
+        (true, Some(at)) => &text[..at],
+        _ => &text,
+    };
+    without_os_code(text).into_owned()
+}
+
 /// Result alias used across the crate.
 pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn system_errors_are_reported_without_their_number() {
+        let missing = std::io::Error::from_raw_os_error(2);
+        assert!(missing.to_string().ends_with("(os error 2)"));
+        let e = Error::io("in.png", missing);
+        assert_eq!(e.report(), "in.png: No such file or directory");
+        // Only the standard library's suffix goes; a message that merely mentions it stays.
+        let text = "see (os error codes) in the manual";
+        assert_eq!(without_os_code(text), text);
+        assert_eq!(without_os_code("a (os error x)"), "a (os error x)");
+        assert_eq!(
+            without_os_code("x: Permission denied (os error 13) at path \"/p\""),
+            "x: Permission denied at path \"/p\""
+        );
+        // A wrapper's path is left out where the message names the file itself.
+        let wrapped = tempfile::NamedTempFile::new_in("/no/such/directory").unwrap_err();
+        assert!(wrapped.to_string().contains("at path"), "{wrapped}");
+        assert_eq!(io_problem(&wrapped), "No such file or directory");
+    }
+}

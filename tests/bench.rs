@@ -93,3 +93,27 @@ fn compare_prints_markdown_and_refuses_an_unknown_adapter() {
     assert_eq!(out.status.code(), Some(2), "{err}");
     assert!(err.contains("missing.png"), "{err}");
 }
+
+#[test]
+fn a_benchmark_whose_run_refuses_the_users_values_exits_2_in_its_words() {
+    let dir = tempfile::tempdir().unwrap();
+    let bad = dir.path().join("bad.png");
+    std::fs::write(&bad, b"not an image").unwrap();
+    let out = run(&[
+        "bench",
+        "gradient-synth",
+        bad.to_str().unwrap(),
+        "--sizes",
+        "16",
+        "--runs",
+        "1",
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    // The run that refused, then its own message.
+    assert!(
+        err.contains("error: gradient synth --size 16 --backend cpu: invalid exemplar"),
+        "{err}"
+    );
+    assert!(err.contains("bad.png: cannot decode image"), "{err}");
+}

@@ -2,6 +2,9 @@
 //! shading, the shipped example constraint files, and the `solidsynth lapped` commands with their
 //! bad inputs (exit 2, nothing written). The GPU render is checked in kernels-tests.
 
+mod common;
+
+use common::assert_refused;
 use glam::DVec3;
 use solidsynth::io::nrrd;
 use solidsynth::lapped::exemplar::SolidExemplar;
@@ -313,14 +316,6 @@ fn run(args: &[&str]) -> Output {
 
 fn p(path: &Path) -> &str {
     path.to_str().unwrap()
-}
-
-/// Exit code 2, message mentioning `needle`, and `path` not written.
-fn assert_refused(out: &Output, needle: &str, path: &Path) {
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(2), "{err}");
-    assert!(err.contains(needle), "expected {needle:?} in: {err}");
-    assert!(!path.exists(), "{} was written", path.display());
 }
 
 struct Fixtures {

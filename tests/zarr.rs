@@ -41,6 +41,7 @@ fn refused(out: &Output, needle: &str) {
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(2), "stderr: {stderr}");
     assert!(stderr.contains(needle), "expected '{needle}' in: {stderr}");
+    assert!(!stderr.contains("(os error"), "{stderr}");
 }
 
 /// The cells fixture analysed (CPU) into `dir`/c.ssa: the input of every region here.

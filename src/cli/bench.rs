@@ -1,5 +1,6 @@
 //! `solidsynth bench ...`: benchmark tables (the numbers recorded in BENCHMARKS.md).
 
+use super::bench_child::run_json;
 use super::output::{self, BenchReport};
 use crate::exemplar::{self, procedural, Image};
 use clap::{Args, Subcommand};
@@ -200,25 +201,17 @@ fn bench_gradient_synth(args: BenchGradientArgs) -> anyhow::Result<()> {
                 if let Some(input) = &args.input {
                     cmd.arg(input);
                 }
-                let out = cmd
-                    .args([
-                        "--size",
-                        &size.to_string(),
-                        "--backend",
-                        backend,
-                        "--json",
-                        "-o",
-                    ])
-                    .arg(dir.path().join("bench.gsolid"))
-                    .output()?;
-                if !out.status.success() {
-                    anyhow::bail!(
-                        "gradient synth --size {size} --backend {backend} failed: {}",
-                        String::from_utf8_lossy(&out.stderr)
-                    );
-                }
-                let v: serde_json::Value = serde_json::from_slice(&out.stdout)?;
-                runs.push(v);
+                cmd.args([
+                    "--size",
+                    &size.to_string(),
+                    "--backend",
+                    backend,
+                    "--json",
+                    "-o",
+                ])
+                .arg(dir.path().join("bench.gsolid"));
+                let job = format!("gradient synth --size {size} --backend {backend}");
+                runs.push(run_json(&mut cmd, &job)?);
             }
             let seconds = |v: &serde_json::Value| v["seconds"].as_f64().unwrap_or(f64::NAN);
             runs.sort_by(|a, b| seconds(a).total_cmp(&seconds(b)));
@@ -376,14 +369,10 @@ fn bench_synth(args: BenchSynthArgs) -> anyhow::Result<()> {
         if profile {
             cmd.arg("--profile");
         }
-        let out = cmd.output()?;
-        if !out.status.success() {
-            anyhow::bail!(
-                "synth {size} on {backend} failed: {}",
-                String::from_utf8_lossy(&out.stderr)
-            );
-        }
-        Ok(serde_json::from_slice(&out.stdout)?)
+        run_json(
+            &mut cmd,
+            &format!("synth --size {size} --backend {backend}"),
+        )
     };
     // Warm the analysis cache so the runs time synthesis only.
     child(16, "cpu", false)?;
@@ -535,15 +524,8 @@ fn bench_analyze(args: BenchAnalyzeArgs) -> anyhow::Result<()> {
             if let Some(a) = &args.backend.adapter {
                 cmd.args(["--adapter", a]);
             }
-            let out = cmd.output()?;
+            let summary = run_json(&mut cmd, &format!("analyze at size {size}"))?;
             let secs = start.elapsed().as_secs_f64();
-            if !out.status.success() {
-                anyhow::bail!(
-                    "analyze failed at size {size}: {}",
-                    String::from_utf8_lossy(&out.stderr)
-                );
-            }
-            let summary: serde_json::Value = serde_json::from_slice(&out.stdout)?;
             peak = peak.max(summary["peak_rss_bytes"].as_u64().unwrap_or(0));
             times.push(secs);
         }

@@ -6,6 +6,7 @@
 //! volumes and surfaces in fresh processes (median of the runs' synthesis times, analysis
 //! excluded through a warm cache), cuts through one warm session each (`cut --repeat`).
 
+use super::bench_child::{run_json, ChildRefused};
 use super::output;
 use clap::Args;
 use std::path::{Path, PathBuf};
@@ -113,7 +114,7 @@ pub fn run(args: BenchCompareArgs) -> anyhow::Result<()> {
         if let Some(input) = &args.input {
             cmd.arg("--").arg(input);
         }
-        let summary = run_child(cmd)?;
+        let summary = run_json(&mut cmd, &job_args.join(" "))?;
         // The column's device, not another whose name contains its label.
         let backend = summary["backend"].as_str().unwrap_or_default();
         if !backend.starts_with(&device.backend_prefix()) {
@@ -125,8 +126,8 @@ pub fn run(args: BenchCompareArgs) -> anyhow::Result<()> {
     let warm_up = ["synth", "--size", "16"].map(String::from);
     child(&warm_up, &devices[0], &scratch.path().join("warm.nrrd")).map_err(|e| {
         // `synth` refused INPUT: the user's input (exit 2), in `synth`'s words.
-        match e.downcast::<Refused>() {
-            Ok(refused) => anyhow::Error::new(crate::Error::invalid("INPUT", refused.0)),
+        match e.downcast::<ChildRefused>() {
+            Ok(refused) => anyhow::Error::new(crate::Error::invalid("INPUT", refused.message)),
             Err(e) => e,
         }
     })?;
@@ -461,25 +462,6 @@ fn number(summary: &serde_json::Value, key: &str, job: &str) -> anyhow::Result<f
     summary[key]
         .as_f64()
         .ok_or_else(|| anyhow::anyhow!("{job}: the child's --json summary has no {key}"))
-}
-
-/// A child that exited with code 2: it refused its input, for the reason it printed.
-#[derive(Debug, thiserror::Error)]
-#[error("{0}")]
-struct Refused(String);
-
-fn run_child(mut cmd: Command) -> anyhow::Result<serde_json::Value> {
-    let out = cmd.output()?;
-    if !out.status.success() {
-        let err = String::from_utf8_lossy(&out.stderr);
-        let err = err.trim();
-        let err = err.strip_prefix("error: ").unwrap_or(err).to_string();
-        if out.status.code() == Some(2) {
-            return Err(Refused(err).into());
-        }
-        anyhow::bail!("{err}");
-    }
-    Ok(serde_json::from_slice(&out.stdout)?)
 }
 
 /// The CPU's model name (Linux's /proc/cpuinfo), or the architecture elsewhere.

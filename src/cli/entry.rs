@@ -62,11 +62,18 @@ pub fn main() {
         .with_target(false)
         .init();
     if let Err(e) = run(args) {
+        // A benchmark's child that refused the user's values is the user's input too.
         let user = e
             .chain()
-            .find_map(|c| c.downcast_ref::<crate::Error>())
-            .is_some_and(|se| se.is_user_error());
-        eprintln!("error: {e:#}");
+            .any(|c| c.is::<super::bench_child::ChildRefused>())
+            || e.chain()
+                .find_map(|c| c.downcast_ref::<crate::Error>())
+                .is_some_and(|se| se.is_user_error());
+        let causes: Vec<String> = e
+            .chain()
+            .map(|c| crate::error::without_os_code(&c.to_string()).into_owned())
+            .collect();
+        eprintln!("error: {}", causes.join(": "));
         std::process::exit(if user { 2 } else { 1 });
     }
 }

@@ -67,15 +67,8 @@ enum LappedRow {
 fn child(exe: &Path, args: &[&str]) -> anyhow::Result<serde_json::Value> {
     let mut command = Command::new(exe);
     crate::gpu::context::user_driver_environment(&mut command);
-    let out = command.args(args).output()?;
-    if !out.status.success() {
-        anyhow::bail!(
-            "{} failed: {}",
-            args.join(" "),
-            String::from_utf8_lossy(&out.stderr)
-        );
-    }
-    Ok(serde_json::from_slice(&out.stdout)?)
+    command.args(args);
+    super::bench_child::run_json(&mut command, &args.join(" "))
 }
 
 pub fn run(args: BenchLappedArgs) -> anyhow::Result<()> {

@@ -2,6 +2,7 @@
 
 pub mod analyze;
 pub mod bench;
+mod bench_child;
 pub mod bench_compare;
 pub mod cut;
 mod entry;
@@ -253,7 +254,10 @@ fn man_pages(dir: &std::path::Path) -> anyhow::Result<()> {
     std::fs::create_dir_all(dir).map_err(|e| {
         crate::Error::invalid(
             format!("-o {}", dir.display()),
-            format!("cannot make the directory ({e})"),
+            format!(
+                "cannot make the directory ({})",
+                crate::error::io_problem(&e)
+            ),
         )
     })?;
     let mut outputs = crate::io::atomic::Outputs::new();

@@ -3,7 +3,7 @@
 
 use super::output::print_summary;
 use crate::io::atomic;
-use crate::ptm::quilt::{Boundary, QuiltParams, SearchMethod, MIN_BLOCK};
+use crate::ptm::quilt::{Boundary, QuiltParams, SearchMethod};
 use crate::ptm::search::Tolerance;
 use crate::ptm::Lighting;
 use crate::ptm::{capture, fit, format, relight, PtmFormat};
@@ -250,17 +250,7 @@ fn synth_cmd(a: SynthArgs, quiet: bool) -> anyhow::Result<()> {
         );
     }
     let src = format::load(&a.input)?;
-    if src.width.min(src.height) < MIN_BLOCK {
-        return Err(Error::invalid(
-            a.input.display().to_string(),
-            format!(
-                "is a {}x{} PTM; synthesis copies blocks of at least {MIN_BLOCK}x{MIN_BLOCK} \
-                 texels from it",
-                src.width, src.height
-            ),
-        )
-        .into());
-    }
+    crate::ptm::quilt::check_source(&src, &a.input.display().to_string())?;
     let params = QuiltParams {
         width: a.size,
         height: a.size,
@@ -336,6 +326,8 @@ fn relight_cmd(a: RelightArgs, quiet: bool) -> anyhow::Result<()> {
     if !(a.specular.is_finite() && (0.0..=100.0).contains(&a.specular)) {
         return Err(Error::invalid(format!("--specular {}", a.specular), "must be 0..=100").into());
     }
+    // Checked here, not with clap's `requires = "sweep"`: clap waives a requirement that
+    // conflicts with an argument given, and --sweep conflicts with --light.
     if a.elevation.is_some() && a.sweep.is_none() {
         return Err(Error::invalid(
             "--elevation",

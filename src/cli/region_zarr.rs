@@ -213,7 +213,7 @@ pub fn write_zarr(
             format!("the array has {total} chunks, so share {first} would compute none; use N <= {total}"),
         ));
     }
-    check_disk_space(job.out, &layout, ours(), job.resume)?;
+    check_disk_space(job.out, &layout, ours(), assigned, job.resume)?;
     let may_join = job.resume || job.share.is_some();
     let metadata = zarr::metadata(&layout, &job.attributes);
     let opened = zarr::open(job.out, "-o", &metadata, may_join)?;
@@ -266,30 +266,31 @@ pub fn write_zarr(
     })
 }
 
-/// Refuse a share of `chunks` that cannot fit on the output's file system, before the array is
+/// Refuse a share of `chunks` (`count` of them) that cannot fit on the output's file system, before the array is
 /// made or joined: each chunk file holds a whole chunk (the `bytes` codec stores no less), and
 /// with `--resume` the chunks already complete need no room. (Processes sharing one array each
 /// check their own share.)
 fn check_disk_space(
     out: &Path,
     layout: &Layout,
-    chunks: impl Iterator<Item = u64> + Clone,
+    chunks: impl Iterator<Item = u64>,
+    count: u64,
     resume: bool,
 ) -> crate::Result<()> {
     let Some(free) = crate::util::disk::free_bytes(out) else {
         return Ok(());
     };
     let bytes = layout.chunk_bytes() as u64;
-    let needed = |count: usize| (count as u64).saturating_mul(bytes);
-    if needed(chunks.clone().count()) <= free {
+    let needed = |count: u64| count.saturating_mul(bytes);
+    if needed(count) <= free {
         return Ok(());
     }
     let missing = if resume && out.is_dir() {
         chunks
             .filter(|&k| !zarr::chunk_is_complete(out, layout.chunk_at(k), bytes as usize))
-            .count()
+            .count() as u64
     } else {
-        chunks.count()
+        count
     };
     if needed(missing) > free {
         use crate::util::memory::human_bytes;

@@ -137,7 +137,7 @@ impl PendingFile {
     /// Flush to disk and put the file in place.
     pub fn commit(self) -> Result<()> {
         self.sync()?;
-        self.persist()
+        self.place()?.finish()
     }
 
     /// Flush the temporary to disk (a device or pipe written in place has nothing to sync).
@@ -149,18 +149,6 @@ impl PendingFile {
         tmp.as_file()
             .sync_all()
             .map_err(|e| Error::io(&self.path, e))
-    }
-
-    /// Rename the temporary over the target.
-    fn persist(mut self) -> Result<()> {
-        if self.direct.take().is_some() {
-            return Ok(());
-        }
-        let tmp = self.tmp.take().expect("committed once");
-        forget_pending(tmp.path());
-        tmp.persist(&self.path)
-            .map_err(|e| Error::io(&self.path, e.error))?;
-        sync_parent(&self.path)
     }
 
     /// Put the file in place so that [`outputs::Placed`] can take it back: an existing target

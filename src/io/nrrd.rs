@@ -268,17 +268,12 @@ fn parse_header(bytes: &[u8]) -> std::result::Result<Header, String> {
 fn decode(bytes: &[u8], header: Header) -> std::result::Result<Volume, String> {
     let data = &bytes[header.data_start..];
     let want = header.bytes;
+    let ([x, y, z], c) = (header.dims, header.channels);
     let raw: Vec<u8> = if header.gzip {
-        let mut out = Vec::new();
-        flate2::read::GzDecoder::new(data)
-            .take(want + 1)
-            .read_to_end(&mut out)
-            .map_err(|e| format!("gzip data is damaged: {e}"))?;
-        out
+        inflate(data, want).map_err(|problem| format!("{problem}: sizes {c} {x} {y} {z}"))?
     } else {
         data.to_vec()
     };
-    let ([x, y, z], c) = (header.dims, header.channels);
     if raw.len() as u64 != want {
         return Err(format!(
             "data is {} bytes but sizes {c} {x} {y} {z} need {want}",
@@ -292,6 +287,36 @@ fn decode(bytes: &[u8], header: Header) -> std::result::Result<Volume, String> {
         channels: c as u32,
         data: raw,
     })
+}
+
+/// The `want` bytes of the gzip stream `data`, which must end the file: a stream that
+/// inflates to more or less, or is followed by other bytes, is refused (the message says which;
+/// the caller appends the sizes).
+fn inflate(data: &[u8], want: u64) -> std::result::Result<Vec<u8>, String> {
+    let damaged = |e: std::io::Error| format!("gzip data is damaged ({e})");
+    let mut decoder = flate2::bufread::GzDecoder::new(data);
+    let mut out = Vec::with_capacity(want as usize);
+    (&mut decoder)
+        .take(want)
+        .read_to_end(&mut out)
+        .map_err(damaged)?;
+    if (out.len() as u64) < want {
+        return Err(format!(
+            "gzip data inflates to {} bytes, fewer than the {want}",
+            out.len()
+        ));
+    }
+    // Reading on to the stream's end checks its CRC and length too.
+    if decoder.read(&mut [0u8; 1]).map_err(damaged)? > 0 {
+        return Err(format!("gzip data inflates to more than the {want} bytes"));
+    }
+    let after = decoder.into_inner().len();
+    if after > 0 {
+        return Err(format!(
+            "{after} bytes follow the gzip data, which holds the {want} bytes"
+        ));
+    }
+    Ok(out)
 }
 
 #[cfg(test)]
@@ -342,6 +367,36 @@ mod tests {
         bytes.extend_from_slice(&[1, 2, 3, 4, 5, 6, 7, 8]);
         let g = parse(&bytes).unwrap();
         assert_eq!((g.channels, g.nx, g.ny, g.nz), (1, 2, 2, 2));
+    }
+
+    #[test]
+    fn gzip_data_must_hold_the_volume_and_end_the_file() {
+        let v = sample();
+        let text = header(&v).replace("encoding: raw", "encoding: gzip");
+        let file = |data: &[u8], tail: &[u8]| {
+            let mut bytes = text.clone().into_bytes();
+            bytes.extend_from_slice(&gzip_bytes(data));
+            bytes.extend_from_slice(tail);
+            parse(&bytes)
+        };
+        assert_eq!(file(&v.data, b"").unwrap(), v);
+        let e = file(&v.data, b"junk").unwrap_err();
+        assert!(e.contains("4 bytes follow the gzip data"), "{e}");
+        let e = file(&v.data[1..], b"").unwrap_err();
+        assert!(
+            e.contains("inflates to 179 bytes, fewer than the 180"),
+            "{e}"
+        );
+        let e = file(&[v.data.clone(), vec![0; 4096]].concat(), b"").unwrap_err();
+        assert!(e.contains("inflates to more than the 180 bytes"), "{e}");
+        assert!(e.contains("sizes 3 3 4 5"), "{e}");
+        let mut damaged = gzip_bytes(&v.data);
+        let crc = damaged.len() - 8;
+        damaged[crc] ^= 1;
+        let mut bytes = text.clone().into_bytes();
+        bytes.extend_from_slice(&damaged);
+        let e = parse(&bytes).unwrap_err();
+        assert!(e.contains("damaged"), "{e}");
     }
 
     #[test]

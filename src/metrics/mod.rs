@@ -146,6 +146,19 @@ pub fn evaluate(volume: &Volume, exemplars: &[Image], params: &EvalParams) -> Re
             ),
         ));
     }
+    // Slices are spread evenly, one voxel apart at the closest: more than the sides hold would
+    // score some slices twice.
+    let most = min_side - 1;
+    if params.slices_per_axis == 0 || params.slices_per_axis > most {
+        return Err(Error::invalid(
+            format!("--slices {}", params.slices_per_axis),
+            format!(
+                "must be 1..={most}: the volume is {}x{}x{}, and each slice must be a different \
+                 plane",
+                volume.nx, volume.ny, volume.nz
+            ),
+        ));
+    }
     let ex: Vec<Image> = exemplars
         .iter()
         .map(|e| e.with_channels(volume.channels))

@@ -281,8 +281,8 @@ pub fn load(dir: &Path, lights: Option<&Path>) -> Result<Capture> {
         lights: Vec::new(),
         names: Vec::new(),
     };
+    // Before any image is read.
     if entries.len() < MIN_IMAGES {
-        capture.names = entries.iter().map(|e| e.0.clone()).collect();
         return Err(Error::invalid(
             format!("capture {}", dir.display()),
             format!(

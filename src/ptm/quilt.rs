@@ -79,15 +79,7 @@ impl QuiltParams {
                 "must be 8..=4096",
             ));
         }
-        if src.width.min(src.height) < MIN_BLOCK {
-            return Err(Error::invalid(
-                "the source PTM",
-                format!(
-                    "is {}x{}; blocks are at least {MIN_BLOCK}x{MIN_BLOCK} texels",
-                    src.width, src.height
-                ),
-            ));
-        }
+        check_source(src, "the source PTM")?;
         if self.block < MIN_BLOCK || self.block > src.width.min(src.height) {
             return Err(Error::invalid(
                 format!("--block {}", self.block),
@@ -111,6 +103,12 @@ impl QuiltParams {
                 "must be 0..=10 (a fraction of the best distance)",
             ));
         }
+        Ok(())
+    }
+
+    /// Refuse a synthesis whose [`memory_bytes`](Self::memory_bytes) exceed the memory
+    /// available (see [`memory::available_memory`]), before anything is allocated.
+    pub fn check_memory(&self, src: &Ptm) -> Result<()> {
         let (estimate, available) = (self.memory_bytes(src), memory::available_memory());
         if estimate > available {
             return Err(Error::invalid(
@@ -167,6 +165,21 @@ pub struct QuiltReport {
     pub stats: SearchStats,
 }
 
+/// Refuse a source too small to copy blocks from; `name` names it in the message.
+pub fn check_source(src: &Ptm, name: &str) -> Result<()> {
+    if src.width.min(src.height) < MIN_BLOCK {
+        return Err(Error::invalid(
+            name,
+            format!(
+                "is a {}x{} PTM; synthesis copies blocks of at least {MIN_BLOCK}x{MIN_BLOCK} \
+                 texels from it",
+                src.width, src.height
+            ),
+        ));
+    }
+    Ok(())
+}
+
 /// Synthesize a PTM with the source's format, scale and bias. `progress(done, total)` is called
 /// after each block.
 pub fn synthesize(
@@ -175,6 +188,7 @@ pub fn synthesize(
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<(Ptm, QuiltReport)> {
     p.validate(src)?;
+    p.check_memory(src)?;
     let searcher = Searcher::new(search::features(src), p.block, p.overlap);
     synthesize_with(src, &searcher, p, progress)
 }

@@ -134,7 +134,7 @@ impl Server {
         let (listener, addr) = http::bind(want).map_err(|e| {
             Error::invalid(
                 format!("--bind/--port {want}"),
-                format!("cannot listen: {e}"),
+                format!("cannot listen: {}", crate::error::io_problem(&e)),
             )
         })?;
         // The port actually bound (0 picks one): requests must name it in their Host header.

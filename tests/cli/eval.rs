@@ -98,11 +98,25 @@ fn eval_bad_inputs_exit_2() {
         d,
         &["short.nrrd", "float.nrrd", "tiny.nrrd"],
     );
+    // More slices than the volume has planes would score some twice.
+    let mut small_bytes =
+        b"NRRD0004\ntype: uint8\ndimension: 3\nsizes: 16 16 16\nencoding: raw\n\n".to_vec();
+    small_bytes.extend_from_slice(&[0u8; 4096]);
+    let small = write("small.nrrd", &small_bytes);
+    let o = run(&["eval", ex, &small, "--slices", "16"]);
+    assert_user_error(
+        &o,
+        "--slices 16: must be 1..=15: the volume is 16x16x16",
+        d,
+        &["short.nrrd", "float.nrrd", "tiny.nrrd", "small.nrrd"],
+    );
+    let o = run(&["eval", ex, &small, "--slices", "15"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let o = run(&["eval", &d.join("missing.png").to_string_lossy(), &tiny]);
     assert_user_error(
         &o,
-        "missing.png",
+        "missing.png: No such file or directory",
         d,
-        &["short.nrrd", "float.nrrd", "tiny.nrrd"],
+        &["short.nrrd", "float.nrrd", "tiny.nrrd", "small.nrrd"],
     );
 }

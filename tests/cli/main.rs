@@ -71,6 +71,8 @@ fn assert_user_error(out: &Output, needle: &str, dir: &Path, allowed: &[&str]) {
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(2), "stderr: {stderr}");
     assert!(stderr.contains(needle), "expected '{needle}' in: {stderr}");
+    // A system error reads as its description ("No such file or directory"), not its number.
+    assert!(!stderr.contains("(os error"), "{stderr}");
     let mut left: Vec<String> = std::fs::read_dir(dir)
         .unwrap()
         .map(|e| e.unwrap().file_name().to_string_lossy().to_string())

@@ -121,3 +121,13 @@ pub fn assert_cut_samples_box(
         );
     }
 }
+
+/// A command refused its input: exit code 2, a message mentioning `needle` (a system error as
+/// its description, without its number), and `path` not written.
+pub fn assert_refused(out: &std::process::Output, needle: &str, path: &std::path::Path) {
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.contains(needle), "expected {needle:?} in: {err}");
+    assert!(!err.contains("(os error"), "{err}");
+    assert!(!path.exists(), "{} was written", path.display());
+}

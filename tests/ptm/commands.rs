@@ -163,7 +163,7 @@ fn cli_bad_ptm_inputs_exit_2_and_write_nothing() {
         let before = std::fs::read(&target).unwrap();
         let o = run(&["ptm", "fit", p(&cap), "-o", p(&target)]);
         assert_eq!(o.status.code(), Some(2), "{own}");
-        assert!(String::from_utf8_lossy(&o.stderr).contains("which this command reads"));
+        assert!(String::from_utf8_lossy(&o.stderr).contains("a file this command reads"));
         assert_eq!(std::fs::read(&target).unwrap(), before, "{own} rewritten");
     }
     // A light file that lists one image twice (and so leaves another out).

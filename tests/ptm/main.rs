@@ -9,6 +9,10 @@ mod ptm_files;
 mod quilting;
 mod searches;
 
+#[path = "../common/mod.rs"]
+mod common;
+
+use common::assert_refused;
 use solidsynth::cpu::ptm_relight::{ptm_relight, Lighting};
 use solidsynth::ptm::capture::{self, Capture, Light};
 use solidsynth::ptm::quilt::{self, Boundary, QuiltParams, SearchMethod};
@@ -57,12 +61,4 @@ fn run(args: &[&str]) -> Output {
 
 fn p(path: &Path) -> &str {
     path.to_str().unwrap()
-}
-
-/// Exit code 2, message mentioning `needle`, and `path` not written.
-fn assert_refused(out: &Output, needle: &str, path: &Path) {
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(2), "{err}");
-    assert!(err.contains(needle), "expected {needle:?} in: {err}");
-    assert!(!path.exists(), "{} was written", path.display());
 }

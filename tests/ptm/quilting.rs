@@ -60,7 +60,7 @@ fn blending_and_rgb_quilting_work() {
     let e = quilt::synthesize(&source(3, PtmFormat::Rgb, 6), &p, &mut |_, _| {})
         .unwrap_err()
         .to_string();
-    assert!(e.contains("the source PTM: is 3x3"), "{e}");
+    assert!(e.contains("the source PTM: is a 3x3 PTM"), "{e}");
 }
 
 #[test]

@@ -13,7 +13,7 @@ pub(super) fn synth(a: SynthArgs, quiet: bool) -> anyhow::Result<()> {
     atomic::check_output_path(&a.output, "-o")?;
     atomic::check_output_extension(&a.output, "-o", "a gradient solid", &["gsolid"])?;
     let exemplar = match &a.input {
-        Some(path) => crate::exemplar::load_image(path, &path.display().to_string())?,
+        Some(path) => crate::exemplar::load_image(path, "exemplar")?,
         None => crate::exemplar::default_exemplar(),
     };
     let name = a
@@ -61,8 +61,10 @@ pub(super) fn synth(a: SynthArgs, quiet: bool) -> anyhow::Result<()> {
         Some(path) => {
             params.validate_with_mask()?;
             let what = format!("--mask {}", path.display());
-            let bytes = std::fs::read(path)
-                .map_err(|e| Error::invalid(&what, format!("cannot read the file: {e}")))?;
+            let bytes = std::fs::read(path).map_err(|e| {
+                let problem = crate::error::io_problem(&e);
+                Error::invalid(&what, format!("cannot read the file: {problem}"))
+            })?;
             let mask = crate::exemplar::decode_image(&bytes, &what)?;
             Some(synth::MaskedExemplar::new(&exemplar, &mask, &what)?)
         }

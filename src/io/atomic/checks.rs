@@ -178,12 +178,16 @@ pub fn check_output_not_among(
         return Ok(());
     };
     if let Some(input) = inputs.iter().find(|i| file_key(i).as_ref() == Some(&key)) {
+        // The input is named when the output reaches it by another name (a link, `..`).
+        let which = match input.as_path() == path {
+            true => "is a file".to_string(),
+            false => format!("is {}, a file", input.display()),
+        };
         return Err(Error::invalid(
             format!("{flag} {}", path.display()),
             format!(
-                "is {}, which this command reads; nothing a command reads is overwritten: \
-                 choose another output path",
-                input.display()
+                "{which} this command reads; nothing a command reads is overwritten: choose \
+                 another output path"
             ),
         ));
     }
@@ -285,7 +289,11 @@ fn check_parent(path: &Path, flag: &str) -> Result<()> {
         .map_err(|e| {
             Error::invalid(
                 format!("{flag} {}", path.display()),
-                format!("cannot write in directory {}: {e}", parent.display()),
+                format!(
+                    "cannot write in directory {}: {}",
+                    parent.display(),
+                    crate::error::io_problem(&e)
+                ),
             )
         })?;
     Ok(())

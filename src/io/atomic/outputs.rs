@@ -129,7 +129,7 @@ impl Placed {
     }
 
     /// Make the placement durable (its directory synced) and delete the former contents.
-    fn finish(self) -> Result<()> {
+    pub(super) fn finish(self) -> Result<()> {
         match self {
             Placed::InPlace => Ok(()),
             Placed::New(path) | Placed::OverEmptyDir(path) | Placed::Replaced(path) => {
