@@ -208,9 +208,26 @@ pub fn load_or_analyze(
     compute: &Compute,
     quiet: bool,
 ) -> crate::Result<Arc<Analysis>> {
+    analyze_with(args.builder()?, compute, quiet)
+}
+
+/// The backend the flags name, and the analysis of the inputs on it ([`load_or_analyze`]). The
+/// inputs are read first, so that a missing or damaged file is reported before a GPU is opened.
+pub fn open_and_analyze(args: &InputArgs, quiet: bool) -> crate::Result<(Compute, Arc<Analysis>)> {
+    let builder = args.builder()?;
+    let compute = args.backend.open()?;
+    let analysis = analyze_with(builder, &compute, quiet)?;
+    Ok((compute, analysis))
+}
+
+fn analyze_with(
+    builder: SolidBuilder,
+    compute: &Compute,
+    quiet: bool,
+) -> crate::Result<Arc<Analysis>> {
     let bar = super::progress_bar(quiet);
     let shown = bar.clone();
-    let builder = args.builder()?.progress(move |stage: &str, f: f32| {
+    let builder = builder.progress(move |stage: &str, f: f32| {
         shown.report(stage, f);
     });
     let a = builder.analyze_on(compute)?;

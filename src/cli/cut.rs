@@ -1,7 +1,7 @@
 //! `solidsynth cut`: a planar cut of the solid as a PNG, optionally repeated through one warm
 //! session to measure interactive latency.
 
-use super::analyze::load_or_analyze;
+use super::analyze::open_and_analyze;
 use super::synth::SolidParams;
 use crate::io::atomic;
 use crate::lazy::cut::CutSpec;
@@ -94,8 +94,7 @@ pub fn run(args: CutArgs, quiet: bool) -> anyhow::Result<()> {
         // The image, its PNG and the sample positions.
         args.size as u64 * args.size as u64 * 24,
     )?;
-    let compute = args.solid.input.backend.open()?;
-    let analysis = load_or_analyze(&args.solid.input, &compute, quiet || args.json)?;
+    let (compute, analysis) = open_and_analyze(&args.solid.input, quiet || args.json)?;
     let mut session = args
         .solid
         .solid(&analysis, &compute, args.profile, None)?

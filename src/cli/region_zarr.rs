@@ -4,7 +4,7 @@
 //! written and `--chunks-of I/N` computes only chunks I, I + N, I + 2N, ..., so N processes on
 //! any machines fill one array together.
 
-use super::analyze::load_or_analyze;
+use super::analyze::open_and_analyze;
 use super::output::print_summary;
 use super::synth::SolidArgs;
 use crate::io::zarr::{self, Layout, Opened};
@@ -393,8 +393,7 @@ pub fn run(
     zarr::check_target(&args.output, "-o", may_join)?;
     args.solid.synth_params().validate()?;
     let start = Instant::now();
-    let compute = args.solid.input.backend.open()?;
-    let analysis = load_or_analyze(&args.solid.input, &compute, quiet || args.json)?;
+    let (compute, analysis) = open_and_analyze(&args.solid.input, quiet || args.json)?;
     let analysis_s = start.elapsed().as_secs_f64();
     let mut solid = args.solid.solid(&analysis, &compute, args.profile, None)?;
     let job = ZarrJob {

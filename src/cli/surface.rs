@@ -1,6 +1,6 @@
 //! `solidsynth surface`: the solid baked onto a mesh surface (binary glTF, or OBJ + MTL + PNG).
 
-use super::analyze::load_or_analyze;
+use super::analyze::open_and_analyze;
 use super::synth::SolidParams;
 use crate::io::atomic;
 use crate::mesh::{self, bake};
@@ -130,8 +130,7 @@ pub fn run(args: SurfaceArgs, quiet: bool) -> anyhow::Result<()> {
     let start = Instant::now();
     // The analysis (loaded or computed) is not part of the surface's time.
     let analysis_start = Instant::now();
-    let compute = args.solid.input.backend.open()?;
-    let analysis = load_or_analyze(&args.solid.input, &compute, quiet || args.json)?;
+    let (compute, analysis) = open_and_analyze(&args.solid.input, quiet || args.json)?;
     let analysis_time = analysis_start.elapsed();
     let bar = super::progress_bar(quiet || args.json);
     let shown = bar.clone();

@@ -1,6 +1,6 @@
 //! `solidsynth synth`: a full volume, the box [0, N)^3 of the infinite solid.
 
-use super::analyze::{load_or_analyze, InputArgs};
+use super::analyze::{open_and_analyze, InputArgs};
 use super::output::{print_summary, KernelTime};
 use crate::io::atomic;
 use crate::io::volume_file::{VolumeOutput, VolumeWriter};
@@ -423,8 +423,7 @@ fn run_box(args: &SolidArgs, region: Box3, tileable: bool, quiet: bool) -> anyho
     let params = args.solid.synth_params();
     params.validate()?;
     let start = Instant::now();
-    let compute = args.solid.input.backend.open()?;
-    let analysis = load_or_analyze(&args.solid.input, &compute, quiet || args.json)?;
+    let (compute, analysis) = open_and_analyze(&args.solid.input, quiet || args.json)?;
     let analysis_s = start.elapsed().as_secs_f64();
     let bar = super::progress_bar(quiet || args.json);
     let report = |m: &str, f: f32| {
