@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
-# The GPU measurements of issues 4, 5 and 6 (and the PTM and lapped renders) in one run, for a
-# machine with a hardware GPU but no Rust toolchain (the device tool's lent H100): it runs the
-# carried release binaries and writes each table to $OUT (or ./out).
+# The GPU measurements of BENCHMARKS.md (volumes, cuts, surfaces, gradient solids, PTM and lapped
+# renders) in one run, for a machine with a hardware GPU but no Rust toolchain (the device tool's
+# lent H100): it runs the carried release binaries and writes each table to $OUT (or ./out).
 #
 # Prepare on the build machine (see BENCHMARKS.md, "Measuring on a lent GPU"):
 #   scripts/device-bench.sh --prepare      # strips the binaries into dist/, copies the bunny
@@ -21,7 +21,7 @@ if [[ "${1:-}" == "--prepare" ]]; then
     mkdir -p dist
     strip -o dist/solidsynth target/release/solidsynth
     strip -o dist/kernels-test "$kernels"
-    cp ../shared/meshes/bunny.obj dist/bunny.obj
+    cp assets/meshes/bunny.obj dist/bunny.obj
     rm -rf dist/ablations
     scripts/correct-ablations.sh dist/ablations
     ls -la dist

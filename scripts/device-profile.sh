@@ -3,7 +3,7 @@
 # cuda-gdb: the main thread's stack sampled with cuda-gdb while the command runs, and the
 # debug timings it logs with SOLIDSYNTH_LOG=solidsynth=debug (read-backs, brick indices, plans)
 # summed in a second, unsampled run. It shows host-side costs that per-kernel GPU timings miss,
-# such as those of issues 4 and 5 on an NVIDIA H100 (BENCHMARKS.md).
+# such as the volume and cut targets of BENCHMARKS.md on an NVIDIA H100.
 #
 # Prepare on the build machine (keeps the symbols, drops the debug info; about 17 MB):
 #   scripts/device-profile.sh --prepare

@@ -42,7 +42,7 @@ ss lapped cut kiwi.lst --origin center --normal 0,0.3,1 --size 192 -o "$out/kiwi
 # A gradient solid synthesized directly, then cut at an angle (tricubic evaluation).
 ss gradient synth --size 32 --seed 5 --backend cpu -o gradient.gsolid
 ss gradient render gradient.gsolid --normal 1,1,1 --size 192 --backend cpu -o "$out/gradient-cut.png"
-# A relightable texture: fitted, synthesized larger by quilting, relit from six directions.
+# A relightable texture: fitted, synthesized larger by quilting, relit from four directions.
 ss ptm capture --size 64 --lights 24 -o capture
 ss ptm fit capture -o surface.ptm
 ss ptm synth surface.ptm --size 128 -o larger.ptm

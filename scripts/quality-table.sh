@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The quality table of BENCHMARKS.md: every shared exemplar (and the built-in one) x seeds 1 and 2,
 # synthesized at 96^3 on the CPU backend and scored by `eval --json`. One JSON line per solid goes
-# to OUT/scores.jsonl; extra synth flags (e.g. `--quality paper`) come after the output folder.
+# to OUT/scores.jsonl; extra synth flags (e.g. `--color fitted`) come after the output folder.
 #   scripts/quality-table.sh BIN EXEMPLAR_DIR OUT [synth flags...]
 set -euo pipefail
 bin=$1 dir=$2 out=$3

@@ -30,7 +30,7 @@
 //! Where to go next:
 //! - [`Solid`] and [`SolidBuilder`]: the front door (exemplars, analysis cache, parameters,
 //!   backend, progress, cancellation, memory estimates), with the command line's defaults.
-//! - [`solid::surface`]: baking the solid onto a mesh ([`mesh`] loads OBJ and PLY).
+//! - [`solid::surface`]: baking the solid onto a mesh ([`mesh`] loads OBJ, PLY and glTF).
 //! - [`synth`]: what a synthesis request takes (boxes, cuts, parameters, options) and the
 //!   warm [`CutSession`](synth::CutSession).
 //! - [`device`]: the compute backends; [`GpuContext::from_device`] runs the engine on an

@@ -1,11 +1,12 @@
 """A solid synthesized block by block on a local Dask cluster, written to Zarr, and checked
 against one `Solid.region` call over the whole box, byte for byte.
 
-    python examples/dask_local.py [--size 96] [--chunk 32] [--exemplar IMAGE] [--seed 5]
+    python python/examples/dask_local.py [--size 96] [--chunk 32] [--exemplar IMAGE] [--seed 5]
 
 Two worker processes of one thread each compute the blocks: a block's voxels depend only on its
 coordinates, so whichever worker computes it, the array is the solid. Exits 1 when the Zarr
-array differs from the single region. Needs `pip install solidsynth[dask]`.
+array differs from the single region. Needs `pip install './python[dask]'` (from the repository
+root).
 """
 
 import argparse

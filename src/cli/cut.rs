@@ -35,8 +35,9 @@ pub struct CutArgs {
         allow_hyphen_values = true
     )]
     pub spacing: f64,
-    /// Run the cut K times through one session and print the median and p95 latency of the warm
-    /// cuts (all but the first, which is reported on its own).
+    /// Run the cut K times, keeping the pipelines, level data and device buffers between cuts,
+    /// and print the median and p95 latency of the warm cuts (all but the first, which is
+    /// reported on its own).
     #[arg(help_heading = "Cut", long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=10000))]
     pub repeat: u32,
     /// Output PNG.

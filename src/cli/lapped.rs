@@ -61,9 +61,9 @@ pub struct ExemplarArgs {
 #[derive(Args, Debug)]
 #[command(next_help_heading = "Fill")]
 pub struct FillArgs {
-    /// Closed (or nearly closed) triangle mesh: .obj, .ply or .ply.gz, or a built-in shape:
-    /// `builtin:sphere` (unit sphere) or `builtin:bent-cylinder` (radius 0.3 around a quarter
-    /// circle of radius 1 from (1,0,0) to (0,1,0)).
+    /// Closed (or nearly closed) triangle mesh: .obj, .ply, .ply.gz, .glb or .gltf, or a built-in
+    /// shape: `builtin:sphere` (unit sphere) or `builtin:bent-cylinder` (radius 0.3 around a
+    /// quarter circle of radius 1 from (1,0,0) to (0,1,0)).
     #[arg(long)]
     pub mesh: PathBuf,
     /// Solid exemplar: a cubic NRRD volume (e.g. from `solidsynth synth --tileable --size 64`).
@@ -114,8 +114,10 @@ pub struct CutArgs {
     /// Cut K times and print the median and p95 latency of all but the first cut.
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=10000))]
     pub repeat: u32,
+    /// Output: the cut as a PNG (pixels off the model transparent).
     #[arg(help_heading = "Output", short, long)]
     pub output: PathBuf,
+    /// Print a JSON summary on stdout.
     #[arg(help_heading = "Output", long)]
     pub json: bool,
 }
@@ -139,8 +141,10 @@ pub struct RenderArgs {
     pub size: u32,
     #[command(flatten)]
     pub backend: BackendArgs,
+    /// Output: the render as a PNG (background transparent).
     #[arg(help_heading = "Output", short, long)]
     pub output: PathBuf,
+    /// Print a JSON summary on stdout.
     #[arg(help_heading = "Output", long)]
     pub json: bool,
 }
@@ -156,6 +160,7 @@ pub struct BakeArgs {
     /// Output: .glb.
     #[arg(help_heading = "Output", short, long)]
     pub output: PathBuf,
+    /// Print a JSON summary on stdout.
     #[arg(help_heading = "Output", long)]
     pub json: bool,
 }

@@ -47,10 +47,12 @@ pub enum Command {
     #[command(after_help = help::ANALYZE)]
     Analyze(analyze::AnalyzeArgs),
     /// Score a volume against its exemplar: histograms, patch coherence and completeness,
-    /// gradient orientations, per axis, with floors; optionally a contact sheet.
+    /// gradient orientations and sharpness, sliced Wasserstein distances of patches at three
+    /// scales and the power spectrum, per axis, with floors; optionally a contact sheet.
     #[command(after_help = help::EVAL)]
     Eval(eval::EvalArgs),
-    /// Synthesize the solid texture box [0, N)^3 (NRRD, optional PNG slices, flipbook, sheet).
+    /// Synthesize the solid texture box [0, N)^3, or a tileable solid, as a volume (NRRD, NumPy,
+    /// TIFF, KTX2, OpenVDB, VTI or flipbook PNG); optional PNG slices, flipbook, sheet.
     #[command(after_help = help::SYNTH)]
     Synth(synth::SynthArgs),
     /// Synthesize any box of the infinite solid (same voxels as in any larger box).
@@ -65,7 +67,7 @@ pub enum Command {
     /// Describe a .ssa file and write its candidate slab as a PNG.
     #[command(after_help = help::INSPECT)]
     Inspect(inspect::InspectArgs),
-    /// Gradient solid textures: vectorize a volume into a .gsolid, render one.
+    /// Gradient solid textures: synthesize, vectorize, render and edit gradient solids (.gsolid).
     #[command(subcommand)]
     Gradient(gradient::GradientCommand),
     /// Relightable textures (polynomial texture maps): capture, fit, synthesize, relight.

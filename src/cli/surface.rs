@@ -15,7 +15,7 @@ use std::time::Instant;
 pub struct SurfaceArgs {
     #[command(flatten)]
     pub solid: SolidParams,
-    /// Mesh (.obj, .ply or .ply.gz); open or non-manifold meshes are fine.
+    /// Mesh (.obj, .ply, .ply.gz, .glb or .gltf); open or non-manifold meshes are fine.
     #[arg(help_heading = "Surface", long)]
     pub mesh: PathBuf,
     /// The mesh is scaled so its longest side spans this many finest-level voxels.

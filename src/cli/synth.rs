@@ -77,7 +77,7 @@ pub struct SolidParams {
     /// exemplar there (closer to the exemplar on most quality measures; a voxel's colour then
     /// reads its neighbours, so requests compute 2 voxels more around their output); `matched`:
     /// the mean with the exemplar's mean colour and contrast restored (a table from
-    /// a probe solid synthesized when the session starts; better histogram and sharpness
+    /// a probe solid synthesized when the command starts; better histogram and sharpness
     /// scores); or one exemplar's pixel (x, y, z). Or one of these per colour channel, red
     /// first, separated by commas (`x,y,z`: red from Ex, green from Ey, blue from Ez).
     #[arg(
@@ -198,7 +198,8 @@ pub struct SolidArgs {
     /// Also write the volume as VTK image data (.vti, for ParaView).
     #[arg(help_heading = "Output", long)]
     pub vti: Option<PathBuf>,
-    /// Also write the finest-level coordinate triples (format in the README).
+    /// Also write the finest-level coordinate triples (layout: docs/formats.md, "The triples
+    /// file").
     #[arg(help_heading = "Output", long)]
     pub triples: Option<PathBuf>,
     /// Also write a contact sheet (exemplar beside orthogonal slices).

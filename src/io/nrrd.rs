@@ -7,7 +7,6 @@
 
 use crate::error::{Error, Result};
 use crate::volume::Volume;
-use std::io::Read;
 use std::path::Path;
 
 /// Largest volume accepted when reading (voxels x channels), to refuse absurd headers before
@@ -293,27 +292,18 @@ fn decode(bytes: &[u8], header: Header) -> std::result::Result<Volume, String> {
 /// inflates to more or less, or is followed by other bytes, is refused (the message says which;
 /// the caller appends the sizes).
 fn inflate(data: &[u8], want: u64) -> std::result::Result<Vec<u8>, String> {
-    let damaged = |e: std::io::Error| format!("gzip data is damaged ({e})");
-    let mut decoder = flate2::bufread::GzDecoder::new(data);
-    let mut out = Vec::with_capacity(want as usize);
-    (&mut decoder)
-        .take(want)
-        .read_to_end(&mut out)
-        .map_err(damaged)?;
+    use crate::util::gzip::{self, InflateError};
+    let out = gzip::inflate(data, want).map_err(|e| match e {
+        InflateError::TooLarge => format!("gzip data inflates to more than the {want} bytes"),
+        InflateError::Trailing(after) => {
+            format!("{after} bytes follow the gzip data, which holds the {want} bytes")
+        }
+        damaged => damaged.to_string(),
+    })?;
     if (out.len() as u64) < want {
         return Err(format!(
             "gzip data inflates to {} bytes, fewer than the {want}",
             out.len()
-        ));
-    }
-    // Reading on to the stream's end checks its CRC and length too.
-    if decoder.read(&mut [0u8; 1]).map_err(damaged)? > 0 {
-        return Err(format!("gzip data inflates to more than the {want} bytes"));
-    }
-    let after = decoder.into_inner().len();
-    if after > 0 {
-        return Err(format!(
-            "{after} bytes follow the gzip data, which holds the {want} bytes"
         ));
     }
     Ok(out)

@@ -115,7 +115,7 @@ impl Synthesizer {
         for level in 0..levels.len() {
             if level > 0 {
                 // The previous level's dispatches go to the GPU while this level's index is
-                // built (and its buffers are freed once they ran, as before).
+                // built (and its buffers are freed once they have run).
                 self.exec.flush()?;
                 (layout, index) = index_of(&mut self.exec, &levels, level);
                 // The parent's sub-pass plans are done with.

@@ -58,11 +58,9 @@ use request::{Job, Periodic};
 pub use slabs::Slab;
 use slabs::SlabsJoined;
 
-/// Order of the parity classes (bit 0 = x, 1 = y, 2 = z) within a pass. Chosen (exhaustively,
-/// over all 8! orders) to minimize the dependency padding when every sub-pass read the latest
-/// values (13 voxels per level for two passes, against 19 for the lexicographic order); since
-/// sub-passes are brick-local (`plan`) the order no longer changes the padding, only which
-/// in-brick neighbours a class sees updated.
+/// Order of the parity classes (bit 0 = x, 1 = y, 2 = z) within a pass. Sub-passes are
+/// brick-local (`plan`), so the order does not change the dependency padding; it decides which
+/// in-brick neighbours a class sees already updated, so another order gives a different solid.
 pub const SUBPASS_ORDER: [usize; 8] = [0, 6, 5, 4, 3, 1, 2, 7];
 
 /// Progress: (message, fraction of the whole job).

@@ -11,12 +11,14 @@ pub mod dilate;
 pub mod glb;
 pub mod gltf_in;
 pub mod pack;
+mod ply_in;
 pub mod uv_raster;
 
 use crate::error::{Error, Result};
 use glam::DVec3;
-use std::io::Read;
 use std::path::Path;
+
+pub use ply_in::parse_ply;
 
 /// The Stanford bunny as an OBJ file (`assets/meshes/bunny.obj`): the viewer's built-in mesh and
 /// the surface job of `bench compare`.
@@ -197,10 +199,19 @@ pub fn load(path: &Path) -> Result<Mesh> {
     } else if lower.ends_with(".ply") {
         parse_ply(&bytes, &name)?
     } else if lower.ends_with(".ply.gz") {
-        let mut raw = Vec::new();
-        flate2::read::GzDecoder::new(&bytes[..])
-            .read_to_end(&mut raw)
-            .map_err(|e| Error::invalid(&name, format!("not a valid gzip file: {e}")))?;
+        // Inflated whole before parsing: at most the memory there is.
+        let available = crate::util::memory::available_memory();
+        let raw = crate::util::gzip::inflate(&bytes, available).map_err(|e| {
+            use crate::util::gzip::InflateError;
+            let problem = match e {
+                InflateError::TooLarge => format!(
+                    "inflates to more than the memory there is: {}",
+                    crate::util::memory::available_text(available)
+                ),
+                other => other.to_string(),
+            };
+            Error::invalid(&name, problem)
+        })?;
         parse_ply(&raw, &name)?
     } else if lower.ends_with(".glb") || lower.ends_with(".gltf") {
         gltf_in::parse_gltf(&bytes, &name, path.parent())?
@@ -336,105 +347,6 @@ fn obj_corners_have_attributes(bytes: &[u8]) -> (bool, bool) {
         }
     }
     (uvs, normals)
-}
-
-/// Parse a PLY file (ASCII or binary): `vertex` elements with x, y, z and `face` elements with
-/// a `vertex_indices` (or `vertex_index`) list; polygons are fanned into triangles.
-pub fn parse_ply(bytes: &[u8], name: &str) -> Result<Mesh> {
-    use ply_rs_bw::parser::Parser;
-    use ply_rs_bw::ply::{DefaultElement, Property};
-    let bad = |why: String| Error::invalid(name, why);
-    let ply = Parser::<DefaultElement>::new()
-        .read_ply(&mut &bytes[..])
-        .map_err(|e| bad(format!("not a valid PLY file: {e}")))?;
-    let scalar = |p: Option<&Property>| -> Option<f32> {
-        Some(match p? {
-            Property::Float(v) => *v,
-            Property::Double(v) => *v as f32,
-            Property::Int(v) => *v as f32,
-            Property::UInt(v) => *v as f32,
-            Property::Short(v) => *v as f32,
-            Property::UShort(v) => *v as f32,
-            Property::Char(v) => *v as f32,
-            Property::UChar(v) => *v as f32,
-            _ => return None,
-        })
-    };
-    let vertices = ply
-        .payload
-        .get("vertex")
-        .ok_or_else(|| bad("no vertex element".into()))?;
-    let mut positions = Vec::with_capacity(vertices.len());
-    for (i, v) in vertices.iter().enumerate() {
-        let c = ["x", "y", "z"].map(|k| scalar(v.get(k)));
-        match c {
-            [Some(x), Some(y), Some(z)] => positions.push([x, y, z]),
-            _ => return Err(bad(format!("vertex {i} lacks a numeric x, y or z"))),
-        }
-    }
-    // Per-vertex texture coordinates under any of their usual names, and normals: kept when
-    // every vertex has them.
-    let uv_names = [
-        ["u", "v"],
-        ["s", "t"],
-        ["texture_u", "texture_v"],
-        ["texture_s", "texture_t"],
-    ];
-    let vertex_uvs: Option<Vec<[f32; 2]>> = uv_names.iter().find_map(|[u, v]| {
-        vertices
-            .iter()
-            .map(|p| Some([scalar(p.get(*u))?, 1.0 - scalar(p.get(*v))?]))
-            .collect()
-    });
-    let vertex_normals: Option<Vec<[f32; 3]>> = vertices
-        .iter()
-        .map(|p| Some(["nx", "ny", "nz"].map(|k| scalar(p.get(k)))))
-        .map(|n| match n? {
-            [Some(x), Some(y), Some(z)] => Some([x, y, z]),
-            _ => None,
-        })
-        .collect();
-    let mut triangles = Vec::new();
-    for (i, f) in ply.payload.get("face").into_iter().flatten().enumerate() {
-        let list = f.get("vertex_indices").or_else(|| f.get("vertex_index"));
-        let idx: Vec<i64> = match list {
-            Some(Property::ListInt(v)) => v.iter().map(|&x| x as i64).collect(),
-            Some(Property::ListUInt(v)) => v.iter().map(|&x| x as i64).collect(),
-            Some(Property::ListShort(v)) => v.iter().map(|&x| x as i64).collect(),
-            Some(Property::ListUShort(v)) => v.iter().map(|&x| x as i64).collect(),
-            Some(Property::ListChar(v)) => v.iter().map(|&x| x as i64).collect(),
-            Some(Property::ListUChar(v)) => v.iter().map(|&x| x as i64).collect(),
-            _ => return Err(bad(format!("face {i} has no integer vertex_indices list"))),
-        };
-        if idx.iter().any(|&x| x < 0 || x > u32::MAX as i64) {
-            return Err(bad(format!("face {i} has a negative or huge vertex index")));
-        }
-        for k in 1..idx.len().saturating_sub(1) {
-            triangles.push([idx[0] as u32, idx[k] as u32, idx[k + 1] as u32]);
-        }
-    }
-    // (Corners out of range are refused by `validate`; they get no attributes here.)
-    let per_corner = |t: &[u32; 3], of: &dyn Fn(usize) -> Option<[f32; 3]>| {
-        t.map(|i| of(i as usize).unwrap_or_default())
-    };
-    let uvs = vertex_uvs.filter(|u| !u.is_empty()).map(|u| {
-        triangles
-            .iter()
-            .map(|t| per_corner(t, &|i| u.get(i).map(|c| [c[0], c[1], 0.0])).map(|c| [c[0], c[1]]))
-            .collect()
-    });
-    let normals = vertex_normals.filter(|n| !n.is_empty()).map(|n| {
-        triangles
-            .iter()
-            .map(|t| per_corner(t, &|i| n.get(i).copied()))
-            .collect()
-    });
-    Ok(Mesh {
-        positions,
-        triangles,
-        uvs,
-        normals,
-    })
 }
 
 #[cfg(test)]

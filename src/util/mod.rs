@@ -2,6 +2,7 @@
 
 pub mod cancel;
 pub mod disk;
+pub mod gzip;
 pub mod hash;
 pub mod memory;
 

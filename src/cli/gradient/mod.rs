@@ -22,7 +22,8 @@ pub enum GradientCommand {
     /// Fit a gradient solid to a volume (NRRD): per control point, eq. 2's least squares.
     #[command(after_help = super::help::GRADIENT_VECTORIZE)]
     Vectorize(VectorizeArgs),
-    /// Render a .gsolid into a volume (NRRD).
+    /// Render a .gsolid into a volume (NRRD, NumPy, TIFF, KTX2, OpenVDB, VTI or flipbook PNG, by
+    /// the output's extension), or with --normal a slice of any orientation as a PNG.
     #[command(after_help = super::help::GRADIENT_RENDER)]
     Render(RenderArgs),
     /// Recolour by strokes (instant editing): voxels similar in place and colour to the strokes
@@ -217,7 +218,7 @@ pub struct RenderArgs {
     #[command(flatten)]
     pub backend: super::BackendArgs,
     /// Output: a volume, its extension picking the format as `synth -o` (.nrrd, .npy, .tif,
-    /// .ktx2, .vti, .png flipbook); with --normal a PNG slice.
+    /// .ktx2, .vdb, .vti, .png flipbook); with --normal a PNG slice.
     #[arg(help_heading = "Output", short, long)]
     pub output: PathBuf,
     /// The volume's format, whatever the extension.
