@@ -101,6 +101,10 @@ fn lst_round_trips_and_rejects_damage() {
     assert!(LstModel::parse(b"not a model at all")
         .unwrap_err()
         .contains("magic"));
+    let mut inverted = model.clone();
+    inverted.mesh.tets[3].swap(0, 1);
+    let e = LstModel::parse(&inverted.to_bytes()).unwrap_err();
+    assert!(e.contains("tet 3 is flat or inverted"), "{e}");
 }
 
 /// Re-seal a mutated body with a valid CRC, so the mutation reaches the parser proper.

@@ -199,19 +199,21 @@ pub fn load_image(path: &Path, what: &str) -> Result<Image> {
     decode_image(&bytes, &format!("{what} {}", path.display()))
 }
 
-/// Decode image bytes (see [`load_image`]).
+/// Decode image bytes (see [`load_image`]). An image whose header declares a side past
+/// [`MAX_EXEMPLAR_SIDE`] is refused before it is decoded.
 pub fn decode_image(bytes: &[u8], what: &str) -> Result<Image> {
-    let decoded = image::load_from_memory(bytes).map_err(|e| {
-        let problem = match (&e, image_dimensions(bytes)) {
-            // The decoder's memory limit (512 MiB by default) says only "Memory limit exceeded".
-            (image::ImageError::Limits(_), Some((w, h))) => format!(
-                "image is {w}x{h}, too large to decode; exemplars are at most \
-                 {MAX_EXEMPLAR_SIDE} pixels a side"
-            ),
-            _ => format!("cannot decode image: {e}"),
-        };
-        Error::invalid(what, problem)
-    })?;
+    if let Some((w, h)) = image_dimensions(bytes) {
+        if w > MAX_EXEMPLAR_SIDE || h > MAX_EXEMPLAR_SIDE {
+            return Err(Error::invalid(
+                what,
+                format!(
+                    "image is {w}x{h}; exemplars are at most {MAX_EXEMPLAR_SIDE} pixels a side"
+                ),
+            ));
+        }
+    }
+    let decoded = image::load_from_memory(bytes)
+        .map_err(|e| Error::invalid(what, format!("cannot decode image: {e}")))?;
     let (w, h) = (decoded.width(), decoded.height());
     if w == 0 || h == 0 {
         return Err(Error::invalid(what, format!("image is {w}x{h}")));

@@ -152,7 +152,9 @@ pub fn from_bytes(bytes: &[u8], name: &str) -> Result<GradientSolid> {
     }
     if dims.iter().any(|&d| !(2..=4096).contains(&d)) || !(1..=16).contains(&channels) {
         return Err(bad(format!(
-            "implausible grid {dims:?} x {channels} channels"
+            "declares a grid of {}x{}x{} cells with {channels} channels; a grid is 2..=4096 \
+             cells a side, with 1..=16 channels",
+            dims[0], dims[1], dims[2]
         )));
     }
     let len = u64::from_le_bytes(bytes[36..44].try_into().unwrap());

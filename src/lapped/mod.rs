@@ -50,12 +50,16 @@ fn check_scales(
         )?;
     }
     if let Some(s) = constraints.scale {
-        check_scale(s, &format!("{constraints_name}: scale {s}"), extent)?;
+        let named = format!("{constraints_name}: scale {}", crate::util::number_text(s));
+        check_scale(s, &named, extent)?;
     }
     for (i, &(_, s)) in constraints.scales.iter().enumerate() {
         check_scale(
             s,
-            &format!("{constraints_name}: scales[{i}].scale {s}"),
+            &format!(
+                "{constraints_name}: scales[{i}].scale {}",
+                crate::util::number_text(s)
+            ),
             extent,
         )?;
     }

@@ -276,10 +276,16 @@ impl LstModel {
         }
         r.need(nt.saturating_mul(16))?;
         let mut tets = Vec::with_capacity(nt);
-        for _ in 0..nt {
+        for i in 0..nt {
             let t = [r.u32()?, r.u32()?, r.u32()?, r.u32()?];
             if t.iter().any(|&i| i as usize >= nv) {
                 return Err("a tet refers to a vertex beyond those defined".into());
+            }
+            // The fill writes positively oriented tets, and cuts and bakes rely on it.
+            if TetMesh::signed_volume6(&t.map(|v| vertices[v as usize])) <= 0.0 {
+                return Err(format!(
+                    "tet {i} is flat or inverted (its corners are not positively oriented)"
+                ));
             }
             tets.push(t);
         }

@@ -236,6 +236,12 @@ pub fn parse_obj(bytes: &[u8], name: &str) -> Result<Mesh> {
         Err(tobj::LoadError::MaterialParseError)
     })
     .map_err(|e| Error::invalid(name, format!("not a valid OBJ file: {e}")))?;
+    if let Some((line, word)) = obj_unknown_statement(bytes) {
+        return Err(Error::invalid(
+            name,
+            format!("line {line} begins with {word:?}, which is not an OBJ statement"),
+        ));
+    }
     if let Some((line, corners)) = obj_short_face(bytes) {
         return Err(Error::invalid(
             name,
@@ -315,6 +321,66 @@ fn add_obj_corners<const N: usize>(
     Some(())
 }
 
+/// The statements of the OBJ format (geometry, grouping, display and free-form ones): a line
+/// beginning with anything else means the file is not OBJ, which the parser would not say.
+const OBJ_STATEMENTS: &[&str] = &[
+    "v",
+    "vt",
+    "vn",
+    "vp",
+    "f",
+    "fo",
+    "l",
+    "p",
+    "g",
+    "o",
+    "s",
+    "mg",
+    "usemtl",
+    "mtllib",
+    "call",
+    "csh",
+    "cstype",
+    "deg",
+    "bmat",
+    "step",
+    "curv",
+    "curv2",
+    "surf",
+    "parm",
+    "trim",
+    "hole",
+    "scrv",
+    "sp",
+    "end",
+    "con",
+    "bevel",
+    "c_interp",
+    "d_interp",
+    "lod",
+    "maplib",
+    "usemap",
+    "shadow_obj",
+    "trace_obj",
+    "ctech",
+    "stech",
+];
+
+/// The first line (1-based) that begins with a word no OBJ statement has, and the word.
+fn obj_unknown_statement(bytes: &[u8]) -> Option<(usize, String)> {
+    String::from_utf8_lossy(bytes)
+        .lines()
+        .enumerate()
+        .find_map(|(i, line)| {
+            let word = line
+                .trim_start_matches('\u{feff}')
+                .split_whitespace()
+                .next()?;
+            let known = word.starts_with('#') || OBJ_STATEMENTS.contains(&word);
+            (!known).then(|| (i + 1, word.chars().take(20).collect()))
+        })
+}
+
 /// The first `f` line with fewer than three corners (its 1-based number and corner count): the
 /// OBJ parser would make a degenerate triangle of it.
 fn obj_short_face(bytes: &[u8]) -> Option<(usize, usize)> {
@@ -373,6 +439,18 @@ mod tests {
         let mut lonely = mesh.clone();
         lonely.positions.push([5.0, 5.0, 5.0]);
         assert_eq!(lonely.vertex_normals()[4], [0.0, 0.0, 1.0]);
+    }
+
+    #[test]
+    fn a_file_that_is_not_obj_is_refused_by_its_first_foreign_line() {
+        let text = format!("\u{feff}# made by hand\no tetra\n{TETRA_OBJ}\nthis is not obj\n");
+        let e = parse_obj(text.as_bytes(), "t.obj").unwrap_err().to_string();
+        assert!(e.contains("line 12 begins with \"this\""), "{e}");
+        let fine = format!("\u{feff}# made by hand\r\no tetra\r\ns off\n{TETRA_OBJ}");
+        assert_eq!(
+            parse_obj(fine.as_bytes(), "t.obj").unwrap().triangles.len(),
+            4
+        );
     }
 
     #[test]

@@ -24,10 +24,20 @@ pub struct Light {
 }
 
 impl Light {
-    /// From a direction towards the light (any length, z > 0).
+    /// From a direction towards the light (any finite length but zero, z > 0).
     pub fn from_direction(d: [f64; 3]) -> Option<Light> {
-        let n = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
-        (n > 0.0 && n.is_finite() && d[2] > 0.0).then(|| Light {
+        if !(d.iter().all(|c| c.is_finite()) && d[2] > 0.0) {
+            return None;
+        }
+        let length = |d: [f64; 3]| (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+        // A length whose square overflows or underflows is measured scaled to its largest
+        // component; ordinary lengths keep their exact quotients.
+        let d = match length(d) {
+            n if n.is_finite() && n > 1e-150 => d,
+            _ => d.map(|c| c / d.iter().fold(0f64, |m, c| m.max(c.abs()))),
+        };
+        let n = length(d);
+        Some(Light {
             lu: d[0] / n,
             lv: d[1] / n,
         })
@@ -106,7 +116,7 @@ pub fn parse_lights(text: &str, what: &str, json: bool) -> Result<Vec<(String, L
     let light_of = |d: [f64; 3], i: usize| {
         Light::from_direction(d).ok_or_else(|| {
             bad(format!(
-                "light {i} ({}, {}, {}) is not a direction above the surface (needs z > 0)",
+                "light {i} ({}, {}, {}) is not a finite direction above the surface (needs z > 0)",
                 number_text(d[0]),
                 number_text(d[1]),
                 number_text(d[2])
@@ -132,11 +142,15 @@ pub fn parse_lights(text: &str, what: &str, json: bool) -> Result<Vec<(String, L
                 )));
             }
             let light = if let Some(d) = e.get("direction").and_then(|d| d.as_array()) {
-                let d: Vec<f64> = d.iter().filter_map(|x| x.as_f64()).collect();
-                if d.len() != 3 {
-                    return Err(bad(format!("light {i}: \"direction\" needs 3 numbers")));
+                let d: Option<Vec<f64>> = d.iter().map(|x| x.as_f64()).collect();
+                match d.as_deref() {
+                    Some(&[x, y, z]) => light_of([x, y, z], i)?,
+                    _ => {
+                        return Err(bad(format!(
+                            "light {i}: \"direction\" needs 3 numbers, [x, y, z]"
+                        )))
+                    }
                 }
-                light_of([d[0], d[1], d[2]], i)?
             } else {
                 let lu = e.get("lu").and_then(|x| x.as_f64());
                 let lv = e.get("lv").and_then(|x| x.as_f64());
@@ -144,7 +158,9 @@ pub fn parse_lights(text: &str, what: &str, json: bool) -> Result<Vec<(String, L
                     (Some(lu), Some(lv)) if lu * lu + lv * lv <= 1.0 => Light { lu, lv },
                     (Some(lu), Some(lv)) => {
                         return Err(bad(format!(
-                            "light {i}: (lu, lv) = ({lu}, {lv}) is outside the unit disk"
+                            "light {i}: (lu, lv) = ({}, {}) is outside the unit disk",
+                            number_text(lu),
+                            number_text(lv)
                         )))
                     }
                     _ => {
@@ -158,15 +174,17 @@ pub fn parse_lights(text: &str, what: &str, json: bool) -> Result<Vec<(String, L
         }
         return Ok(out);
     }
+    // Numbered as the file's lines, comments and blank lines included.
     let mut lines = text
         .lines()
         .map(str::trim)
-        .filter(|l| !l.is_empty() && !l.starts_with('#'));
+        .enumerate()
+        .filter(|(_, l)| !l.is_empty() && !l.starts_with('#'));
     let count: usize = lines
         .next()
-        .and_then(|l| l.parse().ok())
+        .and_then(|(_, l)| l.parse().ok())
         .ok_or_else(|| bad("first line must be the image count".into()))?;
-    for (i, line) in lines.enumerate() {
+    for (i, (at, line)) in lines.enumerate() {
         let parts: Vec<&str> = line.split_whitespace().collect();
         let nums: Option<Vec<f64>> = parts.iter().skip(1).map(|p| p.parse().ok()).collect();
         match (parts.len(), nums) {
@@ -174,7 +192,7 @@ pub fn parse_lights(text: &str, what: &str, json: bool) -> Result<Vec<(String, L
             _ => {
                 return Err(bad(format!(
                     "line {} {line:?}: expected `file x y z`",
-                    i + 2
+                    at + 1
                 )))
             }
         }

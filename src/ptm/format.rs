@@ -126,13 +126,24 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Ptm, String> {
     }
     pos += 1;
     let side = |t: &str, what: &str| -> Result<u32, String> {
-        let v: u32 = t
-            .parse()
-            .map_err(|_| format!("header: {what} {t:?} is not a whole number"))?;
-        if v == 0 || v > MAX_SIDE {
-            return Err(format!("header: {what} {v} out of range 1..={MAX_SIDE}"));
+        let out_of_range = || {
+            let shown = match t.len() > 20 {
+                true => format!("{}...", &t[..20]),
+                false => t.to_string(),
+            };
+            format!("header: {what} {shown} is out of range 1..={MAX_SIDE}")
+        };
+        let v: u64 = match t.parse() {
+            Ok(v) => v,
+            Err(_) if !t.is_empty() && t.bytes().all(|b| b.is_ascii_digit()) => {
+                return Err(out_of_range())
+            }
+            Err(_) => return Err(format!("header: {what} {t:?} is not a whole number")),
+        };
+        if v == 0 || v > MAX_SIDE as u64 {
+            return Err(out_of_range());
         }
-        Ok(v)
+        Ok(v as u32)
     };
     let width = side(&tokens[0], "width")?;
     let height = side(&tokens[1], "height")?;

@@ -63,7 +63,9 @@ impl AnalysisCache {
         let bytes = match std::fs::read(&path) {
             Ok(b) => b,
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Cached::Miss,
-            Err(e) => return Cached::Invalid(format!("unreadable: {e}")),
+            Err(e) => {
+                return Cached::Invalid(format!("unreadable: {}", crate::error::io_problem(&e)))
+            }
         };
         match parse(&bytes, key) {
             Ok(a) => Cached::Hit(a),

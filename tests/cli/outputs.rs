@@ -495,10 +495,15 @@ fn output_names_and_values_get_messages_that_say_what_is_wrong() {
     assert_user_error(&o, "holds a directory", d, &["file", "man", "loop.nrrd"]);
     assert_eq!(std::fs::read_dir(d.join("man")).unwrap().count(), 1);
     std::fs::remove_dir_all(d.join("man")).unwrap();
-    // An image too large to decode is named by its size, not by the decoder's memory limit.
+    // An image too large is named by its size before it is decoded.
     std::fs::write(d.join("huge.png"), png_header_only(100_000, 100_000)).unwrap();
     let o = in_dir(&["analyze", "--backend", "cpu", "huge.png", "-o", "h.ssa"]);
-    assert_user_error(&o, "image is 100000x100000, too large to decode", d, &kept);
+    assert_user_error(
+        &o,
+        "image is 100000x100000; exemplars are at most 2048 pixels a side",
+        d,
+        &kept,
+    );
     // A memory budget of nothing is named as the limit.
     let o = bin()
         .current_dir(d)

@@ -130,4 +130,39 @@ fn light_files_parse_and_mismatches_are_named() {
         true
     )
     .is_err());
+    let refusal = |text: &str, json: bool| {
+        capture::parse_lights(text, "f", json)
+            .unwrap_err()
+            .to_string()
+    };
+    // Every entry of a direction is a number (a string was dropped, leaving x, z as the light).
+    let e = refusal(
+        r#"{"lights": [{"file": "a", "direction": [0.9, "y", 0, 0.3]}]}"#,
+        true,
+    );
+    assert!(e.contains("needs 3 numbers"), "{e}");
+    // Huge numbers are printed short, and a huge direction is still a direction.
+    let e = refusal(r#"{"lights": [{"file": "a", "lu": 1e300, "lv": 0}]}"#, true);
+    assert!(e.contains("(1e300, 0) is outside"), "{e}");
+    let far = capture::parse_lights(
+        "1
+a.png 1e300 0 1e300
+",
+        "f",
+        false,
+    )
+    .unwrap();
+    assert!((far[0].1.lu - 0.5f64.sqrt()).abs() < 1e-12);
+    // Line numbers count comments and blank lines.
+    let e = refusal(
+        "# lights
+
+2
+a.png 0 0 1
+
+b.png 0 0
+",
+        false,
+    );
+    assert!(e.contains("line 6"), "{e}");
 }

@@ -80,6 +80,10 @@ fn damaged_ptm_files_are_named() {
     assert!(format::from_bytes(huge)
         .unwrap_err()
         .contains("out of range"));
+    // Past u32 too: out of range, not "not a whole number".
+    let past = b"PTM_1.2\nPTM_FORMAT_RGB\n99999999999 9\n1 1 1 1 1 1\n0 0 0 0 0 0\n";
+    let e = format::from_bytes(past).unwrap_err();
+    assert!(e.contains("width 99999999999 is out of range"), "{e}");
 }
 
 /// Truncations, bit flips and header mutations in a loop: errors, never panics.

@@ -14,6 +14,7 @@
 
 use crate::error::{Error, Result};
 use crate::lapped::winding::Winding;
+use crate::util::number_text;
 use glam::DVec3;
 use serde::Deserialize;
 use std::path::Path;
@@ -172,7 +173,10 @@ impl Constraints {
         };
         if let Some(s) = file.scale {
             if !(s.is_finite() && s > 0.0) {
-                return Err(Error::invalid(what, format!("scale {s}: must be positive")));
+                return Err(Error::invalid(
+                    what,
+                    format!("scale {}: must be positive", number_text(s)),
+                ));
             }
         }
         let mut scales = Vec::new();
@@ -180,7 +184,10 @@ impl Constraints {
             if !(s.scale.is_finite() && s.scale > 0.0) {
                 return Err(Error::invalid(
                     what,
-                    format!("scales[{i}].scale {}: must be positive", s.scale),
+                    format!(
+                        "scales[{i}].scale {}: must be positive",
+                        number_text(s.scale)
+                    ),
                 ));
             }
             scales.push((point(&s.at, &format!("scales[{i}].at"))?, s.scale));
@@ -212,7 +219,10 @@ impl Constraints {
                     if !(r.radius.is_finite() && r.radius > 0.0) {
                         return Err(Error::invalid(
                             what,
-                            format!("depth.{field}[{i}].radius {}: must be positive", r.radius),
+                            format!(
+                                "depth.{field}[{i}].radius {}: must be positive",
+                                number_text(r.radius)
+                            ),
                         ));
                     }
                     Ok((center, r.radius))
@@ -300,7 +310,9 @@ impl Constraints {
                     what,
                     format!(
                         "{field}: point ({}, {}, {}) is outside the mesh",
-                        p.x, p.y, p.z
+                        number_text(p.x),
+                        number_text(p.y),
+                        number_text(p.z)
                     ),
                 ));
             }
