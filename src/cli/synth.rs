@@ -516,7 +516,7 @@ fn run_box(args: &SolidArgs, region: Box3, tileable: bool, quiet: bool) -> anyho
         let staging = outputs.directory(dir)?;
         for z in 0..volume.nz {
             let path = dir.join(format!("slice_{z:04}.png"));
-            let png = atomic::png_bytes(&z_slice(&volume, z))?;
+            let png = atomic::rgba_png_bytes(&z_slice(&volume, z))?;
             std::fs::write(staging.join(path.file_name().expect("a file name")), png)
                 .map_err(|e| Error::io(&path, e))?;
         }

@@ -36,6 +36,10 @@ impl Default for Propagation {
 /// Most RBF centres used.
 pub const MAX_CENTRES: usize = 256;
 
+/// The most strokes a file may hold: the fit's matrix is then 200 MiB (a row of
+/// [`MAX_CENTRES`] f64 per stroke).
+pub const MAX_STROKES: usize = 100_000;
+
 #[derive(Clone, Debug, PartialEq, serde::Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Stroke {
@@ -56,6 +60,16 @@ pub fn parse_strokes(text: &str, name: &str) -> Result<Vec<Stroke>> {
     })?;
     if s.strokes.is_empty() {
         return Err(Error::invalid(name, "no strokes"));
+    }
+    if s.strokes.len() > MAX_STROKES {
+        return Err(Error::invalid(
+            name,
+            format!(
+                "holds {} strokes; at most {MAX_STROKES} are fitted (each adds a row of \
+                 {MAX_CENTRES} kernel values to the fit)",
+                s.strokes.len()
+            ),
+        ));
     }
     for (i, k) in s.strokes.iter().enumerate() {
         if !k.position.iter().all(|v| v.is_finite()) {
@@ -254,6 +268,16 @@ mod tests {
                 "{err}"
             );
         }
+        let stroke = r#"{"position": [1, 2, 3], "strength": 0.5}"#;
+        let many = format!(
+            r#"{{"strokes": [{}]}}"#,
+            [stroke; MAX_STROKES + 1].join(",")
+        );
+        let err = parse_strokes(&many, "s.json").unwrap_err().to_string();
+        assert!(
+            err.contains("holds 100001 strokes; at most 100000"),
+            "{err}"
+        );
     }
 
     /// Two regions of different colour: a full-strength stroke in one turns it (near the stroke)

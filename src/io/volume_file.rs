@@ -221,7 +221,7 @@ impl VolumeWriter {
                     VolumeFormat::Ktx2 => ktx2::to_bytes(&v, self.output.texture),
                     VolumeFormat::Vdb => vdb::to_bytes(&v, self.output.vdb),
                     VolumeFormat::Vti => crate::io::vti::to_checked_bytes(&v, &self.path)?,
-                    _ => crate::io::atomic::png_bytes(&crate::io::flipbook::to_image(&v))?,
+                    _ => crate::io::atomic::rgba_png_bytes(&crate::io::flipbook::to_image(&v))?,
                 };
                 let mut file = PendingFile::create(&self.path)?;
                 file.write_all(&bytes)?;
@@ -246,7 +246,7 @@ pub fn to_bytes(v: &Volume, output: VolumeOutput) -> Result<Vec<u8>> {
         VolumeFormat::Vdb => return Ok(vdb::to_bytes(v, output.vdb)),
         VolumeFormat::Vti => return Ok(crate::io::vti::to_bytes(v)),
         VolumeFormat::Png => {
-            return crate::io::atomic::png_bytes(&crate::io::flipbook::to_image(v));
+            return crate::io::atomic::rgba_png_bytes(&crate::io::flipbook::to_image(v));
         }
     };
     bytes.extend_from_slice(&v.data);

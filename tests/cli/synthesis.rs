@@ -89,6 +89,25 @@ fn synth_writes_nrrd_flipbook_slices_and_sheet_from_an_ssa() {
     }
     // And the whole flipbook reads back as the volume (round trip).
     assert_eq!(solidsynth::io::flipbook::from_image(&f, 12, 3).unwrap(), v);
+    // The volume written as a PNG is the same picture, in the same bytes; an opaque solid's
+    // PNGs are RGB.
+    let as_png = d.join("v.png");
+    let o = run(&[
+        "synth",
+        ssa.to_str().unwrap(),
+        "--size",
+        "12",
+        "--seed",
+        "3",
+        "--backend",
+        "cpu",
+        "-o",
+        as_png.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(std::fs::read(&as_png).unwrap() == std::fs::read(&flip).unwrap());
+    let slice = image::open(slices.join("slice_0005.png")).unwrap();
+    assert_eq!(slice.color(), image::ColorType::Rgb8);
 }
 
 #[test]

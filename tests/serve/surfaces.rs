@@ -70,6 +70,11 @@ fn surfaces_bake_on_demand_onto_uploaded_meshes_and_equal_the_command_line() {
     assert_error(
         &post("/api/meshes?format=obj", "model/obj", b"garbage"),
         400,
+        "line 1 begins with \"garbage\", which is not an OBJ statement",
+    );
+    assert_error(
+        &post("/api/meshes?format=obj", "model/obj", b"# nothing\n"),
+        400,
         "no triangles",
     );
     assert_error(
