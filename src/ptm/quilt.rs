@@ -107,7 +107,8 @@ impl QuiltParams {
     }
 
     /// Refuse a synthesis whose [`memory_bytes`](Self::memory_bytes) exceed the memory
-    /// available (see [`memory::available_memory`]), before anything is allocated.
+    /// available (the machine's, its cgroup's, `ulimit -v`'s or `SOLIDSYNTH_MEMORY_BUDGET_MIB`),
+    /// before anything is allocated.
     pub fn check_memory(&self, src: &Ptm) -> Result<()> {
         let (estimate, available) = (self.memory_bytes(src), memory::available_memory());
         if estimate > available {
