@@ -19,15 +19,20 @@ fn synth_writes_nrrd_flipbook_slices_and_sheet_from_an_ssa() {
     assert!(o.status.success());
     let out = d.join("v.nrrd");
     let (flip, sheet, slices) = (d.join("f.png"), d.join("s.png"), d.join("slices"));
-    let o = run(&[
-        "synth",
-        ssa.to_str().unwrap(),
-        "--size",
-        "12",
-        "--seed",
-        "3",
-        "--backend",
-        "cpu",
+    // One solid, asked for with `more` arguments.
+    let synth = |more: &[&str]| {
+        let solid = [
+            "synth",
+            ssa.to_str().unwrap(),
+            "--size",
+            "12",
+            "--seed",
+            "3",
+        ];
+        let o = run(&[&solid[..], &["--backend", "cpu"], more].concat());
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    };
+    synth(&[
         "-o",
         out.to_str().unwrap(),
         "--flipbook",
@@ -38,7 +43,6 @@ fn synth_writes_nrrd_flipbook_slices_and_sheet_from_an_ssa() {
         slices.to_str().unwrap(),
         "--json",
     ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let v = solidsynth::io::nrrd::load(&out).unwrap();
     assert_eq!((v.nx, v.ny, v.nz, v.channels), (12, 12, 12, 3));
     let header = String::from_utf8_lossy(&std::fs::read(&out).unwrap()[..80]).to_string();
@@ -53,15 +57,7 @@ fn synth_writes_nrrd_flipbook_slices_and_sheet_from_an_ssa() {
     // Triples of the same run: header (8-byte magic, 6 u32) then 3 u32 per voxel. Streamed in
     // slabs of small groups, the volume and its triples are the same bytes.
     let with_triples = |name: &str, max_group: &str| {
-        let o = run(&[
-            "synth",
-            ssa.to_str().unwrap(),
-            "--size",
-            "12",
-            "--seed",
-            "3",
-            "--backend",
-            "cpu",
+        synth(&[
             "--max-group",
             max_group,
             "-o",
@@ -69,7 +65,6 @@ fn synth_writes_nrrd_flipbook_slices_and_sheet_from_an_ssa() {
             "--triples",
             d.join(format!("{name}.bin")).to_str().unwrap(),
         ]);
-        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
         let volume = std::fs::read(d.join(format!("{name}.nrrd"))).unwrap();
         assert!(
             volume == std::fs::read(&out).unwrap(),
@@ -92,19 +87,7 @@ fn synth_writes_nrrd_flipbook_slices_and_sheet_from_an_ssa() {
     // The volume written as a PNG is the same picture, in the same bytes; an opaque solid's
     // PNGs are RGB.
     let as_png = d.join("v.png");
-    let o = run(&[
-        "synth",
-        ssa.to_str().unwrap(),
-        "--size",
-        "12",
-        "--seed",
-        "3",
-        "--backend",
-        "cpu",
-        "-o",
-        as_png.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    synth(&["-o", as_png.to_str().unwrap()]);
     assert!(std::fs::read(&as_png).unwrap() == std::fs::read(&flip).unwrap());
     let slice = image::open(slices.join("slice_0005.png")).unwrap();
     assert_eq!(slice.color(), image::ColorType::Rgb8);
