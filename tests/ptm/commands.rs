@@ -319,42 +319,30 @@ fn cli_bad_ptm_inputs_exit_2_and_write_nothing() {
         .unwrap();
     assert_refused(&o, "--size 4096x4096: needs about", &out);
     assert_refused(&o, "64.0 MiB is available", &out);
-    // --elevation belongs to --sweep; it was ignored beside --light.
+    // Relights refused: --elevation belongs to --sweep (it was ignored beside --light), and a
+    // light outside the unit disk.
     let relit = d.join("relit.png");
-    assert_refused(
-        &run(&[
-            "ptm",
-            "relight",
-            p(&tex),
-            "--light",
+    let refusals: [(&str, &[&str], &str, &Path); 2] = [
+        (
             "0,0",
-            "--elevation",
-            "10",
-            "-o",
-            p(&relit),
-        ]),
-        "give --sweep N with it",
-        &relit,
-    );
+            &["--elevation", "10"],
+            "give --sweep N with it",
+            &relit,
+        ),
+        ("0.9,0.9", &["--backend", "cpu"], "--light", &png),
+    ];
+    for (light, more, needle, out) in refusals {
+        let relight = ["ptm", "relight", p(&tex), "--light", light];
+        assert_refused(
+            &run(&[&relight[..], more, &["-o", p(out)]].concat()),
+            needle,
+            out,
+        );
+    }
     // A light given both ways is ambiguous (the direction used to win).
     let both = r#"{"lights": [{"file": "a.png", "direction": [0, 0, 1], "lu": 0.1, "lv": 0.1}]}"#;
     let e = capture::parse_lights(both, "lights.json", true).unwrap_err();
     assert!(e.to_string().contains("gives both"), "{e}");
-    assert_refused(
-        &run(&[
-            "ptm",
-            "relight",
-            p(&tex),
-            "--light",
-            "0.9,0.9",
-            "--backend",
-            "cpu",
-            "-o",
-            p(&png),
-        ]),
-        "--light",
-        &png,
-    );
     // The input is never overwritten.
     let o = run(&[
         "ptm",
