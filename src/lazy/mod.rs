@@ -48,9 +48,12 @@ pub use options::SynthOptions;
 use pack::LevelPack;
 use params::periods_below;
 pub use params::{
-    check_coarse_cache, check_tileable_size, CandidateMode, ChannelSource, ChannelSources, ColorSource, PassSchedule,
-    SynthParams, COARSE_CACHE_PERIODS, MAX_PASSES,
+    check_tileable_size, CandidateMode, ChannelSource, ChannelSources, ColorSource, PassSchedule, SynthParams,
+    MAX_PASSES,
 };
+// The command line lists the coarse cache's valid sizes in its help.
+#[cfg(feature = "cli")]
+pub use params::{check_coarse_cache, COARSE_CACHE_PERIODS};
 pub use plan::Box3;
 use rayon::prelude::*;
 pub use request::{Delivery, Region, Request};

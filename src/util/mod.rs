@@ -1,6 +1,8 @@
 //! Small shared helpers.
 
 pub mod cancel;
+// Only the command line checks free space before writing (its Zarr regions).
+#[cfg(feature = "cli")]
 pub mod disk;
 pub mod gzip;
 pub mod hash;
