@@ -195,7 +195,7 @@ impl Image {
 /// 16-bit and float inputs are rounded to 8 bits (the synthesis works on 8-bit colours).
 /// `what` names the input in errors (a flag or "exemplar").
 pub fn load_image(path: &Path, what: &str) -> Result<Image> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let bytes = crate::io::input::read(path)?;
     decode_image(&bytes, &format!("{what} {}", path.display()))
 }
 

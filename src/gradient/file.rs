@@ -70,7 +70,7 @@ impl GradientFile {
 
     /// Read a `.gsolid` file of either kind.
     pub fn load(path: &Path) -> Result<GradientFile> {
-        let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+        let bytes = crate::io::input::read(path)?;
         let name = path.display().to_string();
         if regions::is_region_file(&bytes) {
             Ok(GradientFile::Regions(RegionSolid::from_bytes(

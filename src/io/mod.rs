@@ -2,6 +2,7 @@
 
 pub mod atomic;
 pub mod flipbook;
+pub mod input;
 pub mod ktx2;
 pub mod npy;
 pub mod nrrd;

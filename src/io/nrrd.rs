@@ -129,7 +129,7 @@ pub fn gzip_bytes(data: &[u8]) -> Vec<u8> {
 /// and `ulimit -v`'s room, or `SOLIDSYNTH_MEMORY_BUDGET_MIB`) is refused before its data is
 /// decoded.
 pub fn load(path: &Path) -> Result<Volume> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let bytes = crate::io::input::read(path)?;
     let header = parse_header(&bytes).map_err(|problem| Error::corrupt(path, problem))?;
     let available = crate::util::memory::available_memory();
     if header.bytes > available {

@@ -130,7 +130,7 @@ pub fn save(a: &Analysis, path: &Path) -> Result<()> {
 
 /// Read an analysis file.
 pub fn load(path: &Path) -> Result<Analysis> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let bytes = crate::io::input::read(path)?;
     from_bytes(&bytes).map_err(|problem| Error::corrupt(path, problem))
 }
 

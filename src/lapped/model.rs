@@ -217,7 +217,7 @@ impl LstModel {
     }
 
     pub fn load(path: &Path) -> Result<LstModel> {
-        let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+        let bytes = crate::io::input::read(path)?;
         Self::parse(&bytes).map_err(|problem| Error::corrupt(path, problem))
     }
 

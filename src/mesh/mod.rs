@@ -193,26 +193,13 @@ impl Placement {
 pub fn load(path: &Path) -> Result<Mesh> {
     let name = path.display().to_string();
     let lower = name.to_ascii_lowercase();
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let bytes = crate::io::input::read(path)?;
     let mesh = if lower.ends_with(".obj") {
         parse_obj(&bytes, &name)?
     } else if lower.ends_with(".ply") {
         parse_ply(&bytes, &name)?
     } else if lower.ends_with(".ply.gz") {
-        // Inflated whole before parsing: at most the memory there is.
-        let available = crate::util::memory::available_memory();
-        let raw = crate::util::gzip::inflate(&bytes, available).map_err(|e| {
-            use crate::util::gzip::InflateError;
-            let problem = match e {
-                InflateError::TooLarge => format!(
-                    "inflates to more than the memory there is: {}",
-                    crate::util::memory::available_text(available)
-                ),
-                other => other.to_string(),
-            };
-            Error::invalid(&name, problem)
-        })?;
-        parse_ply(&raw, &name)?
+        ply_in::parse_ply_gz(&bytes, &name)?
     } else if lower.ends_with(".glb") || lower.ends_with(".gltf") {
         gltf_in::parse_gltf(&bytes, &name, path.parent())?
     } else {

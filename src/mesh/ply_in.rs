@@ -113,24 +113,108 @@ pub fn parse_ply(bytes: &[u8], name: &str) -> Result<Mesh> {
     })
 }
 
+/// How far into a gzipped PLY's inflated bytes its header is looked for.
+const MAX_HEADER_BYTES: u64 = 1 << 20;
+/// The most bytes one number of an ASCII payload may take with its separators, when bounding
+/// how far a gzipped PLY may inflate (a float printed in full takes under 30).
+const MAX_ASCII_NUMBER_BYTES: u64 = 256;
+/// Blank lines an ASCII payload may end in, within that bound.
+const MAX_ASCII_TRAILING_BYTES: u64 = 64 << 10;
+
+/// Parse a gzipped PLY. Its header is inflated first, then the whole stream only up to the
+/// most bytes the header's elements can take (or the memory there is, if less): a small file
+/// inflating to gigabytes is refused once past what its header declares, not read whole first.
+pub fn parse_ply_gz(bytes: &[u8], name: &str) -> Result<Mesh> {
+    use crate::util::gzip::{inflate, inflate_prefix, InflateError};
+    use crate::util::memory::{available_memory, available_text, human_bytes};
+    use ply_rs_bw::parser::{Parser, Reader};
+    let bad = |why: String| Error::invalid(name, why);
+    let prefix = inflate_prefix(bytes, MAX_HEADER_BYTES).map_err(|e| bad(e.to_string()))?;
+    let mut reader = Reader::new(&prefix[..]);
+    let header = match Parser::<ply_rs_bw::ply::DefaultElement>::new().read_header(&mut reader) {
+        Ok(header) => header,
+        Err(_) if prefix.len() as u64 == MAX_HEADER_BYTES && prefix.starts_with(b"ply") => {
+            return Err(bad(format!(
+                "no end_header in its first {} of inflated data",
+                human_bytes(MAX_HEADER_BYTES)
+            )))
+        }
+        Err(e) => return Err(bad(format!("not a valid PLY file: {e}"))),
+    };
+    let header_bytes = (prefix.len() - reader.get_ref().len()) as u64;
+    let most = header_bytes.saturating_add(payload_max_bytes(&header));
+    let available = available_memory();
+    let raw = inflate(bytes, most.min(available)).map_err(|e| match e {
+        InflateError::TooLarge if most <= available => bad(format!(
+            "inflates past the {} its header and elements can take",
+            human_bytes(most)
+        )),
+        InflateError::TooLarge => bad(format!(
+            "inflates to more than the memory there is: {}",
+            available_text(available)
+        )),
+        other => bad(other.to_string()),
+    })?;
+    parse_ply(&raw, name)
+}
+
+/// The most bytes the payload `header` declares can take: binary scalars their size, lists
+/// their count and as many items as the count's type can say; ASCII numbers
+/// [`MAX_ASCII_NUMBER_BYTES`] each, and blank lines after them.
+fn payload_max_bytes(header: &Header) -> u64 {
+    let ascii = header.encoding == Encoding::Ascii;
+    let number = |t: &ScalarType| match ascii {
+        true => MAX_ASCII_NUMBER_BYTES,
+        false => scalar_bytes(t),
+    };
+    let most_items = |t: &ScalarType| -> u64 {
+        match t {
+            ScalarType::Char => i8::MAX as u64,
+            ScalarType::UChar => u8::MAX as u64,
+            ScalarType::Short => i16::MAX as u64,
+            ScalarType::UShort => u16::MAX as u64,
+            ScalarType::Int => i32::MAX as u64,
+            _ => u32::MAX as u64,
+        }
+    };
+    let mut total = if ascii { MAX_ASCII_TRAILING_BYTES } else { 0 };
+    for element in header.elements.values() {
+        let element_bytes = element
+            .properties
+            .values()
+            .map(|p| match &p.data_type {
+                PropertyType::Scalar(t) => number(t),
+                PropertyType::List(count, item) => {
+                    number(count).saturating_add(most_items(count).saturating_mul(number(item)))
+                }
+            })
+            .fold(0u64, u64::saturating_add);
+        total = total.saturating_add((element.count as u64).saturating_mul(element_bytes));
+    }
+    total
+}
+
+fn scalar_bytes(t: &ScalarType) -> u64 {
+    match t {
+        ScalarType::Char | ScalarType::UChar => 1,
+        ScalarType::Short | ScalarType::UShort => 2,
+        ScalarType::Int | ScalarType::UInt | ScalarType::Float => 4,
+        ScalarType::Double => 8,
+    }
+}
+
 /// The smallest number of bytes one element of `properties` takes in the payload: a binary
 /// scalar's size, a binary list's count (the list may be empty); in ASCII a number and a space
 /// or line end each. At least one byte, so that a count of elements without properties is
 /// bounded by the file too.
 fn element_min_bytes(encoding: Encoding, properties: &[&PropertyType]) -> u64 {
-    let scalar = |t: &ScalarType| match t {
-        ScalarType::Char | ScalarType::UChar => 1,
-        ScalarType::Short | ScalarType::UShort => 2,
-        ScalarType::Int | ScalarType::UInt | ScalarType::Float => 4,
-        ScalarType::Double => 8,
-    };
     let bytes: u64 = match encoding {
         Encoding::Ascii => 2 * properties.len() as u64,
         _ => properties
             .iter()
             .map(|p| match p {
-                PropertyType::Scalar(t) => scalar(t),
-                PropertyType::List(count, _) => scalar(count),
+                PropertyType::Scalar(t) => scalar_bytes(t),
+                PropertyType::List(count, _) => scalar_bytes(count),
             })
             .sum(),
     };
@@ -214,6 +298,55 @@ mod tests {
             .replace("ascii", "binary_little_endian")
             .replace("0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n", "");
         refused(binary.as_bytes(), "0 bytes follow the header");
+    }
+
+    fn gzip(data: &[u8]) -> Vec<u8> {
+        let mut encoder = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
+        std::io::Write::write_all(&mut encoder, data).unwrap();
+        encoder.finish().unwrap()
+    }
+
+    #[test]
+    fn a_gzipped_file_inflates_only_as_far_as_its_header_allows() {
+        let mesh = parse_ply_gz(&gzip(TRIANGLE.as_bytes()), "m.ply.gz").unwrap();
+        assert_eq!(mesh.triangles.len(), 1);
+        // 3 vertices of 3 numbers and a face of up to 256 numbers, at most 256 bytes each, and
+        // 64 KiB of blank lines: 64 MiB of zeros after them is refused after about 200 KiB.
+        let bomb = [TRIANGLE.as_bytes(), &vec![0u8; 64 << 20]].concat();
+        let e = parse_ply_gz(&gzip(&bomb), "m.ply.gz")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("inflates past the") && e.contains("its header and elements can take"),
+            "{e}"
+        );
+        let binary = TRIANGLE
+            .replace("ascii", "binary_little_endian")
+            .replace("0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n", "");
+        // Binary: 3 x 12 bytes of vertices and a face of at most 1 + 255 x 4 bytes.
+        let header = binary.len() as u64;
+        let parsed = ply_rs_bw::parser::Parser::<ply_rs_bw::ply::DefaultElement>::new()
+            .read_header(&mut ply_rs_bw::parser::Reader::new(binary.as_bytes()))
+            .unwrap();
+        assert_eq!(payload_max_bytes(&parsed), 36 + 1 + 255 * 4);
+        let e = parse_ply_gz(
+            &gzip(&[binary.as_bytes(), &[0u8; 2000]].concat()),
+            "m.ply.gz",
+        )
+        .unwrap_err()
+        .to_string();
+        let most = crate::util::memory::human_bytes(header + 1057);
+        assert!(e.contains(&format!("past the {most} its")), "{e}");
+        let text = parse_ply_gz(&gzip(&vec![b'c'; 2 << 20]), "m.ply.gz").unwrap_err();
+        assert!(text.to_string().contains("not a valid PLY file"), "{text}");
+        let endless = [b"ply\nformat ascii 1.0\n".as_slice(), &vec![b'c'; 2 << 20]].concat();
+        let endless = parse_ply_gz(&gzip(&endless), "m.ply.gz").unwrap_err();
+        assert!(
+            endless
+                .to_string()
+                .contains("no end_header in its first 1.0 MiB"),
+            "{endless}"
+        );
     }
 
     #[test]

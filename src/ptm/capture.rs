@@ -279,7 +279,7 @@ pub fn load(dir: &Path, lights: Option<&Path>) -> Result<Capture> {
         None => find_light_file(dir)?,
     };
     let what = format!("light file {}", light_file.display());
-    let text = std::fs::read_to_string(&light_file).map_err(|e| Error::io(&light_file, e))?;
+    let text = crate::io::input::read_text(&light_file)?;
     let json = light_file.extension().is_some_and(|e| e == "json");
     let entries = parse_lights(&text, &what, json)?;
     let on_disk = image_files(dir)?;

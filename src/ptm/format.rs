@@ -217,7 +217,7 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Ptm, String> {
 
 /// Read a `.ptm` file; damage is a [`crate::Error::CorruptFile`] naming the path.
 pub fn load(path: &std::path::Path) -> crate::Result<Ptm> {
-    let bytes = std::fs::read(path).map_err(|e| crate::Error::io(path, e))?;
+    let bytes = crate::io::input::read(path)?;
     from_bytes(&bytes).map_err(|p| crate::Error::corrupt(path, p))
 }
 

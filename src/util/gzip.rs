@@ -56,6 +56,18 @@ pub fn inflate(data: &[u8], limit: u64) -> Result<Vec<u8>, InflateError> {
     }
 }
 
+/// The first `limit` bytes `data` inflates to, or all of them where the stream ends sooner (what
+/// follows is not read, so neither its end nor its checksum is checked): a header read before
+/// deciding how far the whole stream may inflate.
+pub fn inflate_prefix(data: &[u8], limit: u64) -> Result<Vec<u8>, InflateError> {
+    let mut out = Vec::new();
+    flate2::bufread::GzDecoder::new(data)
+        .take(limit)
+        .read_to_end(&mut out)
+        .map_err(InflateError::Damaged)?;
+    Ok(out)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

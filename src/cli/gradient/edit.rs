@@ -21,7 +21,7 @@ pub(super) fn edit(a: EditArgs, quiet: bool) -> anyhow::Result<()> {
         )
         .into());
     }
-    let text = std::fs::read_to_string(&a.strokes).map_err(|e| Error::io(&a.strokes, e))?;
+    let text = crate::io::input::read_text(&a.strokes)?;
     let strokes = edit::parse_strokes(&text, &a.strokes.display().to_string())?;
     let reference: Vec<f64> = a
         .color

@@ -61,9 +61,15 @@ pub(super) fn synth(a: SynthArgs, quiet: bool) -> anyhow::Result<()> {
         Some(path) => {
             params.validate_with_mask()?;
             let what = format!("--mask {}", path.display());
-            let bytes = std::fs::read(path).map_err(|e| {
-                let problem = crate::error::io_problem(&e);
-                Error::invalid(&what, format!("cannot read the file: {problem}"))
+            let bytes = crate::io::input::read(path).map_err(|e| match e {
+                Error::Io { source, .. } => Error::invalid(
+                    &what,
+                    format!(
+                        "cannot read the file: {}",
+                        crate::error::io_problem(&source)
+                    ),
+                ),
+                other => other,
             })?;
             let mask = crate::exemplar::decode_image(&bytes, &what)?;
             Some(synth::MaskedExemplar::new(&exemplar, &mask, &what)?)

@@ -143,7 +143,7 @@ impl Constraints {
     }
 
     pub fn load(path: &Path) -> Result<Constraints> {
-        let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+        let bytes = crate::io::input::read(path)?;
         Self::parse(&bytes, &path.display().to_string())
     }
 
