@@ -85,10 +85,11 @@ pub mod volume;
 /// What a synthesis request takes: the box or cut, the solid's parameters and the engine's
 /// options; the warm cut session and a request's statistics.
 pub mod synth {
+    pub use crate::backend::synthesis::KernelTimes;
     pub use crate::lazy::cut::{CutSession, CutSpec};
     pub use crate::lazy::{
         check_tileable_size, Box3, CandidateMode, ChannelSource, ChannelSources, ColorSource,
-        PassSchedule, Slab, SynthOptions, SynthParams, SynthStats, MAX_PASSES,
+        PassSchedule, Slab, SynthOptions, SynthParams, SynthStats, Synthesizer, MAX_PASSES,
     };
     pub use crate::util::cancel::CancelToken;
 }

@@ -21,6 +21,35 @@ impl Volume {
         }
     }
 
+    /// Refuse a volume built by hand whose fields disagree: 1 to 4 channels, and
+    /// `nx x ny x nz x channels` bytes of data. `what` names it in the message.
+    pub fn check(&self, what: &str) -> crate::Result<()> {
+        if !(1..=4).contains(&self.channels) {
+            return Err(crate::Error::invalid(
+                what,
+                format!("has {} channels; volumes have 1 to 4", self.channels),
+            ));
+        }
+        let bytes = self
+            .dims()
+            .iter()
+            .fold(u64::from(self.channels), |b, &d| b * u64::from(d));
+        if self.data.len() as u64 != bytes {
+            return Err(crate::Error::invalid(
+                what,
+                format!(
+                    "holds {} bytes; {}x{}x{} voxels of {} channels take {bytes}",
+                    self.data.len(),
+                    self.nx,
+                    self.ny,
+                    self.nz,
+                    self.channels
+                ),
+            ));
+        }
+        Ok(())
+    }
+
     pub fn dims(&self) -> [u32; 3] {
         [self.nx, self.ny, self.nz]
     }

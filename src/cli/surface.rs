@@ -19,7 +19,7 @@ pub struct SurfaceArgs {
     #[arg(help_heading = "Surface", long)]
     pub mesh: PathBuf,
     /// The mesh is scaled so its longest side spans this many finest-level voxels.
-    #[arg(help_heading = "Surface", long, default_value_t = 256, value_parser = clap::value_parser!(u32).range(1..=1048576))]
+    #[arg(help_heading = "Surface", long, default_value_t = 256, value_parser = clap::value_parser!(u32).range(1..=crate::solid::limits::MAX_SURFACE_RESOLUTION as i64))]
     pub resolution: u32,
     /// Voxels per texel step along a triangle's edges: each triangle's atlas cell is sized to
     /// the triangle (default 1, grown only when the atlas would not fit 16384^2 or memory).

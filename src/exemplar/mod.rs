@@ -69,11 +69,11 @@ impl Image {
             width,
             height,
             channels,
-            pixels: vec![0; (width * height * channels) as usize],
+            pixels: vec![0; width as usize * height as usize * channels as usize],
         }
     }
     pub fn pixel_count(&self) -> usize {
-        (self.width * self.height) as usize
+        self.width as usize * self.height as usize
     }
     /// The channels of pixel (x, y).
     pub fn at(&self, x: u32, y: u32) -> &[u8] {
@@ -245,9 +245,20 @@ fn image_dimensions(bytes: &[u8]) -> Option<(u32, u32)> {
         .ok()
 }
 
-/// Check an exemplar's size against the accepted range.
+/// Check an exemplar's size against the accepted range, and that an image built by hand holds
+/// what its fields say: 1 (gray), 3 (RGB) or 4 (RGBA) channels, `width x height x channels`
+/// bytes.
 pub fn check_exemplar_size(img: &Image, what: &str) -> Result<()> {
     let (w, h) = (img.width, img.height);
+    if ![1, 3, 4].contains(&img.channels) {
+        return Err(Error::invalid(
+            what,
+            format!(
+                "image has {} channels; exemplars have 1, 3 or 4",
+                img.channels
+            ),
+        ));
+    }
     if w < MIN_EXEMPLAR_SIDE || h < MIN_EXEMPLAR_SIDE {
         return Err(Error::invalid(
             what,
@@ -258,6 +269,17 @@ pub fn check_exemplar_size(img: &Image, what: &str) -> Result<()> {
         return Err(Error::invalid(
             what,
             format!("exemplar is {w}x{h}; each side must be at most {MAX_EXEMPLAR_SIDE} pixels"),
+        ));
+    }
+    let bytes = img.pixel_count() * img.channels as usize;
+    if img.pixels.len() != bytes {
+        return Err(Error::invalid(
+            what,
+            format!(
+                "image holds {} bytes; {w}x{h} pixels of {} channels take {bytes}",
+                img.pixels.len(),
+                img.channels
+            ),
         ));
     }
     Ok(())

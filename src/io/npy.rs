@@ -47,13 +47,13 @@ impl SlabWriter {
 
     /// The next `slab.nz` z slices.
     pub fn write_slab(&mut self, slab: &Volume) -> Result<()> {
-        self.order.advance(slab);
+        self.order.advance(slab)?;
         self.file.write_all(&slab.data)
     }
 
-    pub fn finish(self) -> PendingFile {
-        self.order.finish();
-        self.file
+    pub fn finish(self) -> Result<PendingFile> {
+        self.order.finish()?;
+        Ok(self.file)
     }
 }
 

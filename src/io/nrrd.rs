@@ -85,7 +85,7 @@ impl SlabWriter {
 
     /// The next `slab.nz` z slices (x and y extents and channels those of the volume).
     pub fn write_slab(&mut self, slab: &Volume) -> Result<()> {
-        self.order.advance(slab);
+        self.order.advance(slab)?;
         match &mut self.gzip {
             None => self.file.write_all(&slab.data),
             Some(encoder) => {
@@ -102,7 +102,7 @@ impl SlabWriter {
     /// The complete file, to commit or to stage with a command's other outputs
     /// ([`crate::io::atomic::Outputs`]).
     pub fn finish(mut self) -> Result<crate::io::atomic::PendingFile> {
-        self.order.finish();
+        self.order.finish()?;
         if let Some(encoder) = self.gzip.take() {
             let tail = encoder
                 .finish()

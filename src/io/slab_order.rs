@@ -2,6 +2,7 @@
 //! volume (same x and y extents and channels, not past its depth), and a finished file must
 //! hold every slice.
 
+use crate::error::{Error, Result};
 use crate::volume::Volume;
 
 /// Where a volume written slab by slab along z stands.
@@ -20,21 +21,42 @@ impl SlabOrder {
         }
     }
 
-    /// Count `slab`, which must continue the volume (a caller's bug otherwise).
-    pub fn advance(&mut self, slab: &Volume) {
-        assert!(
-            slab.nx == self.dims[0]
-                && slab.ny == self.dims[1]
-                && slab.channels == self.channels
-                && self.slices_written + slab.nz <= self.dims[2],
-            "slab {:?} x {} does not continue a volume {:?} x {} at z {}",
-            slab.dims(),
-            slab.channels,
-            self.dims,
-            self.channels,
-            self.slices_written
-        );
+    /// Count `slab`, which must continue the volume and hold the bytes its sizes say.
+    pub fn advance(&mut self, slab: &Volume) -> Result<()> {
+        let continues = slab.nx == self.dims[0]
+            && slab.ny == self.dims[1]
+            && slab.channels == self.channels
+            && u64::from(self.slices_written) + u64::from(slab.nz) <= u64::from(self.dims[2]);
+        if !continues {
+            return Err(Error::invalid(
+                "slab",
+                format!(
+                    "{:?} x {} channels does not continue a volume {:?} x {} at z {}",
+                    slab.dims(),
+                    slab.channels,
+                    self.dims,
+                    self.channels,
+                    self.slices_written
+                ),
+            ));
+        }
+        let bytes = slab
+            .dims()
+            .iter()
+            .fold(u64::from(slab.channels), |b, &d| b * u64::from(d));
+        if slab.data.len() as u64 != bytes {
+            return Err(Error::invalid(
+                "slab",
+                format!(
+                    "holds {} bytes; {:?} x {} channels take {bytes}",
+                    slab.data.len(),
+                    slab.dims(),
+                    slab.channels
+                ),
+            ));
+        }
         self.slices_written += slab.nz;
+        Ok(())
     }
 
     pub fn dims(&self) -> [u32; 3] {
@@ -51,7 +73,16 @@ impl SlabOrder {
     }
 
     /// Check that every slice arrived.
-    pub fn finish(&self) {
-        assert_eq!(self.slices_written, self.dims[2], "volume incomplete");
+    pub fn finish(&self) -> Result<()> {
+        if self.slices_written != self.dims[2] {
+            return Err(Error::invalid(
+                "volume",
+                format!(
+                    "{} of its {} z slices were written; the file is incomplete",
+                    self.slices_written, self.dims[2]
+                ),
+            ));
+        }
+        Ok(())
     }
 }

@@ -74,7 +74,7 @@ impl SlabWriter {
     /// The next `slab.nz` z slices, a page each.
     pub fn write_slab(&mut self, slab: &Volume) -> Result<()> {
         let first_slice = self.order.slices_written();
-        self.order.advance(slab);
+        self.order.advance(slab)?;
         let slice_len = (slab.nx * slab.ny * slab.channels) as usize;
         for (k, page) in slab.data.chunks_exact(slice_len).enumerate() {
             let first = first_slice + k as u32 == 0;
@@ -90,10 +90,10 @@ impl SlabWriter {
         Ok(())
     }
 
-    pub fn finish(self) -> PendingFile {
-        self.order.finish();
+    pub fn finish(self) -> Result<PendingFile> {
+        self.order.finish()?;
         drop(self.encoder);
-        self.file
+        Ok(self.file)
     }
 }
 

@@ -214,8 +214,8 @@ impl VolumeWriter {
     pub fn finish(self) -> Result<PendingFile> {
         match self.target {
             Target::Nrrd(w) => w.finish(),
-            Target::Npy(w) => Ok(w.finish()),
-            Target::Tiff(w) => Ok(w.finish()),
+            Target::Npy(w) => w.finish(),
+            Target::Tiff(w) => w.finish(),
             Target::Whole(v) => {
                 let bytes = match self.output.format {
                     VolumeFormat::Ktx2 => ktx2::to_bytes(&v, self.output.texture),

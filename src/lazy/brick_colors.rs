@@ -21,7 +21,7 @@ impl BrickColors {
     /// The dense table for `sorted` bricks, when it holds at most 8 cells per brick.
     pub(super) fn lookup(sorted: &[Brick]) -> Option<BrickGrid> {
         let (lo, hi) = bricks::bounds(sorted).unwrap_or_default();
-        let cells: u64 = (0..3).map(|i| (hi[i] - lo[i] + 1) as u64).product();
+        let cells = (0..3).fold(1u64, |n, i| n.saturating_mul((hi[i] - lo[i] + 1) as u64));
         (cells <= 8 * sorted.len().max(1) as u64).then(|| BrickGrid::new(sorted))
     }
 

@@ -262,6 +262,15 @@ pub struct CutSession {
     synth: Synthesizer,
 }
 
+impl std::fmt::Debug for CutSession {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("CutSession")
+            .field("params", &self.synth.params)
+            .field("color_channels", &self.synth.color_channels())
+            .finish_non_exhaustive()
+    }
+}
+
 impl CutSession {
     /// A session over `synth`, which keeps its device buffers between cuts.
     pub fn new(mut synth: Synthesizer) -> CutSession {

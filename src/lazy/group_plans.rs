@@ -35,8 +35,9 @@ impl Synthesizer {
         max_group: Option<u32>,
     ) -> Vec<Vec<Brick>> {
         let whole_box = bricks::bounds(all).is_some_and(|(lo, hi)| {
-            let bricks: usize = (0..3).map(|i| (hi[i] - lo[i] + 1) as usize).product();
-            bricks == all.len()
+            // (Saturating: bricks far apart span more cells than a u64 counts.)
+            let cells = (0..3).fold(1u64, |n, i| n.saturating_mul((hi[i] - lo[i] + 1) as u64));
+            cells == all.len() as u64
         });
         let cap = group_cap(max_group, coarser_by, whole_box);
         // The levels up to the bricks' own, with this schedule and these strides.

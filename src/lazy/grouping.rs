@@ -11,7 +11,10 @@ use std::collections::{BTreeMap, HashMap};
 /// the memory estimates' rule of thumb, with [`PADDING_ESTIMATE`] for any schedule.
 pub fn padded_state_bytes(extent: [u64; 3]) -> u64 {
     let pad = 2 * PADDING_ESTIMATE as u64;
-    extent.iter().map(|e| e + pad).product::<u64>() * 16
+    // (Saturating: an estimate of an absurd request must stay absurd, not wrap.)
+    extent
+        .iter()
+        .fold(16u64, |bytes, e| bytes.saturating_mul(e.saturating_add(pad)))
 }
 
 /// An upper bound of the largest level state of a group whose bricks span a box of `extent`

@@ -74,7 +74,7 @@ pub fn shared_levels_bytes(
     if coarse_cache.is_some() {
         return 0;
     }
-    finest_voxels * 2 + group_working / 16
+    finest_voxels.saturating_mul(2).saturating_add(group_working / 16)
 }
 
 /// Working bytes of the largest group of a shared coarse level of a request whose largest side
@@ -93,16 +93,17 @@ pub fn coarse_group_bytes(coarse_cache: Option<u32>, group: u32, largest: u32) -
 /// the box's largest side): one group's working set or a shared coarse level's largest group,
 /// the coarse cache and the shared levels. The caller adds what its outputs hold.
 pub fn box_working_bytes(size: [u64; 3], group: u32, coarse_cache: Option<u32>) -> u64 {
-    let largest = size.into_iter().max().unwrap_or(0) as u32;
+    // (Saturating throughout: the estimate of an absurd box stays absurd, so it is refused.)
+    let largest = size.into_iter().max().unwrap_or(0).min(u32::MAX as u64) as u32;
     let group = group.min(largest);
-    let padded: u64 = size
-        .iter()
-        .map(|&d| d + 2 * PADDING_ESTIMATE as u64)
-        .product();
+    let padded: u64 = size.iter().fold(1u64, |voxels, &d| {
+        voxels.saturating_mul(d.saturating_add(2 * PADDING_ESTIMATE as u64))
+    });
     let working = chunk_bytes(group);
-    working.max(coarse_group_bytes(coarse_cache, group, largest))
-        + coarse_cache_bytes(coarse_cache)
-        + shared_levels_bytes(coarse_cache, padded, working)
+    working
+        .max(coarse_group_bytes(coarse_cache, group, largest))
+        .saturating_add(coarse_cache_bytes(coarse_cache))
+        .saturating_add(shared_levels_bytes(coarse_cache, padded, working))
 }
 
 /// Working bytes of a sparse request (a cut, a surface's shell) of `bricks` requested 4^3-voxel
@@ -117,7 +118,7 @@ pub fn sparse_working_bytes(
     coarse_cache: Option<u32>,
 ) -> u64 {
     // Per requested brick: 64 colours and its list and lookup entries.
-    let requested = bricks * (256 + 32);
+    let requested = bricks.saturating_mul(256 + 32);
     // A group is a cube of the request: on a surface it holds about (side / extent)^2 of the
     // bricks, and stores their padding too, about eight times their voxels at the finest
     // level (6 to 9 voxels of padding around a 4-voxel brick layer, 4 more with `--color
@@ -128,6 +129,9 @@ pub fn sparse_working_bytes(
     let group_bricks = ((bricks as f64 * share) as u64).min((group_side as u64 / 4).pow(3));
     let working = chunk_bytes(group_side).min(group_bricks * 64 * 16 * 2 * 8);
     // Shared coarse levels: the stored finest voxels, about eight per requested voxel.
-    let shared = shared_levels_bytes(coarse_cache, bricks * 64 * 8, working);
-    requested + working + coarse_cache_bytes(coarse_cache) + shared
+    let shared = shared_levels_bytes(coarse_cache, bricks.saturating_mul(64 * 8), working);
+    requested
+        .saturating_add(working)
+        .saturating_add(coarse_cache_bytes(coarse_cache))
+        .saturating_add(shared)
 }

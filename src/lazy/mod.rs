@@ -354,6 +354,17 @@ impl Synthesizer {
     /// The packed colours of arbitrary voxels (any order, repeats allowed): only the bricks
     /// holding them are synthesized.
     pub fn sample(&mut self, voxels: &[[i32; 3]], progress: Progress) -> Result<Vec<u32>> {
+        let limit = plan::COORDINATE_LIMIT;
+        if let Some((i, v)) = voxels
+            .iter()
+            .enumerate()
+            .find(|(_, v)| v.iter().any(|&c| (c as i64).abs() > limit))
+        {
+            return Err(Error::invalid(
+                "voxels",
+                format!("voxel {i} ({}, {}, {}) lies beyond +-{limit}", v[0], v[1], v[2]),
+            ));
+        }
         let mut colors = Vec::new();
         let request = Request {
             region: Region::Voxels(voxels),

@@ -199,7 +199,8 @@ impl ColorSource {
     /// read the voxel alone). Requests compute this much more around their output.
     pub fn reach(self) -> i32 {
         let channels = match self {
-            ColorSource::PerChannel(list) => list.len as usize,
+            // (A hand-built list longer than its four slots prints its four.)
+            ColorSource::PerChannel(list) => (list.len as usize).min(4),
             _ => 1,
         };
         match (0..channels).any(|c| self.channel(c) == ChannelSource::Fitted) {
@@ -250,7 +251,8 @@ impl std::str::FromStr for ColorSource {
 impl std::fmt::Display for ColorSource {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         let len = match self {
-            ColorSource::PerChannel(list) => list.len as usize,
+            // (A hand-built list longer than its four slots prints its four.)
+            ColorSource::PerChannel(list) => (list.len as usize).min(4),
             _ => 1,
         };
         let names: Vec<&str> = (0..len).map(|c| self.channel(c).name()).collect();
@@ -307,6 +309,14 @@ impl SynthParams {
                     "each level's passes must be 0..={MAX_PASSES} (0 shows the initialization)"
                 ),
             ));
+        }
+        if let ColorSource::PerChannel(list) = self.color {
+            if !(1..=4).contains(&list.len) {
+                return Err(Error::invalid(
+                    "--color",
+                    format!("names {} channel sources; a colour has 1 to 4", list.len),
+                ));
+            }
         }
         Ok(())
     }

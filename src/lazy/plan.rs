@@ -35,8 +35,12 @@ impl Box3 {
     pub fn size(&self) -> [u32; 3] {
         [0, 1, 2].map(|i| (self.hi[i] - self.lo[i]).max(0) as u32)
     }
+    /// Voxels in the box (saturating: a box spanning the whole coordinate range holds more
+    /// than a u64 counts).
     pub fn voxels(&self) -> u64 {
-        self.size().iter().map(|&s| s as u64).product()
+        self.size()
+            .iter()
+            .fold(1u64, |n, &s| n.saturating_mul(s as u64))
     }
     pub fn is_empty(&self) -> bool {
         (0..3).any(|i| self.hi[i] <= self.lo[i])

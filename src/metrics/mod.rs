@@ -133,6 +133,16 @@ pub fn exemplars_in_eval_frame(
 /// Score `volume` against one exemplar (all axes) or three (`exemplars[a]` for slices
 /// perpendicular to axis a, in the frame orientation of `analysis::frame`).
 pub fn evaluate(volume: &Volume, exemplars: &[Image], params: &EvalParams) -> Result<Report> {
+    if !matches!(exemplars.len(), 1 | 3) {
+        return Err(Error::invalid(
+            "exemplars",
+            format!(
+                "{} images: give one (all axes) or three (x, y, z)",
+                exemplars.len()
+            ),
+        ));
+    }
+    volume.check("volume")?;
     let min_side = volume.nx.min(volume.ny).min(volume.nz);
     if min_side < PATCH + 2 {
         return Err(Error::invalid(

@@ -94,8 +94,11 @@ impl Capture {
             ));
         }
         let (w, h) = (self.width(), self.height());
-        for (img, name) in self.images.iter().zip(&self.names) {
+        // (Names are optional for a capture built in memory: an image is then named by its
+        // place.)
+        for (i, img) in self.images.iter().enumerate() {
             if img.dimensions() != (w, h) {
+                let name = self.names.get(i).cloned().unwrap_or_else(|| format!("{i}"));
                 return Err(Error::invalid(
                     format!("{what}: image {name}"),
                     format!(

@@ -10,6 +10,20 @@ pub const MAX_BOX_SIDE: u32 = 2048;
 
 pub use crate::lazy::plan::COORDINATE_LIMIT;
 
+/// The largest cube a surface is fitted into (`surface --resolution`), in voxels.
+pub const MAX_SURFACE_RESOLUTION: u32 = 1 << 20;
+
+/// A surface's `--resolution`: 1..=[`MAX_SURFACE_RESOLUTION`].
+pub fn check_surface_resolution(resolution: u32) -> Result<u32> {
+    if !(1..=MAX_SURFACE_RESOLUTION).contains(&resolution) {
+        return Err(Error::invalid(
+            format!("--resolution {resolution}"),
+            format!("must be 1..={MAX_SURFACE_RESOLUTION}"),
+        ));
+    }
+    Ok(resolution)
+}
+
 /// Largest side of a planar cut, in pixels.
 pub const MAX_CUT_SIZE: u32 = crate::lazy::cut::MAX_CUT_SIZE;
 

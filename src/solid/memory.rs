@@ -28,7 +28,8 @@ pub fn check_box(
 ) -> Result<u64> {
     let largest = size.into_iter().max().unwrap_or(0).min(u32::MAX as u64) as u32;
     let group = group.min(largest);
-    let estimate = memory::box_working_bytes(size, group, coarse_cache) + output_bytes;
+    let estimate =
+        memory::box_working_bytes(size, group, coarse_cache).saturating_add(output_bytes);
     let available = crate::util::memory::available_memory();
     if estimate > available {
         let cache = memory::coarse_cache_bytes(coarse_cache);
@@ -94,8 +95,8 @@ pub fn check_sparse(
     coarse_cache: Option<u32>,
     output_bytes: u64,
 ) -> Result<u64> {
-    let estimate =
-        memory::sparse_working_bytes(bricks, extent, group_side, coarse_cache) + output_bytes;
+    let estimate = memory::sparse_working_bytes(bricks, extent, group_side, coarse_cache)
+        .saturating_add(output_bytes);
     let available = crate::util::memory::available_memory();
     if estimate > available {
         return Err(Error::invalid(

@@ -229,14 +229,16 @@ impl SolidBuilder {
         self
     }
 
-    /// Progress reports of the analysis and of every request: (stage, fraction).
+    /// Progress reports of the analysis and of every box, tileable solid, surface and sample
+    /// request: (stage, fraction). Cuts, which take milliseconds to a second, report none.
     pub fn progress(mut self, report: impl Fn(&str, f32) + Send + Sync + 'static) -> Self {
         self.progress = Some(Arc::new(report));
         self
     }
 
     /// Stop work at its next check (between groups and correction passes) once `token` is
-    /// cancelled, with [`Error::Cancelled`].
+    /// cancelled, with [`Error::Cancelled`]. A token stays cancelled: every later request
+    /// stops too, until [`Solid::set_cancel`] gives the solid a new one.
     pub fn cancel(mut self, token: CancelToken) -> Self {
         self.options.cancel = Some(token);
         self
@@ -297,6 +299,9 @@ impl SolidBuilder {
     pub fn build(self) -> Result<Solid> {
         self.params.validate()?;
         self.options.validate()?;
+        if let Some(side) = self.options.max_group {
+            limits::check_max_group(side)?;
+        }
         let compute = self.open_compute()?;
         let analysis = self.analyze_on(&compute)?;
         Solid::new(&analysis, self.params, self.options, compute, self.progress)
@@ -317,6 +322,16 @@ impl std::fmt::Debug for Solid {
             .field("backend", &self.compute.describe())
             .field("color_channels", &self.color_channels())
             .finish()
+    }
+}
+
+impl std::fmt::Debug for SolidBuilder {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("SolidBuilder")
+            .field("params", &self.params)
+            .field("given_analysis", &self.analysis.is_some())
+            .field("caches", &self.cache.is_some())
+            .finish_non_exhaustive()
     }
 }
 
@@ -404,7 +419,9 @@ impl Solid {
     }
 
     fn volume_bytes(&self, size: [u64; 3]) -> u64 {
-        size.iter().product::<u64>() * self.color_channels() as u64
+        size.iter().fold(self.color_channels() as u64, |bytes, &d| {
+            bytes.saturating_mul(d)
+        })
     }
 
     /// Refuse an empty box, or one beyond the coordinates the engine addresses (+-2^28).
@@ -448,8 +465,10 @@ impl Solid {
         Self::check_box(b)?;
         let size = b.size();
         let channels = self.color_channels() as usize;
-        let want = size.iter().map(|&d| d as usize).product::<usize>() * channels;
-        if out.len() != want {
+        let want = size
+            .iter()
+            .fold(channels as u64, |bytes, &d| bytes.saturating_mul(d as u64));
+        if out.len() as u64 != want {
             return Err(Error::invalid(
                 "output buffer",
                 format!("holds {} bytes; the box needs {want}", out.len()),
@@ -485,14 +504,35 @@ impl Solid {
         Ok(self.synth.synthesize_tileable(n, report, false)?.0)
     }
 
-    /// A planar cut (any orientation) as an image of the solid's colour channels.
+    /// A planar cut (any orientation) as an image of the solid's colour channels, refused
+    /// before anything is allocated when it cannot fit in the memory available
+    /// ([`memory::check_cut`]; a [`CutSession`]'s caller checks its largest cut itself).
     pub fn cut(&mut self, spec: &CutSpec) -> Result<Image> {
+        spec.frame()?;
+        memory::check_cut(
+            &format!("cut --size {} --spacing {}", spec.size, spec.spacing),
+            spec.size,
+            spec.spacing,
+            self.synth
+                .options()
+                .max_group
+                .unwrap_or(lazy::memory::LARGEST_GROUP),
+            self.synth.params.coarse_cache,
+            // The image and the sample positions.
+            spec.size as u64 * spec.size as u64 * 16,
+        )?;
         crate::lazy::cut::cut(&mut self.synth, spec)
     }
 
     /// A warm session for repeated cuts (the device keeps its buffers between them).
     pub fn into_cut_session(self) -> CutSession {
         CutSession::new(self.synth)
+    }
+
+    /// Replace the cancellation token its requests check (None: they run to the end): after a
+    /// cancellation, a new token lets the solid work again.
+    pub fn set_cancel(&mut self, token: Option<CancelToken>) {
+        self.synth.set_cancel(token);
     }
 
     /// The packed colours of voxels in any order (a cut's or an atlas' points).

@@ -32,7 +32,8 @@ impl AtlasLayout {
         if mips == 0 {
             0
         } else {
-            1 << mips
+            // (Saturating: a gutter past any atlas is refused by the atlas's own check.)
+            1u32.checked_shl(mips).unwrap_or(u32::MAX)
         }
     }
 }
@@ -50,6 +51,8 @@ pub struct SurfacePlan {
     /// The estimate of the bake's memory, bytes.
     pub estimate: u64,
     wanted: Vec<Brick>,
+    /// The mesh it was planned for ([`mesh_fingerprint`]).
+    mesh_fingerprint: u64,
 }
 
 /// Per texel: its image pixel (4 bytes), its index and colour while its group places it (8),
@@ -69,6 +72,7 @@ impl SurfacePlan {
         group_side: u32,
     ) -> Result<SurfacePlan> {
         mesh.validate(mesh_name)?;
+        super::limits::check_surface_resolution(resolution)?;
         let placement = Placement::fit(mesh, resolution);
         let available = crate::util::memory::available_memory();
         let fits = |atlas: &Atlas| atlas.texel_count() * BYTES_PER_TEXEL <= available;
@@ -149,12 +153,44 @@ impl SurfacePlan {
             flag,
             estimate: total,
             wanted,
+            mesh_fingerprint: mesh_fingerprint(mesh),
         })
+    }
+}
+
+/// A hash of what a plan depends on in its mesh (positions, triangles, texture coordinates), so
+/// that baking another mesh with it is refused rather than indexing past its atlas.
+fn mesh_fingerprint(mesh: &Mesh) -> u64 {
+    use std::hash::{Hash, Hasher};
+    let mut h = std::collections::hash_map::DefaultHasher::new();
+    for p in &mesh.positions {
+        p.map(f32::to_bits).hash(&mut h);
+    }
+    mesh.triangles.hash(&mut h);
+    for uv in mesh.uvs.iter().flatten() {
+        uv.map(|c| c.map(f32::to_bits)).hash(&mut h);
+    }
+    h.finish()
+}
+
+impl std::fmt::Debug for SurfacePlan {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("SurfacePlan")
+            .field("placement", &self.placement)
+            .field(
+                "atlas",
+                &format_args!("{}x{}", self.atlas.width, self.atlas.height),
+            )
+            .field("layout", &self.layout)
+            .field("estimate", &self.estimate)
+            .field("bricks", &self.wanted.len())
+            .finish_non_exhaustive()
     }
 }
 
 /// A baked atlas: `texel_bytes` bytes per texel (RGB, or RGBA for a solid of four channels),
 /// rows of `atlas.width` texels.
+#[derive(Clone, Debug, PartialEq, Eq)]
 pub struct BakedSurface {
     pub width: u32,
     pub height: u32,
@@ -182,6 +218,14 @@ impl Solid {
     /// cell take the colour of one surface voxel).
     pub fn bake_surface(&mut self, mesh: &Mesh, plan: &SurfacePlan) -> Result<BakedSurface> {
         let (atlas, place) = (&plan.atlas, &plan.placement);
+        if mesh_fingerprint(mesh) != plan.mesh_fingerprint
+            || atlas.uvs.len() != mesh.triangles.len()
+        {
+            return Err(Error::invalid(
+                "mesh",
+                "is not the mesh its surface plan was made for",
+            ));
+        }
         let texels = atlas.texel_count() as usize;
         let channels = self.color_channels();
         // Three bytes a texel unless the solid has a fourth channel: the atlas is the largest
@@ -252,7 +296,12 @@ impl Solid {
             &mut placed,
             atlas.dilation_rings(),
         );
-        let uncovered_color = uncovered_color.expect("the uncovered texels' voxel is requested");
+        let uncovered_color = uncovered_color.ok_or_else(|| {
+            Error::invalid(
+                "surface plan",
+                "its bricks do not hold its atlas's voxels (was it changed after it was made?)",
+            )
+        })?;
         let uncovered_pixel = bake::atlas_pixel(uncovered_color, channels);
         for (i, p) in pixels.chunks_exact_mut(texel_bytes).enumerate() {
             if placed[i / 64] & (1 << (i % 64)) == 0 {

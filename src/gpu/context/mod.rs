@@ -93,7 +93,8 @@ pub struct GpuContext {
     /// The last read-back staging buffer up to [`REUSED_READBACK_BYTES`], kept for the next
     /// read (a warm cut session reads one per cut: no allocation on the request path).
     readback: Mutex<Option<wgpu::Buffer>>,
-    /// GPU errors raised outside an error scope, reported at the next wait instead of panicking.
+    /// GPU errors raised outside an error scope, reported at the next wait instead of panicking
+    /// (on the crate's own device; an application's keeps its own handler).
     uncaptured: Arc<Mutex<Option<String>>>,
 }
 
@@ -198,13 +199,16 @@ impl GpuContext {
             max_storage_binding = limits.max_storage_buffer_binding_size,
             "GPU adapter"
         );
-        Ok(Self::with_device(device, queue, info, limits, opts))
+        Ok(Self::with_device(device, queue, info, limits, opts, true))
     }
 
     /// A context over an application's own device and queue (a game engine's, a viewer's):
     /// the kernels run there, sharing its memory and queue. `info` is its adapter's. Refused,
     /// naming the limit, when the device's limits are below what the kernels need
-    /// ([`required_limits`]); nothing process-wide is changed.
+    /// ([`required_limits`]). Nothing process-wide is changed, and the device's
+    /// uncaptured-error handler stays the application's: the engine's own work runs in error
+    /// scopes, so its errors come back as [`Error::Gpu`] and the application's own errors reach
+    /// its handler.
     pub fn from_device(
         device: wgpu::Device,
         queue: wgpu::Queue,
@@ -216,7 +220,7 @@ impl GpuContext {
             return Err(Error::invalid("device", problem));
         }
         tracing::info!(adapter = %info.name, "GPU device given by the application");
-        Ok(Self::with_device(device, queue, info, limits, opts))
+        Ok(Self::with_device(device, queue, info, limits, opts, false))
     }
 
     fn with_device(
@@ -225,6 +229,7 @@ impl GpuContext {
         info: wgpu::AdapterInfo,
         limits: wgpu::Limits,
         opts: &GpuOptions,
+        own_device: bool,
     ) -> Self {
         // The largest binding: the device's, or less when the options ask for it.
         let device_max = limits.max_storage_buffer_binding_size;
@@ -232,13 +237,15 @@ impl GpuContext {
             .max_binding_bytes
             .map_or(device_max, |m| m.min(device_max));
         let uncaptured = Arc::new(Mutex::new(None));
-        let sink = uncaptured.clone();
-        device.on_uncaptured_error(Arc::new(move |e: wgpu::Error| {
-            let mut slot = sink.lock().unwrap();
-            if slot.is_none() {
-                *slot = Some(e.to_string());
-            }
-        }));
+        if own_device {
+            let sink = uncaptured.clone();
+            device.on_uncaptured_error(Arc::new(move |e: wgpu::Error| {
+                let mut slot = sink.lock().unwrap();
+                if slot.is_none() {
+                    *slot = Some(e.to_string());
+                }
+            }));
+        }
         GpuContext {
             uncaptured,
             device,
@@ -305,7 +312,7 @@ impl GpuContext {
 
     /// Submit `encoder` and wait for it, bounded by the timeout.
     pub fn submit_and_wait(&self, encoder: wgpu::CommandEncoder) -> Result<()> {
-        let index = self.queue.submit(Some(encoder.finish()));
+        let index = self.checked("submission", || Ok(self.queue.submit(Some(encoder.finish()))))?;
         self.wait(Some(index))
     }
 

@@ -410,6 +410,7 @@ pub fn synthesize(
     progress: Progress,
 ) -> Result<(PeriodicSolid, SynthReport)> {
     params.validate()?;
+    crate::exemplar::check_exemplar_size(exemplar, "exemplar")?;
     params.check_memory(exemplar, false)?;
     let (solid, report, _) = iterate(&colour_exemplar(exemplar), false, params, compute, progress)?;
     Ok((solid, report))

@@ -231,7 +231,7 @@ pub fn plan_sparse(output: &[Brick], passes: &[usize]) -> Vec<SparseLevel> {
 /// The inclusive brick range of `sorted` bricks when they fill it exactly (a box request).
 pub(super) fn brick_box(sorted: &[Brick]) -> Option<(Brick, Brick)> {
     let (lo, hi) = bounds(sorted)?;
-    let cells: u64 = (0..3).map(|i| (hi[i] - lo[i] + 1) as u64).product();
+    let cells = (0..3).fold(1u64, |n, i| n.saturating_mul((hi[i] - lo[i] + 1) as u64));
     // Sorted and deduplicated: as many bricks as cells means every cell.
     (cells == sorted.len() as u64).then_some((lo, hi))
 }

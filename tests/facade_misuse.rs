@@ -1,0 +1,173 @@
+//! What an application can get wrong through the library's public types (hand-built images,
+//! volumes, captures and plans; values past the engine's ranges) is refused with an error that
+//! names it, never a panic.
+
+mod common;
+
+use solidsynth::exemplar::Image;
+use solidsynth::synth::{ChannelSource, ChannelSources, ColorSource};
+use solidsynth::volume::Volume;
+use solidsynth::{Box3, Compute, Solid};
+
+fn refused<T>(r: solidsynth::Result<T>, needle: &str) {
+    let Err(e) = r else {
+        panic!("not refused: expected an error with '{needle}'")
+    };
+    assert!(e.is_user_error(), "{e}");
+    assert!(e.to_string().contains(needle), "'{needle}' not in: {e}");
+}
+
+fn marble_solid() -> Solid {
+    Solid::builder()
+        .exemplar(common::fixture("marble32.png"))
+        .balance(0, 1.0)
+        .cpu()
+        .build()
+        .unwrap()
+}
+
+#[test]
+fn hand_built_inputs_that_disagree_with_their_sizes_are_refused() {
+    let image = |channels, pixels| Image {
+        width: 32,
+        height: 32,
+        channels,
+        pixels,
+    };
+    let build = |img: Image| Solid::builder().exemplar(img).cpu().build();
+    refused(build(image(0, vec![])), "image has 0 channels");
+    refused(build(image(2, vec![0; 2048])), "image has 2 channels");
+    refused(build(image(3, vec![0; 100])), "image holds 100 bytes");
+    let gradient = solidsynth::gradient::synth::synthesize(
+        &Image::new(0, 0, 3),
+        &Default::default(),
+        &Compute::Cpu,
+        &|_, _| {},
+    );
+    refused(gradient, "exemplar is 0x0");
+
+    let marble = common::fixture("marble32.png");
+    let volume = Volume::new(16, 16, 16, 3);
+    let params = solidsynth::metrics::EvalParams::default();
+    refused(
+        solidsynth::metrics::evaluate(&volume, &[], &params),
+        "0 images",
+    );
+    refused(
+        solidsynth::metrics::evaluate(&volume, &[marble.clone(), marble.clone()], &params),
+        "2 images",
+    );
+    let short = Volume {
+        data: vec![0; 10],
+        ..volume.clone()
+    };
+    refused(
+        solidsynth::metrics::evaluate(&short, &[marble], &params),
+        "holds 10 bytes",
+    );
+
+    // A volume writer refuses a slab whose data is short, and a file left incomplete.
+    let dir = tempfile::tempdir().unwrap();
+    refused(
+        solidsynth::io::nrrd::save(&short, &dir.path().join("short.nrrd")),
+        "holds 10 bytes",
+    );
+    assert!(!dir.path().join("short.nrrd").exists());
+    let mut writer =
+        solidsynth::io::nrrd::SlabWriter::create(&dir.path().join("part.nrrd"), [16; 3], 3)
+            .unwrap();
+    writer.write_slab(&Volume::new(16, 16, 4, 3)).unwrap();
+    refused(
+        writer.write_slab(&Volume::new(8, 16, 4, 3)),
+        "does not continue",
+    );
+    refused(writer.finish(), "4 of its 16 z slices");
+    assert!(!dir.path().join("part.nrrd").exists());
+
+    // A capture built in memory without names still has its image sizes checked.
+    let mut capture = solidsynth::ptm::capture::synthetic(32, 8, 1);
+    capture.names.clear();
+    capture.images[7] = image::RgbImage::new(4, 4);
+    refused(
+        solidsynth::ptm::fit::fit(&capture, solidsynth::ptm::PtmFormat::Rgb, "capture"),
+        "image 7",
+    );
+}
+
+#[test]
+fn values_past_the_engines_ranges_are_refused() {
+    let five = ColorSource::PerChannel(ChannelSources {
+        sources: [ChannelSource::X; 4],
+        len: 5,
+    });
+    refused(
+        Solid::builder().color(five).cpu().build(),
+        "5 channel sources",
+    );
+    refused(
+        Solid::builder().max_group(Some(3)).cpu().build(),
+        "--max-group 3",
+    );
+    let mut solid = marble_solid();
+    refused(solid.sample(&[[i32::MAX, 0, 0]]), "lies beyond");
+    let huge = Box3::new([-(1 << 28); 3], [1 << 28; 3]);
+    refused(solid.region(huge), "of memory");
+    let mut buffer = [0u8; 4];
+    refused(solid.region_into(huge, &mut buffer), "holds 4 bytes");
+    refused(solid.tileable(1 << 21), "of memory");
+    // Two voxels at opposite corners of the coordinate range: two bricks, whose bounding box
+    // holds more voxels than a u64 counts.
+    let far = [[-(1 << 28); 3], [1 << 28; 3]];
+    let colors = solid.sample(&far).unwrap();
+    assert_eq!(colors[0], solid.sample(&far[..1]).unwrap()[0]);
+}
+
+#[test]
+fn a_surface_plan_bakes_only_its_own_mesh() {
+    use solidsynth::solid::surface::{AtlasLayout, SurfacePlan};
+    let tri = solidsynth::mesh::parse_obj(b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", "a").unwrap();
+    let quad = solidsynth::mesh::parse_obj(b"v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n", "b")
+        .unwrap();
+    let layout = AtlasLayout::Texels {
+        texels: 8,
+        gutter: 0,
+    };
+    refused(
+        SurfacePlan::new(&tri, "a", 0, layout, None, 128),
+        "--resolution 0",
+    );
+    let plan = SurfacePlan::new(&tri, "a", 32, layout, None, 128).unwrap();
+    let mut solid = marble_solid();
+    refused(
+        solid.bake_surface(&quad, &plan),
+        "not the mesh its surface plan",
+    );
+    let mut moved = tri.clone();
+    moved.positions[0][0] = -5.0;
+    refused(
+        solid.bake_surface(&moved, &plan),
+        "not the mesh its surface plan",
+    );
+    assert!(solid.bake_surface(&tri, &plan).is_ok());
+    assert_eq!(AtlasLayout::gutter_for_mips(40), u32::MAX);
+}
+
+#[test]
+fn a_solid_works_again_after_a_cancellation_with_a_new_token() {
+    let token = solidsynth::util::cancel::CancelToken::new();
+    let mut solid = Solid::builder()
+        .exemplar(common::fixture("marble32.png"))
+        .balance(0, 1.0)
+        .cancel(token.clone())
+        .cpu()
+        .build()
+        .unwrap();
+    let b = Box3::new([0; 3], [8; 3]);
+    token.cancel();
+    assert!(matches!(solid.region(b), Err(solidsynth::Error::Cancelled)));
+    solid.set_cancel(Some(solidsynth::util::cancel::CancelToken::new()));
+    assert_eq!(solid.region(b).unwrap(), marble_solid().region(b).unwrap());
+    // Debug output for an application's own structs.
+    assert!(format!("{solid:?}").contains("Solid"));
+    assert!(format!("{:?}", solid.into_cut_session()).contains("CutSession"));
+}
