@@ -4,6 +4,7 @@
 use crate::detached::run_detached;
 use crate::errors::invalid;
 use crate::inputs::{exemplar_pair, input_frame, volume_from_array, Picture};
+use crate::ints::Int;
 use numpy::PyUntypedArray;
 use pyo3::prelude::*;
 use solidsynth::io::nrrd;
@@ -24,7 +25,8 @@ enum VolumeArg {
 /// arguments are `solidsynth eval`'s, with its defaults; the dict is its `--json` document
 /// (`schema` 1).
 #[pyfunction(name = "eval")]
-#[pyo3(signature = (exemplar, volume, *, ey=None, ez=None, frame=None, slices=3, seed=1))]
+#[pyo3(signature = (exemplar, volume, *, ey=None, ez=None, frame=None, slices=Int::of(3), seed=Int::of(1)),
+       text_signature = "(exemplar, volume, *, ey=None, ez=None, frame=None, slices=3, seed=1)")]
 #[allow(clippy::too_many_arguments)]
 pub fn evaluate<'py>(
     py: Python<'py>,
@@ -33,13 +35,20 @@ pub fn evaluate<'py>(
     ey: Option<&Bound<'py, PyAny>>,
     ez: Option<&Bound<'py, PyAny>>,
     frame: Option<String>,
-    slices: i64,
-    seed: u64,
+    slices: Int,
+    seed: Int,
 ) -> PyResult<Bound<'py, PyAny>> {
     // `eval --slices`'s range (clap checks it there).
-    if !(1..=64).contains(&slices) {
-        return Err(invalid(format!("--slices {slices}"), "must be 1..=64"));
-    }
+    let slices: u32 = match slices.get::<u32>() {
+        Some(n) if (1..=64).contains(&n) => n,
+        _ => {
+            return Err(invalid(
+                format!("--slices {}", slices.text()),
+                "must be 1..=64",
+            ))
+        }
+    };
+    let seed: u64 = seed.in_range("seed")?;
     let frame = input_frame(frame.as_deref())?;
     let mut exemplars = vec![
         Picture::from_arg(exemplar, "exemplar")?
@@ -57,7 +66,7 @@ pub fn evaluate<'py>(
         Err(_) => VolumeArg::File(volume.extract::<PathBuf>()?),
     };
     let params = EvalParams {
-        slices_per_axis: slices as u32,
+        slices_per_axis: slices,
         seed,
         ..Default::default()
     };

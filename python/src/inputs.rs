@@ -4,8 +4,9 @@
 use crate::errors::invalid;
 use numpy::prelude::*;
 use numpy::{PyArrayDyn, PyUntypedArray};
+use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
-use pyo3::types::PyString;
+use pyo3::types::{PyBool, PySequence, PyString};
 use solidsynth::analysis::frame::InputFrame;
 use solidsynth::exemplar::{load_image, Image};
 use solidsynth::solid::FeatureMasks;
@@ -52,7 +53,9 @@ impl Picture {
     /// The path, when this is a file ending in `.ssa` (an analysis, as the CLI's INPUT).
     pub fn analysis_path(&self) -> Option<&Path> {
         match self {
-            Picture::File(p) if p.extension().is_some_and(|e| e == "ssa") => Some(p),
+            Picture::File(p) if p.extension().is_some_and(|e| e.eq_ignore_ascii_case("ssa")) => {
+                Some(p)
+            }
             _ => None,
         }
     }
@@ -258,29 +261,85 @@ pub fn color_source(text: &str) -> PyResult<ColorSource> {
         .map_err(|problem| invalid(format!("--color {text}"), problem))
 }
 
-/// `passes=`: a count for every level, `"2,2,2,1"`, or a sequence of counts (coarsest first).
-#[derive(FromPyObject)]
-pub enum PassesArg {
-    Count(u32),
-    Text(String),
-    Counts(Vec<u32>),
-}
+/// `passes=`: a count for every level, `"2,2,2,1"`, or a sequence of counts (coarsest first),
+/// held as `--passes` spells it so that the library's parser checks and names it.
+pub struct PassesArg(String);
 
 impl PassesArg {
+    pub fn count(n: u32) -> PassesArg {
+        PassesArg(n.to_string())
+    }
+
     pub fn schedule(&self) -> PyResult<PassSchedule> {
-        let text = match self {
-            PassesArg::Count(n) => n.to_string(),
-            PassesArg::Text(t) => t.clone(),
-            PassesArg::Counts(v) => v.iter().map(u32::to_string).collect::<Vec<_>>().join(","),
-        };
-        text.parse::<PassSchedule>()
-            .map_err(|problem| invalid(format!("--passes {text}"), problem))
+        self.0
+            .parse::<PassSchedule>()
+            .map_err(|problem| invalid(format!("--passes {}", self.0), problem))
+    }
+}
+
+/// An int that is not a bool, as its decimal text.
+fn int_text(obj: &Bound<'_, PyAny>) -> Option<String> {
+    if obj.is_instance_of::<PyBool>() {
+        return None;
+    }
+    Some(crate::ints::index(obj)?.str().ok()?.to_string())
+}
+
+impl<'a, 'py> FromPyObject<'a, 'py> for PassesArg {
+    type Error = PyErr;
+
+    fn extract(obj: Borrowed<'a, 'py, PyAny>) -> PyResult<PassesArg> {
+        if let Ok(text) = obj.cast::<PyString>() {
+            return Ok(PassesArg(text.to_string()));
+        }
+        if let Some(text) = int_text(&obj) {
+            return Ok(PassesArg(text));
+        }
+        let counts = obj.cast::<PySequence>().ok().and_then(|seq| {
+            let items = seq.try_iter().ok()?;
+            items
+                .map(|item| int_text(&item.ok()?))
+                .collect::<Option<Vec<String>>>()
+        });
+        match counts {
+            Some(counts) => Ok(PassesArg(counts.join(","))),
+            None => Err(PyTypeError::new_err(format!(
+                "passes: expected an int, a string such as \"2,2,2,1\" or a sequence of ints, \
+                 got {}",
+                obj.get_type().name()?
+            ))),
+        }
     }
 }
 
 /// `cache=`: the user's analysis cache (True, the command line's), none (False), or a directory.
-#[derive(FromPyObject)]
 pub enum CacheArg {
     Flag(bool),
     Dir(PathBuf),
+}
+
+impl<'a, 'py> FromPyObject<'a, 'py> for CacheArg {
+    type Error = PyErr;
+
+    fn extract(obj: Borrowed<'a, 'py, PyAny>) -> PyResult<CacheArg> {
+        if let Ok(flag) = obj.cast::<PyBool>() {
+            return Ok(CacheArg::Flag(flag.is_true()));
+        }
+        let is_path =
+            obj.is_instance_of::<PyString>() || obj.hasattr("__fspath__").unwrap_or(false);
+        if !is_path {
+            return Err(PyTypeError::new_err(format!(
+                "cache: expected True, False or a directory (str or os.PathLike), got {}",
+                obj.get_type().name()?
+            )));
+        }
+        let dir: PathBuf = obj.extract()?;
+        if dir.as_os_str().is_empty() {
+            return Err(invalid(
+                "cache ''",
+                "is an empty path; give a directory, True (the user's cache) or False (none)",
+            ));
+        }
+        Ok(CacheArg::Dir(dir))
+    }
 }

@@ -9,6 +9,7 @@ mod detached;
 mod errors;
 mod evaluate;
 mod inputs;
+mod ints;
 
 use detached::run_detached;
 use errors::{engine_err, invalid, Error};
@@ -16,6 +17,7 @@ use inputs::{
     backend_choice, candidate_mode, color_source, exemplar_pair, feature_masks, input_frame,
     CacheArg, PassesArg, Picture,
 };
+use ints::Int;
 use numpy::prelude::*;
 use numpy::{PyArray1, PyArray3, PyArray4};
 use pyo3::prelude::*;
@@ -37,35 +39,6 @@ fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
     m.lock().unwrap_or_else(PoisonError::into_inner)
 }
 
-/// An integer argument in the range of `T`, else `ValueError` naming it (not Python's
-/// `OverflowError` from the conversion).
-fn in_range<T: TryFrom<i128> + num_bounds::Bounded>(name: &str, value: i128) -> PyResult<T> {
-    T::try_from(value).map_err(|_| {
-        pyo3::exceptions::PyValueError::new_err(format!(
-            "invalid --{} {value}: must be {}..={}",
-            name.replace('_', "-"),
-            T::LOW,
-            T::HIGH
-        ))
-    })
-}
-
-mod num_bounds {
-    /// The bounds an integer argument is checked against, for messages.
-    pub trait Bounded {
-        const LOW: i128;
-        const HIGH: i128;
-    }
-    impl Bounded for u32 {
-        const LOW: i128 = 0;
-        const HIGH: i128 = u32::MAX as i128;
-    }
-    impl Bounded for u64 {
-        const LOW: i128 = 0;
-        const HIGH: i128 = u64::MAX as i128;
-    }
-}
-
 /// A solid's synthesis settings as given: what `Solid.options` reports and `Solid.load` takes
 /// (the analysis settings live in the analysis, and so in its `.ssa` file).
 #[derive(Clone)]
@@ -80,22 +53,33 @@ struct SynthSettings {
 impl SynthSettings {
     #[allow(clippy::too_many_arguments)]
     fn parse(
-        seed: i128,
+        seed: Int,
         jitter: f32,
         backend: String,
         adapter: Option<String>,
         candidates: &str,
         passes: &PassesArg,
         color: &str,
-        coarse_cache: Option<i128>,
-        max_group: Option<i128>,
+        coarse_cache: Option<Int>,
+        max_group: Option<Int>,
     ) -> PyResult<SynthSettings> {
         let choice = backend_choice(&backend)?;
-        let seed: u64 = in_range("seed", seed)?;
+        let seed: u64 = seed.in_range("seed")?;
+        // Values past u32 get the engine's own message for a size it refuses (its real range).
+        let cache_refused = || {
+            SynthParams {
+                coarse_cache: Some(0),
+                ..SynthParams::default()
+            }
+            .validate()
+            .unwrap_err()
+        };
         let coarse_cache: Option<u32> = coarse_cache
-            .map(|c| in_range("coarse_cache", c))
+            .map(|c| c.or_refused(cache_refused()))
             .transpose()?;
-        let max_group: Option<u32> = max_group.map(|g| in_range("max_group", g)).transpose()?;
+        let max_group: Option<u32> = max_group
+            .map(|g| g.or_refused(limits::check_max_group(0).unwrap_err()))
+            .transpose()?;
         if let Some(side) = max_group {
             limits::check_max_group(side).map_err(engine_err)?;
         }
@@ -305,12 +289,23 @@ enum Phase {
 }
 
 /// `(lo, hi)` as the command line checks `--box X0,Y0,Z0,X1,Y1,Z1`, with its messages.
-fn checked_box(lo: [i64; 3], hi: [i64; 3]) -> PyResult<Box3> {
+fn checked_box(lo: [Int; 3], hi: [Int; 3]) -> PyResult<Box3> {
+    let all = [&lo[..], &hi[..]].concat();
     let what = format!(
-        "--box {},{},{},{},{},{}",
-        lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]
+        "--box {}",
+        all.iter().map(Int::text).collect::<Vec<_>>().join(",")
     );
+    let (Some(lo), Some(hi)) = (to_i64(&lo), to_i64(&hi)) else {
+        return Err(invalid(
+            what,
+            format!("coordinates must lie within +-{}", limits::COORDINATE_LIMIT),
+        ));
+    };
     limits::checked_box(&what, lo, hi, limits::MAX_BOX_SIDE as i64).map_err(engine_err)
+}
+
+fn to_i64(corner: &[Int; 3]) -> Option<[i64; 3]> {
+    Some([corner[0].get()?, corner[1].get()?, corner[2].get()?])
 }
 
 /// A volume as a (Z, Y, X, C) array: its bytes are already in that order (x fastest, channels
@@ -339,35 +334,39 @@ fn image_array(py: Python<'_>, image: Image) -> PyResult<Bound<'_, PyArray3<u8>>
 impl PySolid {
     #[new]
     #[pyo3(signature = (
-        exemplar=None, *, ey=None, ez=None, seed=0, jitter=1.0,
+        exemplar=None, *, ey=None, ez=None, seed=Int::of(0), jitter=1.0,
         backend=String::from("auto"), adapter=None, candidates=String::from("3d"),
-        passes=PassesArg::Count(2), color=String::from("average"), coarse_cache=None,
+        passes=PassesArg::count(2), color=String::from("average"), coarse_cache=None,
         max_group=None, frame=None, feature_mask=None, ey_feature_mask=None,
         ez_feature_mask=None, feature_weight=None, periodic=false, balance_rounds=None,
         balance_strength=1.0, cache=CacheArg::Flag(true)
-    ))]
+    ), text_signature = "(exemplar=None, *, ey=None, ez=None, seed=0, jitter=1.0, \
+        backend='auto', adapter=None, candidates='3d', passes=2, color='average', \
+        coarse_cache=None, max_group=None, frame=None, feature_mask=None, \
+        ey_feature_mask=None, ez_feature_mask=None, feature_weight=None, periodic=False, \
+        balance_rounds=None, balance_strength=1.0, cache=True)")]
     #[allow(clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
         exemplar: Option<&Bound<'_, PyAny>>,
         ey: Option<&Bound<'_, PyAny>>,
         ez: Option<&Bound<'_, PyAny>>,
-        seed: i128,
+        seed: Int,
         jitter: f32,
         backend: String,
         adapter: Option<String>,
         candidates: String,
         passes: PassesArg,
         color: String,
-        coarse_cache: Option<i128>,
-        max_group: Option<i128>,
+        coarse_cache: Option<Int>,
+        max_group: Option<Int>,
         frame: Option<String>,
         feature_mask: Option<&Bound<'_, PyAny>>,
         ey_feature_mask: Option<&Bound<'_, PyAny>>,
         ez_feature_mask: Option<&Bound<'_, PyAny>>,
         feature_weight: Option<f32>,
         periodic: bool,
-        balance_rounds: Option<u32>,
+        balance_rounds: Option<Int>,
         balance_strength: f32,
         cache: CacheArg,
     ) -> PyResult<PySolid> {
@@ -415,7 +414,10 @@ impl PySolid {
             frame: input_frame(frame.as_deref())?,
             feature_weight: feature_weight.unwrap_or(defaults.feature_weight),
             periodic,
-            balance_rounds: balance_rounds.unwrap_or(defaults.balance_rounds),
+            balance_rounds: match balance_rounds {
+                Some(rounds) => rounds.in_range("balance_rounds")?,
+                None => defaults.balance_rounds,
+            },
             balance_strength,
         };
         let cache = match cache {
@@ -434,23 +436,24 @@ impl PySolid {
     /// analyze`) with these synthesis settings.
     #[staticmethod]
     #[pyo3(signature = (
-        path, *, seed=0, jitter=1.0, backend=String::from("auto"), adapter=None,
-        candidates=String::from("3d"), passes=PassesArg::Count(2),
+        path, *, seed=Int::of(0), jitter=1.0, backend=String::from("auto"), adapter=None,
+        candidates=String::from("3d"), passes=PassesArg::count(2),
         color=String::from("average"), coarse_cache=None, max_group=None
-    ))]
+    ), text_signature = "(path, *, seed=0, jitter=1.0, backend='auto', adapter=None, \
+        candidates='3d', passes=2, color='average', coarse_cache=None, max_group=None)")]
     #[allow(clippy::too_many_arguments)]
     fn load(
         py: Python<'_>,
         path: PathBuf,
-        seed: i128,
+        seed: Int,
         jitter: f32,
         backend: String,
         adapter: Option<String>,
         candidates: String,
         passes: PassesArg,
         color: String,
-        coarse_cache: Option<i128>,
-        max_group: Option<i128>,
+        coarse_cache: Option<Int>,
+        max_group: Option<Int>,
     ) -> PyResult<PySolid> {
         let settings = SynthSettings::parse(
             seed,
@@ -472,8 +475,8 @@ impl PySolid {
     fn region<'py>(
         &self,
         py: Python<'py>,
-        lo: [i64; 3],
-        hi: [i64; 3],
+        lo: [Int; 3],
+        hi: [Int; 3],
     ) -> PyResult<Bound<'py, PyArray4<u8>>> {
         let b = checked_box(lo, hi)?;
         let volume = self.request(py, move |solid| solid.region(b))?;
@@ -482,8 +485,9 @@ impl PySolid {
 
     /// The n^3 tileable solid (n a multiple of 32): its own solid, periodic with period n
     /// along each axis, as (n, n, n, C).
-    fn tileable<'py>(&self, py: Python<'py>, n: i64) -> PyResult<Bound<'py, PyArray4<u8>>> {
+    fn tileable<'py>(&self, py: Python<'py>, n: Int) -> PyResult<Bound<'py, PyArray4<u8>>> {
         // As `synth --size N --tileable` checks it.
+        let n: i64 = n.or_refused(limits::check_size("--size", 0).unwrap_err())?;
         let n = limits::check_size(&format!("--size {n}"), n).map_err(engine_err)?;
         check_tileable_size(n).map_err(engine_err)?;
         if self.settings.params.coarse_cache.is_some() {
@@ -498,18 +502,23 @@ impl PySolid {
     }
 
     /// A planar cut at any angle: `size` x `size` pixels `spacing` voxels apart, centred on
-    /// `origin`, across `normal` (`up` projected onto the plane gives the rows' direction), as
-    /// (size, size, C).
-    #[pyo3(signature = (origin, normal, up=None, size=256, spacing=1.0))]
+    /// `origin`, across `normal`, as (size, size, C). Pixel [j, i] samples origin +
+    /// (i + 0.5 - size/2) * spacing * u + (j + 0.5 - size/2) * spacing * v, where v is `up`
+    /// projected onto the plane (default +y; +z for a normal along y) and u = v x normal: for
+    /// normal (0, 0, 1) the array is [y, x], like a z slice of `region`; shown as an image
+    /// (row 0 at the top), `up` points down.
+    #[pyo3(signature = (origin, normal, up=None, size=Int::of(256), spacing=1.0),
+           text_signature = "(self, origin, normal, up=None, size=256, spacing=1.0)")]
     fn cut<'py>(
         &self,
         py: Python<'py>,
         origin: [f64; 3],
         normal: [f64; 3],
         up: Option<[f64; 3]>,
-        size: i64,
+        size: Int,
         spacing: f64,
     ) -> PyResult<Bound<'py, PyArray3<u8>>> {
+        let size: i64 = size.or_refused(limits::check_cut_size("--size", 0).unwrap_err())?;
         let size = limits::check_cut_size(&format!("--size {size}"), size).map_err(engine_err)?;
         let spec = CutSpec {
             origin,
@@ -536,6 +545,9 @@ impl PySolid {
 
     /// Write the analysis as an `.ssa` file (what `solidsynth analyze` writes), atomically.
     fn save_analysis(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
+        if path.as_os_str().is_empty() {
+            return Err(invalid("-o ''", "is an empty path"));
+        }
         atomic::check_output_path(&path, "-o").map_err(engine_err)?;
         let analysis = self.analysis.clone();
         run_detached(py, || {}, move || ssa::save(&analysis, &path))
@@ -581,6 +593,9 @@ impl PySolid {
 
 #[pymodule]
 fn _solidsynth(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    // llvmpipe's vector width as the command line sets it (512 bits on AVX-512 hosts unless the
+    // user chose one), at import, before any device is opened: the same speed from Python.
+    solidsynth::device::prepare_driver_environment_for(solidsynth::device::DriverUse::Compute);
     m.add_class::<PySolid>()?;
     m.add_function(wrap_pyfunction!(evaluate::evaluate, m)?)?;
     m.add("Error", m.py().get_type::<Error>())?;

@@ -26,6 +26,24 @@ def test_a_dask_array_is_the_region(cells, tmp_path):
     np.testing.assert_array_equal(computed, whole)
 
 
+@pytest.mark.parametrize(
+    "shape, chunks, message",
+    [
+        ("888", 4, r"shape: expected three positive sizes \(Z, Y, X\), got '888'"),
+        ((8.9, 8, 8), 4, r"shape: expected three positive sizes"),
+        (8, 4, r"shape: expected three positive sizes"),
+        ((8, 8, 0), 4, r"shape: expected three positive sizes"),
+        ((8, 8, 8), 0, r"chunks 0: "),
+        ((10**6,) * 3, 128, r"blocks; at most 1000000"),
+    ],
+)
+def test_bad_shapes_and_chunks_are_refused_before_the_graph(cells, shape, chunks, message):
+    with pytest.raises(ValueError, match=message):
+        solidsynth.dask.region(cells, shape, chunks)
+    # NumPy integers are integers.
+    assert solidsynth.dask.region(cells, np.array([8, 8, 8]), 4).shape[:3] == (8, 8, 8)
+
+
 def test_sources(cells, fixture_path, tmp_path):
     options = dict(seed=2, periodic=True, balance_rounds=0, backend="cpu")
     expected = cells.region((0, 0, 0), (8, 8, 8))

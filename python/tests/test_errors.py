@@ -74,8 +74,14 @@ def test_a_damaged_analysis_file_is_refused(tmp_path):
         (dict(frame="diagonal"), "invalid --frame diagonal"),
         (dict(seed=-1), r"invalid --seed -1: must be 0..=18446744073709551615"),
         (dict(seed=2**64), "invalid --seed 18446744073709551616"),
-        (dict(coarse_cache=-64), "invalid --coarse-cache -64: must be 0..="),
-        (dict(max_group=2**40), "invalid --max-group 1099511627776"),
+        (dict(coarse_cache=-64), "invalid --coarse-cache -64: must be a multiple of 64 in"),
+        (dict(max_group=2**40), r"invalid --max-group 1099511627776: must be 4..=512"),
+        (dict(seed=2**128), "invalid --seed 340282366920938463463374607431768211456: must be 0"),
+        (dict(balance_rounds=-1), "invalid --balance-rounds -1: must be 0..="),
+        (dict(passes=-1), "invalid --passes -1"),
+        (dict(passes=2**40), "invalid --passes 1099511627776"),
+        (dict(passes=[2, 2, -1, 1]), r"invalid --passes 2,2,-1,1"),
+        (dict(cache=""), "invalid cache '': is an empty path"),
     ],
 )
 def test_bad_settings_name_their_flag(options, message):
@@ -97,6 +103,48 @@ def test_bad_boxes(cells, lo, hi, message):
     with pytest.raises(ValueError, match=message) as refused:
         cells.region(lo, hi)
     assert str(refused.value).startswith("invalid --box ")
+
+
+@pytest.mark.parametrize(
+    "options, message",
+    [
+        (dict(passes=2.5), "passes: expected an int, a string"),
+        (dict(cache=None), r"cache: expected True, False or a directory"),
+        (dict(seed="7"), "expected an int, got str"),
+        (dict(seed=True), "expected an int, got bool"),
+    ],
+)
+def test_arguments_of_the_wrong_type_say_what_they_take(options, message):
+    with pytest.raises(TypeError, match=message):
+        solidsynth.Solid(**{**CPU, **options})
+
+
+def test_integers_past_every_type_are_value_errors_naming_their_argument(cells, tmp_path):
+    with pytest.raises(ValueError, match=r"^invalid --box 0,0,0,9223372036854775808,8,8: "):
+        cells.region((0, 0, 0), (2**63, 8, 8))
+    with pytest.raises(ValueError, match=r"^invalid --size 9223372036854775808: must be 8..=2048"):
+        cells.tileable(2**63)
+    with pytest.raises(ValueError, match=r"^invalid --size 1180591620717411303424: must be 1..="):
+        cells.cut((0, 0, 0), (0, 0, 1), size=2**70)
+    volume = np.zeros((16, 16, 16, 3), dtype=np.uint8)
+    exemplar = np.zeros((32, 32, 3), dtype=np.uint8)
+    with pytest.raises(ValueError, match=r"^invalid --seed -1: must be 0..="):
+        solidsynth.eval(exemplar, volume, seed=-1)
+    with pytest.raises(ValueError, match=r"^invalid --slices 1180591620717411303424: must be 1..=64"):
+        solidsynth.eval(exemplar, volume, slices=2**70)
+    with pytest.raises(ValueError, match=r"^invalid -o '': is an empty path"):
+        cells.save_analysis("")
+
+
+def test_signatures_show_their_defaults():
+    import inspect
+
+    parameters = inspect.signature(solidsynth.Solid).parameters
+    assert parameters["backend"].default == "auto"
+    assert parameters["passes"].default == 2
+    assert parameters["cache"].default is True
+    assert inspect.signature(solidsynth.Solid.load).parameters["color"].default == "average"
+    assert inspect.signature(solidsynth.eval).parameters["slices"].default == 3
 
 
 def test_bad_sizes(cells):

@@ -101,7 +101,7 @@ impl InputArgs {
     fn is_ssa(&self) -> bool {
         self.input
             .as_ref()
-            .is_some_and(|p| p.extension().is_some_and(|e| e == "ssa"))
+            .is_some_and(|p| p.extension().is_some_and(|e| e.eq_ignore_ascii_case("ssa")))
     }
 
     /// The exemplar-side settings the arguments name, images and masks loaded.

@@ -19,7 +19,15 @@ reading and writing finish first). :mod:`solidsynth.dask` builds Dask arrays
 of solids (``pip install solidsynth[dask]``).
 """
 
-from ._solidsynth import Error, Solid, __version__
-from ._solidsynth import eval  # noqa: A004 - named after `solidsynth eval`
+import os as _os
+
+# Mesa's implicit Vulkan layer VK_LAYER_MESA_device_select connects to the display server to
+# rank GPUs; on a headless machine libwayland then prints "error: XDG_RUNTIME_DIR is invalid or
+# not set" whenever Vulkan is probed. solidsynth ranks the adapters itself, so the layer is
+# skipped, as the command line skips it, unless the user set NODEVICE_SELECT.
+_os.environ.setdefault("NODEVICE_SELECT", "1")
+
+from ._solidsynth import Error, Solid, __version__  # noqa: E402
+from ._solidsynth import eval  # noqa: A004,E402 - named after `solidsynth eval`
 
 __all__ = ["Error", "Solid", "eval", "__version__"]

@@ -83,7 +83,12 @@ class Solid:
         size: int = 256,
         spacing: float = 1.0,
     ) -> npt.NDArray[np.uint8]:
-        """A planar cut of ``size`` x ``size`` pixels, ``spacing`` voxels apart, as (size, size, C)."""
+        """A planar cut of ``size`` x ``size`` pixels, ``spacing`` voxels apart, as (size, size, C).
+
+        Pixel [j, i] samples origin + (i + 0.5 - size/2) * spacing * u + (j + 0.5 - size/2) *
+        spacing * v: v is ``up`` projected onto the plane (default +y; +z for a normal along y),
+        u = v x normal. For normal (0, 0, 1) the array is [y, x], like a z slice of ``region``.
+        """
     def save_analysis(self, path: Union[str, "os.PathLike[str]"]) -> None:
         """Write the analysis as an ``.ssa`` file (what ``solidsynth analyze`` writes)."""
     @property

@@ -55,13 +55,11 @@ def region(
     temporary directory, which only local workers see). ``solid_options``: :class:`Solid`'s
     keyword arguments.
     """
-    shape = tuple(int(n) for n in shape)
-    if len(shape) != 3 or min(shape) < 1:
+    shape = _three_ints("shape", shape, "three positive sizes (Z, Y, X)")
+    if min(shape) < 1:
         raise ValueError(f"shape: expected three positive sizes (Z, Y, X), got {shape}")
-    origin = tuple(origin)
-    if len(origin) != 3 or not all(isinstance(c, (int, np.integer)) for c in origin):
-        raise ValueError(f"origin: expected three integers (x, y, z), got {origin}")
-    ox, oy, oz = (int(c) for c in origin)
+    origin = _three_ints("origin", origin, "three integers (x, y, z)")
+    ox, oy, oz = origin
     for axis, (lo, n) in enumerate(zip((ox, oy, oz), shape[::-1])):
         if not (-COORDINATE_LIMIT <= lo and lo + n <= COORDINATE_LIMIT):
             raise ValueError(
@@ -71,7 +69,18 @@ def region(
     if chunks == "auto":
         # Dask's own "auto" sizes blocks by bytes and may exceed a block's side limit.
         chunks = tuple(min(n, DEFAULT_BLOCK) for n in shape)
-    block_chunks = normalize_chunks(chunks, shape, dtype=np.uint8)
+    try:
+        block_chunks = normalize_chunks(chunks, shape, dtype=np.uint8)
+    except (TypeError, ValueError, ZeroDivisionError) as e:
+        raise ValueError(f"chunks {chunks!r}: not Dask chunks of shape {shape} ({e})") from None
+    if min(min(sides) for sides in block_chunks) < 1:
+        raise ValueError(f"chunks {chunks!r}: every block needs at least one voxel a side")
+    blocks = int(np.prod([len(sides) for sides in block_chunks], dtype=object))
+    if blocks > MAX_BLOCKS:
+        raise ValueError(
+            f"shape {shape} in chunks {chunks!r}: {blocks} blocks; at most {MAX_BLOCKS} "
+            f"(larger chunks, or the box in parts)"
+        )
     largest = max(max(sides) for sides in block_chunks)
     if largest > MAX_BLOCK_SIDE:
         raise ValueError(
@@ -97,6 +106,22 @@ MAX_BLOCK_SIDE = _solidsynth.MAX_BOX_SIDE
 COORDINATE_LIMIT = _solidsynth.COORDINATE_LIMIT
 # The block side for ``chunks="auto"``.
 DEFAULT_BLOCK = 128
+# The most blocks one array may have: Dask builds a task per block up front (a graph of ten
+# million tasks takes minutes and gigabytes before anything runs).
+MAX_BLOCKS = 1_000_000
+
+
+def _three_ints(name: str, value: Any, expected: str) -> Tuple[int, int, int]:
+    """``value`` as three Python ints (ints or NumPy integers, not bools), else ValueError."""
+    try:
+        items = () if isinstance(value, (str, bytes)) else tuple(value)
+    except TypeError:
+        items = ()
+    if len(items) != 3 or not all(
+        isinstance(c, (int, np.integer)) and not isinstance(c, (bool, np.bool_)) for c in items
+    ):
+        raise ValueError(f"{name}: expected {expected}, got {value!r}")
+    return tuple(int(c) for c in items)
 
 
 def _block(block_info=None, *, ssa, options, origin):
