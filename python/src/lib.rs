@@ -33,6 +33,9 @@ use solidsynth::{
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 
+/// How often a request waiting behind another one looks whether its caller gave up.
+const ENGINE_POLL: std::time::Duration = std::time::Duration::from_millis(10);
+
 fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
     // A request that panicked is reported as an error and its solid rebuilt (`Engine::ready`):
     // the lock itself stays usable.
@@ -228,8 +231,8 @@ impl PySolid {
     }
 
     /// Run `work` on the solid off the interpreter; Ctrl-C cancels it. Requests from several
-    /// Python threads take turns; Ctrl-C cancels the caller's own request only, not one of
-    /// another thread that it is waiting behind.
+    /// Python threads take turns; Ctrl-C cancels the caller's own request only (at once, also
+    /// while it waits), not one of another thread that it is waiting behind.
     fn request<T: Send>(
         &self,
         py: Python<'_>,
@@ -253,8 +256,21 @@ impl PySolid {
             },
             || {
                 // Taken on the worker thread: a request waiting for another one waits there,
-                // with the interpreter free.
-                let mut engine = lock(&self.engine);
+                // with the interpreter free, and gives up as soon as its caller is interrupted
+                // (a blocking lock would hold the KeyboardInterrupt until the other request
+                // ended, minutes for a large box).
+                let mut engine = loop {
+                    match self.engine.try_lock() {
+                        Ok(engine) => break engine,
+                        Err(std::sync::TryLockError::Poisoned(p)) => break p.into_inner(),
+                        Err(std::sync::TryLockError::WouldBlock) => {
+                            if *lock(&phase) == Phase::Abandoned {
+                                return Err(solidsynth::Error::Cancelled);
+                            }
+                            std::thread::sleep(ENGINE_POLL);
+                        }
+                    }
+                };
                 engine.ready(&self.analysis, &self.token)?;
                 {
                     let mut phase = lock(&phase);

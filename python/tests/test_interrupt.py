@@ -64,3 +64,25 @@ def test_other_threads_run_during_a_request(slow):
     worker.join()
     # With the GIL held for the whole request this thread would not have run meanwhile.
     assert ticks > 10
+
+
+def test_ctrl_c_reaches_a_request_waiting_behind_another(fixture_path, ctrl_c_raises):
+    solid = solidsynth.Solid(
+        fixture_path("cells32.png"), seed=2, periodic=True, balance_rounds=0, backend="cpu",
+        max_group=8,
+    )
+    # Another thread's request holds the solid for seconds (64^3 in groups of 8).
+    other = threading.Thread(target=lambda: solid.region((0, 0, 0), (64, 64, 64)))
+    other.start()
+    time.sleep(0.2)
+    timer = threading.Timer(0.1, _thread.interrupt_main)
+    timer.start()
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            solid.region((100, 0, 0), (108, 8, 8))
+        # Raised while the other request still runs, not when it ends.
+        assert other.is_alive()
+    finally:
+        timer.join()
+        other.join()
+    assert solid.region((0, 0, 0), (4, 4, 4)).shape == (4, 4, 4, 3)
