@@ -30,11 +30,15 @@ impl Volume {
                 format!("has {} channels; volumes have 1 to 4", self.channels),
             ));
         }
+        // (None: more bytes than a u64 counts, which no data holds.)
         let bytes = self
             .dims()
             .iter()
-            .fold(u64::from(self.channels), |b, &d| b * u64::from(d));
-        if self.data.len() as u64 != bytes {
+            .try_fold(u64::from(self.channels), |b, &d| {
+                b.checked_mul(u64::from(d))
+            });
+        if bytes != Some(self.data.len() as u64) {
+            let bytes = bytes.map_or("more than 2^64".to_string(), |b| b.to_string());
             return Err(crate::Error::invalid(
                 what,
                 format!(

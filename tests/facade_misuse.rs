@@ -62,8 +62,20 @@ fn hand_built_inputs_that_disagree_with_their_sizes_are_refused() {
         ..volume.clone()
     };
     refused(
-        solidsynth::metrics::evaluate(&short, &[marble], &params),
+        solidsynth::metrics::evaluate(&short, std::slice::from_ref(&marble), &params),
         "holds 10 bytes",
+    );
+    // Sizes whose byte count passes 2^64 (it wrapped to 0, so empty data passed).
+    let vast = Volume {
+        nx: 1 << 22,
+        ny: 1 << 22,
+        nz: 1 << 22,
+        channels: 4,
+        data: vec![],
+    };
+    refused(
+        solidsynth::metrics::evaluate(&vast, &[marble], &params),
+        "take more than 2^64",
     );
 
     // A volume writer refuses a slab whose data is short, and a file left incomplete.

@@ -6,7 +6,7 @@ use numpy::prelude::*;
 use numpy::{PyArrayDyn, PyUntypedArray};
 use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
-use pyo3::types::{PyBool, PySequence, PyString};
+use pyo3::types::{PyBool, PyBytes, PyString};
 use solidsynth::analysis::frame::InputFrame;
 use solidsynth::exemplar::{load_image, Image};
 use solidsynth::solid::FeatureMasks;
@@ -295,12 +295,15 @@ impl<'a, 'py> FromPyObject<'a, 'py> for PassesArg {
         if let Some(text) = int_text(&obj) {
             return Ok(PassesArg(text));
         }
-        let counts = obj.cast::<PySequence>().ok().and_then(|seq| {
-            let items = seq.try_iter().ok()?;
-            items
-                .map(|item| int_text(&item.ok()?))
-                .collect::<Option<Vec<String>>>()
-        });
+        // Any iterable of ints (a list, a tuple, a NumPy array), but not bytes.
+        let counts = (!obj.is_instance_of::<PyBytes>())
+            .then(|| obj.try_iter().ok())
+            .flatten()
+            .and_then(|items| {
+                items
+                    .map(|item| int_text(&item.ok()?))
+                    .collect::<Option<Vec<String>>>()
+            });
         match counts {
             Some(counts) => Ok(PassesArg(counts.join(","))),
             None => Err(PyTypeError::new_err(format!(
@@ -322,8 +325,9 @@ impl<'a, 'py> FromPyObject<'a, 'py> for CacheArg {
     type Error = PyErr;
 
     fn extract(obj: Borrowed<'a, 'py, PyAny>) -> PyResult<CacheArg> {
-        if let Ok(flag) = obj.cast::<PyBool>() {
-            return Ok(CacheArg::Flag(flag.is_true()));
+        // (`bool` extraction takes Python's and NumPy's booleans, not ints.)
+        if let Ok(flag) = obj.extract::<bool>() {
+            return Ok(CacheArg::Flag(flag));
         }
         let is_path =
             obj.is_instance_of::<PyString>() || obj.hasattr("__fspath__").unwrap_or(false);

@@ -31,10 +31,48 @@ use solidsynth::{
     SynthOptions, SynthParams, Volume,
 };
 use std::path::PathBuf;
-use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
+use std::sync::{Arc, Condvar, Mutex, MutexGuard, PoisonError};
 
-/// How often a request waiting behind another one looks whether its caller gave up.
+/// How often a request waiting behind another one looks whether its caller gave up (it is
+/// woken at once when the other one ends).
 const ENGINE_POLL: std::time::Duration = std::time::Duration::from_millis(10);
+
+/// Requests take turns on a solid's engine: `busy` says one holds it, `released` wakes one
+/// waiting request when it ends. (A plain lock cannot be given up while waiting for it.)
+#[derive(Default)]
+struct Turns {
+    busy: Mutex<bool>,
+    released: Condvar,
+}
+
+impl Turns {
+    /// Wait for the turn; None as soon as `abandoned()` says the caller gave up.
+    fn take(&self, abandoned: impl Fn() -> bool) -> Option<Turn<'_>> {
+        let mut busy = lock(&self.busy);
+        while *busy {
+            if abandoned() {
+                return None;
+            }
+            busy = self
+                .released
+                .wait_timeout(busy, ENGINE_POLL)
+                .unwrap_or_else(PoisonError::into_inner)
+                .0;
+        }
+        *busy = true;
+        Some(Turn(self))
+    }
+}
+
+/// A request's turn, given back when it is dropped.
+struct Turn<'a>(&'a Turns);
+
+impl Drop for Turn<'_> {
+    fn drop(&mut self) {
+        *lock(&self.0.busy) = false;
+        self.0.released.notify_one();
+    }
+}
 
 fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
     // A request that panicked is reported as an error and its solid rebuilt (`Engine::ready`):
@@ -173,6 +211,8 @@ impl Engine {
 #[pyclass(name = "Solid", module = "solidsynth", frozen)]
 pub struct PySolid {
     engine: Mutex<Engine>,
+    /// Whose turn it is to hold `engine`.
+    turns: Turns,
     /// The engine's current token, for the calling thread to cancel while its request holds
     /// `engine`.
     token: Mutex<CancelToken>,
@@ -216,6 +256,7 @@ impl PySolid {
         Ok(PySolid {
             channels: solid.color_channels(),
             backend: compute.describe(),
+            turns: Turns::default(),
             engine: Mutex::new(Engine {
                 solid,
                 token: token.clone(),
@@ -259,18 +300,10 @@ impl PySolid {
                 // with the interpreter free, and gives up as soon as its caller is interrupted
                 // (a blocking lock would hold the KeyboardInterrupt until the other request
                 // ended, minutes for a large box).
-                let mut engine = loop {
-                    match self.engine.try_lock() {
-                        Ok(engine) => break engine,
-                        Err(std::sync::TryLockError::Poisoned(p)) => break p.into_inner(),
-                        Err(std::sync::TryLockError::WouldBlock) => {
-                            if *lock(&phase) == Phase::Abandoned {
-                                return Err(solidsynth::Error::Cancelled);
-                            }
-                            std::thread::sleep(ENGINE_POLL);
-                        }
-                    }
+                let Some(_turn) = self.turns.take(|| *lock(&phase) == Phase::Abandoned) else {
+                    return Err(solidsynth::Error::Cancelled);
                 };
+                let mut engine = lock(&self.engine);
                 engine.ready(&self.analysis, &self.token)?;
                 {
                     let mut phase = lock(&phase);
@@ -524,7 +557,7 @@ impl PySolid {
     /// normal (0, 0, 1) the array is [y, x], like a z slice of `region`; shown as an image
     /// (row 0 at the top), `up` points down.
     #[pyo3(signature = (origin, normal, up=None, size=Int::of(256), spacing=1.0),
-           text_signature = "(self, origin, normal, up=None, size=256, spacing=1.0)")]
+           text_signature = "($self, origin, normal, up=None, size=256, spacing=1.0)")]
     fn cut<'py>(
         &self,
         py: Python<'py>,
@@ -609,9 +642,6 @@ impl PySolid {
 
 #[pymodule]
 fn _solidsynth(m: &Bound<'_, PyModule>) -> PyResult<()> {
-    // llvmpipe's vector width as the command line sets it (512 bits on AVX-512 hosts unless the
-    // user chose one), at import, before any device is opened: the same speed from Python.
-    solidsynth::device::prepare_driver_environment_for(solidsynth::device::DriverUse::Compute);
     m.add_class::<PySolid>()?;
     m.add_function(wrap_pyfunction!(evaluate::evaluate, m)?)?;
     m.add("Error", m.py().get_type::<Error>())?;

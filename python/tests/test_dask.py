@@ -35,6 +35,7 @@ def test_a_dask_array_is_the_region(cells, tmp_path):
         ((8, 8, 0), 4, r"shape: expected three positive sizes"),
         ((8, 8, 8), 0, r"chunks 0: "),
         ((10**6,) * 3, 128, r"blocks; at most 1000000"),
+        ((2**28,) * 3, 1, r"blocks; at most 1000000"),
     ],
 )
 def test_bad_shapes_and_chunks_are_refused_before_the_graph(cells, shape, chunks, message):

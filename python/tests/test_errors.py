@@ -136,6 +136,19 @@ def test_integers_past_every_type_are_value_errors_naming_their_argument(cells, 
         cells.save_analysis("")
 
 
+def test_numpy_values_are_taken_as_python_ones(cells, fixture_path):
+    import inspect
+
+    counts = solidsynth.Solid(
+        fixture_path("cells32.png"), **CPU, balance_rounds=0,
+        passes=np.array([2, 2, 2, 1]), cache=np.True_,
+    )
+    assert counts.options["passes"] == "2,2,2,1"
+    with pytest.raises(TypeError, match="passes: expected an int"):
+        solidsynth.Solid(**CPU, passes=b"22")
+    assert "self" not in inspect.signature(cells.cut).parameters
+
+
 def test_signatures_show_their_defaults():
     import inspect
 

@@ -1,7 +1,8 @@
 //! Reading a user's input file whole: only what can be a file's contents (a regular file, or a
 //! pipe such as a shell's `<(...)`), and no more than the memory there is, so that a device
 //! given by mistake (`/dev/zero`, `/dev/urandom`) is refused at once instead of being read
-//! until memory runs out.
+//! until memory runs out. (Devices are told apart on Unix; elsewhere the memory bound alone
+//! applies.)
 
 use crate::error::{Error, Result};
 use std::io::Read;
@@ -28,11 +29,12 @@ pub fn read_text(path: &Path) -> Result<String> {
 
 fn read_at_most(path: &Path, limit: u64) -> Result<Vec<u8>> {
     let name = || path.display().to_string();
-    let mut file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
-    let metadata = file.metadata().map_err(|e| Error::io(path, e))?;
+    // Looked at before it is opened: opening a device can have effects of its own.
+    let metadata = std::fs::metadata(path).map_err(|e| Error::io(path, e))?;
     if let Some(kind) = not_a_file(&metadata.file_type()) {
         return Err(Error::invalid(name(), format!("is {kind}, not a file")));
     }
+    let mut file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
     let mut bytes = Vec::new();
     if metadata.is_file() {
         // A regular file's length is known: refused before any of it is read.

@@ -40,21 +40,16 @@ impl SlabOrder {
                 ),
             ));
         }
-        let bytes = slab
-            .dims()
-            .iter()
-            .fold(u64::from(slab.channels), |b, &d| b * u64::from(d));
-        if slab.data.len() as u64 != bytes {
+        if slab.nx == 0 || slab.ny == 0 {
             return Err(Error::invalid(
-                "slab",
+                "volume",
                 format!(
-                    "holds {} bytes; {:?} x {} channels take {bytes}",
-                    slab.data.len(),
-                    slab.dims(),
-                    slab.channels
+                    "is {:?}; a volume's sides are at least one voxel",
+                    self.dims
                 ),
             ));
         }
+        slab.check("slab")?;
         self.slices_written += slab.nz;
         Ok(())
     }

@@ -75,7 +75,7 @@ impl SlabWriter {
     pub fn write_slab(&mut self, slab: &Volume) -> Result<()> {
         let first_slice = self.order.slices_written();
         self.order.advance(slab)?;
-        let slice_len = (slab.nx * slab.ny * slab.channels) as usize;
+        let slice_len = slab.nx as usize * slab.ny as usize * slab.channels as usize;
         for (k, page) in slab.data.chunks_exact(slice_len).enumerate() {
             let first = first_slice + k as u32 == 0;
             let [w, h, depth] = self.order.dims();
@@ -102,7 +102,11 @@ pub fn to_bytes(v: &Volume) -> Result<Vec<u8>> {
     let mut cursor = std::io::Cursor::new(Vec::new());
     let path = Path::new("volume.tif");
     let mut encoder = TiffEncoder::new(&mut cursor).map_err(|e| tiff_error(path, e))?;
-    let slice_len = (v.nx * v.ny * v.channels) as usize;
+    v.check("volume")?;
+    let slice_len = v.nx as usize * v.ny as usize * v.channels as usize;
+    if slice_len == 0 {
+        return Err(crate::Error::invalid("volume", "has a side of zero voxels"));
+    }
     for (z, page) in v.data.chunks_exact(slice_len).enumerate() {
         let description = (z == 0).then(|| imagej_description(v.nz));
         write_page(&mut encoder, v.nx, v.ny, v.channels, page, description)

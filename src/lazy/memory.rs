@@ -22,7 +22,7 @@ pub const PADDING_ESTIMATE: u32 = 14;
 /// backend holds one), each voxel a triple and a value word (one word covers up to four
 /// channels; the estimate assumes that).
 pub fn chunk_bytes(side: u32) -> u64 {
-    super::grouping::padded_state_bytes([side as u64; 3]) * 2
+    super::grouping::padded_state_bytes([side as u64; 3]).saturating_mul(2)
 }
 
 /// The largest group side, in its own level's voxels, at `coarser_by` levels above the finest,

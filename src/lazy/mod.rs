@@ -44,7 +44,7 @@ use index_layout::IndexLayout;
 use level_triples::LevelTriples;
 pub use memory::{group_cap, PADDING_ESTIMATE};
 use options::RequestKind;
-pub use options::SynthOptions;
+pub use options::{SynthOptions, MAX_GROUP_SIDES};
 use pack::LevelPack;
 use params::periods_below;
 pub use params::{

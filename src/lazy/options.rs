@@ -8,7 +8,7 @@ use crate::util::cancel::CancelToken;
 /// same the command-line tool and the server use.
 #[derive(Clone, Debug, Default)]
 pub struct SynthOptions {
-    /// The largest group edge in voxels (0 counts as 1), rounded down to whole bricks
+    /// The largest group edge in voxels ([`MAX_GROUP_SIDES`]), rounded down to whole bricks
     /// (`--max-group`): groups
     /// bound the working memory. None: the library's default, groups of at most
     /// `super::memory::HOST_MEMORY_GROUP` for boxes, tileable solids and brick sets (surfaces)
@@ -50,12 +50,27 @@ pub struct SynthOptions {
 impl SynthOptions {
     /// Refuse settings no synthesis can run with, named as the command line names them.
     pub fn validate(&self) -> Result<()> {
+        if let Some(side) = self.max_group {
+            if !MAX_GROUP_SIDES.contains(&side) {
+                return Err(Error::invalid(
+                    format!("--max-group {side}"),
+                    format!(
+                        "must be {}..={}",
+                        MAX_GROUP_SIDES.start(),
+                        MAX_GROUP_SIDES.end()
+                    ),
+                ));
+            }
+        }
         if self.state_limit == Some(0) {
             return Err(Error::invalid("state limit", "must be at least one byte"));
         }
         Ok(())
     }
 }
+
+/// The group edges `max_group` may take (`--max-group`), in finest-level voxels.
+pub const MAX_GROUP_SIDES: std::ops::RangeInclusive<u32> = 4..=512;
 
 /// What a request asks for, for the defaults that depend on it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

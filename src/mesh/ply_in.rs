@@ -300,11 +300,7 @@ mod tests {
         refused(binary.as_bytes(), "0 bytes follow the header");
     }
 
-    fn gzip(data: &[u8]) -> Vec<u8> {
-        let mut encoder = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
-        std::io::Write::write_all(&mut encoder, data).unwrap();
-        encoder.finish().unwrap()
-    }
+    use crate::io::nrrd::gzip_bytes as gzip;
 
     #[test]
     fn a_gzipped_file_inflates_only_as_far_as_its_header_allows() {

@@ -169,6 +169,21 @@ pub fn evaluate(volume: &Volume, exemplars: &[Image], params: &EvalParams) -> Re
             ),
         ));
     }
+    for e in exemplars {
+        let bytes = e.pixel_count() as u64 * u64::from(e.channels);
+        if !(1..=4).contains(&e.channels) || e.pixels.len() as u64 != bytes {
+            return Err(Error::invalid(
+                "exemplar",
+                format!(
+                    "holds {} bytes for {}x{} pixels of {} channels",
+                    e.pixels.len(),
+                    e.width,
+                    e.height,
+                    e.channels
+                ),
+            ));
+        }
+    }
     let ex: Vec<Image> = exemplars
         .iter()
         .map(|e| e.with_channels(volume.channels))

@@ -3,7 +3,6 @@
 
 use crate::error::{Error, Result};
 use crate::lazy::Box3;
-use std::ops::RangeInclusive;
 
 /// Largest side of a box synthesized whole (`synth --size`, `region --box`, `tileable`).
 pub const MAX_BOX_SIDE: u32 = 2048;
@@ -28,7 +27,7 @@ pub fn check_surface_resolution(resolution: u32) -> Result<u32> {
 pub const MAX_CUT_SIZE: u32 = crate::lazy::cut::MAX_CUT_SIZE;
 
 /// The group edges `--max-group` accepts.
-pub const MAX_GROUP_SIDES: RangeInclusive<u32> = 4..=512;
+pub use crate::lazy::MAX_GROUP_SIDES;
 
 /// The half-open box [lo, hi), named `what` in errors (`--box ...`): corners within
 /// [`COORDINATE_LIMIT`], every side positive and at most `max_side` voxels.

@@ -299,9 +299,6 @@ impl SolidBuilder {
     pub fn build(self) -> Result<Solid> {
         self.params.validate()?;
         self.options.validate()?;
-        if let Some(side) = self.options.max_group {
-            limits::check_max_group(side)?;
-        }
         let compute = self.open_compute()?;
         let analysis = self.analyze_on(&compute)?;
         Solid::new(&analysis, self.params, self.options, compute, self.progress)

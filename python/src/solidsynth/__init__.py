@@ -12,8 +12,8 @@ bytes as the ``solidsynth`` command line.
 >>> block.shape                                           # doctest: +SKIP
 (32, 32, 32, 3)
 
-Bad input raises :class:`ValueError` (a file that cannot be read: an :class:`OSError`) with the
-command line's message; other failures raise :class:`solidsynth.Error`. Long calls release the
+Bad input raises :class:`ValueError` (an argument of the wrong type: a :class:`TypeError`; a file
+that cannot be read: an :class:`OSError`) with the command line's message; other failures raise :class:`solidsynth.Error`. Long calls release the
 GIL; syntheses stop on Ctrl-C (:class:`KeyboardInterrupt`; the analysis, ``eval`` and ``.ssa``
 reading and writing finish first). :mod:`solidsynth.dask` builds Dask arrays
 of solids (``pip install solidsynth[dask]``).

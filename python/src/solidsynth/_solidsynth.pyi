@@ -18,7 +18,8 @@ _Voxel = Sequence[int]
 
 class Error(Exception):
     """A failure that is not the caller's input (no GPU, a GPU error or timeout, an internal
-    error); bad input raises ValueError, an unreadable file an OSError."""
+    error); bad input raises ValueError (a wrong type: TypeError), an unreadable file an
+    OSError."""
 
 class Solid:
     """A solid texture: a deterministic function over all of Z^3.

@@ -69,6 +69,7 @@ def region(
     if chunks == "auto":
         # Dask's own "auto" sizes blocks by bytes and may exceed a block's side limit.
         chunks = tuple(min(n, DEFAULT_BLOCK) for n in shape)
+    _check_block_count(shape, chunks)
     try:
         block_chunks = normalize_chunks(chunks, shape, dtype=np.uint8)
     except (TypeError, ValueError, ZeroDivisionError) as e:
@@ -111,6 +112,23 @@ DEFAULT_BLOCK = 128
 MAX_BLOCKS = 1_000_000
 
 
+def _check_block_count(shape: Tuple[int, int, int], chunks: Any) -> None:
+    """Refuse more than MAX_BLOCKS blocks where ``chunks`` is one block side or one per axis,
+    before Dask lists every block's sides (``normalize_chunks`` of 2**28 voxels in chunks of 1
+    takes minutes)."""
+    sides = chunks if isinstance(chunks, tuple) else (chunks,) * 3
+    if len(sides) != 3 or not all(isinstance(c, (int, np.integer)) and c > 0 for c in sides):
+        return
+    blocks = 1
+    for n, side in zip(shape, sides):
+        blocks *= -(-n // int(side))
+    if blocks > MAX_BLOCKS:
+        raise ValueError(
+            f"shape {shape} in chunks {chunks!r}: {blocks} blocks; at most {MAX_BLOCKS} "
+            f"(larger chunks, or the box in parts)"
+        )
+
+
 def _three_ints(name: str, value: Any, expected: str) -> Tuple[int, int, int]:
     """``value`` as three Python ints (ints or NumPy integers, not bools), else ValueError."""
     try:
@@ -151,7 +169,7 @@ def _analysis_file(source, solid_options, ssa_dir):
         solid = source
     else:
         solid = Solid(source, **solid_options)
-    if isinstance(source, (str, os.PathLike)) and Path(source).suffix == ".ssa":
+    if isinstance(source, (str, os.PathLike)) and Path(source).suffix.lower() == ".ssa":
         path = Path(source).resolve()
     else:
         path = _write_analysis(solid, ssa_dir)

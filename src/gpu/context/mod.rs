@@ -93,8 +93,7 @@ pub struct GpuContext {
     /// The last read-back staging buffer up to [`REUSED_READBACK_BYTES`], kept for the next
     /// read (a warm cut session reads one per cut: no allocation on the request path).
     readback: Mutex<Option<wgpu::Buffer>>,
-    /// GPU errors raised outside an error scope, reported at the next wait instead of panicking
-    /// (on the crate's own device; an application's keeps its own handler).
+    /// GPU errors raised outside an error scope, reported at the next wait instead of panicking.
     uncaptured: Arc<Mutex<Option<String>>>,
 }
 
@@ -199,16 +198,19 @@ impl GpuContext {
             max_storage_binding = limits.max_storage_buffer_binding_size,
             "GPU adapter"
         );
-        Ok(Self::with_device(device, queue, info, limits, opts, true))
+        Ok(Self::with_device(device, queue, info, limits, opts))
     }
 
     /// A context over an application's own device and queue (a game engine's, a viewer's):
     /// the kernels run there, sharing its memory and queue. `info` is its adapter's. Refused,
     /// naming the limit, when the device's limits are below what the kernels need
-    /// ([`required_limits`]). Nothing process-wide is changed, and the device's
-    /// uncaptured-error handler stays the application's: the engine's own work runs in error
-    /// scopes, so its errors come back as [`Error::Gpu`] and the application's own errors reach
-    /// its handler.
+    /// ([`required_limits`]). Nothing process-wide is changed, but the device's
+    /// uncaptured-error handler (wgpu keeps one per device) becomes the engine's: a GPU error
+    /// raised outside an error scope, the application's own included, is then reported by the
+    /// engine's next wait as [`Error::Gpu`] instead of reaching a handler the application set
+    /// before, and wgpu's default handler (which panics) no longer runs. An application that
+    /// sets its own handler again after this call gets its errors back, and the engine's
+    /// errors outside scopes (out of memory while allocating a buffer, for one) with them.
     pub fn from_device(
         device: wgpu::Device,
         queue: wgpu::Queue,
@@ -220,7 +222,7 @@ impl GpuContext {
             return Err(Error::invalid("device", problem));
         }
         tracing::info!(adapter = %info.name, "GPU device given by the application");
-        Ok(Self::with_device(device, queue, info, limits, opts, false))
+        Ok(Self::with_device(device, queue, info, limits, opts))
     }
 
     fn with_device(
@@ -229,7 +231,6 @@ impl GpuContext {
         info: wgpu::AdapterInfo,
         limits: wgpu::Limits,
         opts: &GpuOptions,
-        own_device: bool,
     ) -> Self {
         // The largest binding: the device's, or less when the options ask for it.
         let device_max = limits.max_storage_buffer_binding_size;
@@ -237,15 +238,13 @@ impl GpuContext {
             .max_binding_bytes
             .map_or(device_max, |m| m.min(device_max));
         let uncaptured = Arc::new(Mutex::new(None));
-        if own_device {
-            let sink = uncaptured.clone();
-            device.on_uncaptured_error(Arc::new(move |e: wgpu::Error| {
-                let mut slot = sink.lock().unwrap();
-                if slot.is_none() {
-                    *slot = Some(e.to_string());
-                }
-            }));
-        }
+        let sink = uncaptured.clone();
+        device.on_uncaptured_error(Arc::new(move |e: wgpu::Error| {
+            let mut slot = sink.lock().unwrap();
+            if slot.is_none() {
+                *slot = Some(e.to_string());
+            }
+        }));
         GpuContext {
             uncaptured,
             device,
