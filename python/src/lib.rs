@@ -239,7 +239,12 @@ impl PySolid {
             ..options.clone()
         };
         let params = settings.params.clone();
-        let (compute, analysis, solid) = run_detached(
+        // The engine's warnings (an analysis cache it cannot write), raised as Python warnings
+        // once the work is done, on this thread.
+        let warnings = Arc::new(Mutex::new(Vec::<String>::new()));
+        let sink = warnings.clone();
+        let builder = builder.warnings(move |text| lock(&sink).push(text.to_string()));
+        let built = run_detached(
             py,
             || token.cancel(),
             move || {
@@ -252,7 +257,17 @@ impl PySolid {
                 let solid = Solid::new(&analysis, params, first, compute.clone(), None)?;
                 Ok((compute, analysis, solid))
             },
-        )?;
+        );
+        for text in lock(&warnings).drain(..) {
+            let message = std::ffi::CString::new(text).unwrap_or_default();
+            PyErr::warn(
+                py,
+                &py.get_type::<pyo3::exceptions::PyUserWarning>(),
+                &message,
+                1,
+            )?;
+        }
+        let (compute, analysis, solid) = built?;
         Ok(PySolid {
             channels: solid.color_channels(),
             backend: compute.describe(),

@@ -182,3 +182,13 @@ def test_messages_are_the_command_lines(cli, cells, tmp_path):
 def test_errors_are_exception_classes():
     assert issubclass(solidsynth.Error, Exception)
     assert solidsynth.Error.__module__ == "solidsynth"
+
+
+def test_a_cache_that_cannot_be_written_is_a_warning(fixture_path, tmp_path):
+    not_a_dir = tmp_path / "file"
+    not_a_dir.write_bytes(b"")
+    with pytest.warns(UserWarning, match=r"could not cache the analysis: .*is not a directory"):
+        solid = solidsynth.Solid(
+            fixture_path("cells32.png"), **CPU, balance_rounds=0, cache=not_a_dir
+        )
+    assert solid.region((0, 0, 0), (4, 4, 4)).shape == (4, 4, 4, 3)

@@ -62,7 +62,15 @@ impl AnalysisCache {
         let path = self.path(key);
         let bytes = match std::fs::read(&path) {
             Ok(b) => b,
-            Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Cached::Miss,
+            // (No file, or no directory to hold one: the store says why.)
+            Err(e)
+                if matches!(
+                    e.kind(),
+                    std::io::ErrorKind::NotFound | std::io::ErrorKind::NotADirectory
+                ) =>
+            {
+                return Cached::Miss
+            }
             Err(e) => {
                 return Cached::Invalid(format!("unreadable: {}", crate::error::io_problem(&e)))
             }
@@ -75,6 +83,12 @@ impl AnalysisCache {
 
     /// Store `analysis` under `key` (atomically: a temporary file renamed into place).
     pub fn store(&self, key: u128, analysis: &Analysis) -> Result<()> {
+        if self.dir.exists() && !self.dir.is_dir() {
+            return Err(Error::invalid(
+                self.dir.display().to_string(),
+                "is not a directory",
+            ));
+        }
         std::fs::create_dir_all(&self.dir).map_err(|e| Error::io(&self.dir, e))?;
         let mut bytes = Vec::new();
         bytes.extend_from_slice(MAGIC);
@@ -91,20 +105,35 @@ impl AnalysisCache {
         key: u128,
         analyze: impl FnOnce() -> Result<Analysis>,
     ) -> Result<Analysis> {
+        self.get_or_analyze_warning(key, analyze, &|_| {})
+    }
+
+    /// [`Self::get_or_analyze`], its warnings also handed to `warn` (they are logged either
+    /// way): for a caller whose users see no log (the Python package).
+    pub fn get_or_analyze_warning(
+        &self,
+        key: u128,
+        analyze: impl FnOnce() -> Result<Analysis>,
+        warn: &dyn Fn(&str),
+    ) -> Result<Analysis> {
+        let warning = |text: String| {
+            tracing::warn!("{text}");
+            warn(&text);
+        };
         match self.load(key) {
             Cached::Hit(a) => {
                 tracing::info!("analysis from cache {}", self.path(key).display());
                 return Ok(a);
             }
-            Cached::Invalid(problem) => tracing::warn!(
+            Cached::Invalid(problem) => warning(format!(
                 "cached analysis {} ignored ({problem}); analysing again",
                 self.path(key).display()
-            ),
+            )),
             Cached::Miss => {}
         }
         let a = analyze()?;
         if let Err(e) = self.store(key, &a) {
-            tracing::warn!("could not cache the analysis: {}", e.report());
+            warning(format!("could not cache the analysis: {}", e.report()));
         }
         Ok(a)
     }

@@ -45,6 +45,9 @@ use std::sync::Arc;
 /// Progress reports: (stage, fraction of the whole job).
 pub type ProgressFn = Arc<dyn Fn(&str, f32) + Send + Sync>;
 
+/// A callback for warnings (work goes on: an analysis cache that cannot be written).
+pub type WarningFn = Arc<dyn Fn(&str) + Send + Sync>;
+
 /// Where the kernels run.
 #[derive(Clone)]
 enum Backend {
@@ -63,6 +66,7 @@ pub struct SolidBuilder {
     backend: Backend,
     cache: Option<AnalysisCache>,
     progress: Option<ProgressFn>,
+    warnings: Option<WarningFn>,
 }
 
 impl Default for SolidBuilder {
@@ -75,6 +79,7 @@ impl Default for SolidBuilder {
             backend: Backend::Choice(BackendChoice::Auto, GpuOptions::from_env()),
             cache: None,
             progress: None,
+            warnings: None,
         }
     }
 }
@@ -236,6 +241,14 @@ impl SolidBuilder {
         self
     }
 
+    /// Warnings about work that goes on regardless (an analysis cache that cannot be written or
+    /// holds a damaged file), also logged through `tracing`: for an application whose users
+    /// see no log.
+    pub fn warnings(mut self, warn: impl Fn(&str) + Send + Sync + 'static) -> Self {
+        self.warnings = Some(Arc::new(warn));
+        self
+    }
+
     /// Stop work at its next check (between groups and correction passes) once `token` is
     /// cancelled, with [`Error::Cancelled`]. A token stays cancelled: every later request
     /// stops too, until [`Solid::set_cancel`] gives the solid a new one.
@@ -282,8 +295,15 @@ impl SolidBuilder {
             }
         };
         let analyze = || crate::lazy::analyze(&input, &params, compute, &report);
+        let warn = |text: &str| {
+            if let Some(w) = &self.warnings {
+                w(text)
+            }
+        };
         let analysis = match &self.cache {
-            Some(cache) => cache.get_or_analyze(cache::cache_key(&input, &params), analyze)?,
+            Some(cache) => {
+                cache.get_or_analyze_warning(cache::cache_key(&input, &params), analyze, &warn)?
+            }
             None => analyze()?,
         };
         Ok(Arc::new(analysis))
