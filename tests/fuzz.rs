@@ -1,5 +1,6 @@
-//! Structured mutations of a valid file for every parser the project owns (NRRD, `.ssa`,
-//! `.gsolid`, PTM and its light files, `.lst`, OBJ, PLY, glTF, the constraints and strokes JSON):
+//! Structured mutations of a valid file for every parser the project owns (NRRD, raw and gzip, `.ssa`,
+//! `.gsolid`, PTM and its light files, `.lst`, OBJ, PLY (gzipped too), glTF, the constraints and
+//! strokes JSON):
 //! truncations, bit flips, length-like words set to huge values, duplicated sections. Each must
 //! give a clean error or a value, never a panic, and no single allocation above
 //! [`ALLOCATION_BOUND`] (a length field claiming gigabytes must be checked against the file's
@@ -107,6 +108,12 @@ fn every_parser_survives_structured_mutations() {
         &std::fs::read(&nrrd_path).unwrap(),
         solidsynth::io::nrrd::parse,
     );
+    let gzip_nrrd = [
+        solidsynth::io::nrrd::header_encoded(volume.dims(), volume.channels, true).into_bytes(),
+        solidsynth::io::nrrd::gzip_bytes(&volume.data),
+    ]
+    .concat();
+    fuzz("nrrd gzip", &gzip_nrrd, solidsynth::io::nrrd::parse);
     // .ssa.
     let analysis = common::analyze(
         vec![common::crop(&common::fixture("cells32.png"), 20, 20)],
@@ -162,6 +169,11 @@ fn every_parser_survives_structured_mutations() {
     }
     fuzz("ply binary", &ply_binary, |b| {
         solidsynth::mesh::parse_ply(b, "fuzz")
+    });
+    // Gzipped: the header inflated first, the stream then bounded by it.
+    let ply_gz = solidsynth::io::nrrd::gzip_bytes(&ply_binary);
+    fuzz("ply.gz", &ply_gz, |b| {
+        solidsynth::mesh::parse_ply_gz(b, "fuzz")
     });
     // glTF in: the crate's parser and our reading of its primitives, from a .glb written here
     // (NPY, TIFF and KTX2 are only written, by the tool).

@@ -18,7 +18,7 @@ use crate::error::{Error, Result};
 use glam::DVec3;
 use std::path::Path;
 
-pub use ply_in::parse_ply;
+pub use ply_in::{parse_ply, parse_ply_gz};
 
 /// The Stanford bunny as an OBJ file (`assets/meshes/bunny.obj`): the viewer's built-in mesh and
 /// the surface job of `bench compare`.
