@@ -1,7 +1,6 @@
-//! Structured mutations of a valid file for every parser the project owns (NRRD, raw and gzip, `.ssa`,
-//! `.gsolid`, PTM and its light files, `.lst`, OBJ, PLY (gzipped too), glTF, the constraints and
-//! strokes JSON):
-//! truncations, bit flips, length-like words set to huge values, duplicated sections. Each must
+//! Structured mutations of a valid file for every parser the project owns (NRRD raw and gzip,
+//! `.ssa`, `.gsolid`, PTM and its light files, `.lst`, OBJ, PLY and gzipped PLY, glTF, the
+//! constraints and strokes JSON): truncations, bit flips, length-like words set to huge values, duplicated sections. Each must
 //! give a clean error or a value, never a panic, and no single allocation above
 //! [`ALLOCATION_BOUND`] (a length field claiming gigabytes must be checked against the file's
 //! size before anything is allocated).
