@@ -1,9 +1,9 @@
 //! Structured mutations of a valid file for every parser the project owns (NRRD raw and gzip,
 //! `.ssa`, `.gsolid`, PTM and its light files, `.lst`, OBJ, PLY and gzipped PLY, glTF, the
-//! constraints and strokes JSON): truncations, bit flips, length-like words set to huge values, duplicated sections. Each must
-//! give a clean error or a value, never a panic, and no single allocation above
-//! [`ALLOCATION_BOUND`] (a length field claiming gigabytes must be checked against the file's
-//! size before anything is allocated).
+//! constraints and strokes JSON): truncations, bit flips, length-like words set to huge values,
+//! duplicated sections. Each must give a clean error or a value, never a panic, and no single
+//! allocation above [`ALLOCATION_BOUND`] (a length field claiming gigabytes must be checked
+//! against the file's size before anything is allocated).
 //! `SOLIDSYNTH_FUZZ_CASES` sets the cases per parser (default 1500), with a fixed seed.
 //!
 //! One test in this binary, so the allocator's record is the parsers' alone.
