@@ -183,3 +183,96 @@ fn a_solid_works_again_after_a_cancellation_with_a_new_token() {
     assert!(format!("{solid:?}").contains("Solid"));
     assert!(format!("{:?}", solid.into_cut_session()).contains("CutSession"));
 }
+
+#[test]
+fn the_other_domains_refuse_hand_built_values() {
+    use solidsynth::io::volume_file::{self, VolumeFormat, VolumeOutput, VolumeWriter};
+    let dir = tempfile::tempdir().unwrap();
+    // Every volume format refuses a volume no format holds, and a slab that does not continue.
+    let ktx2 = dir.path().join("v.ktx2");
+    let output = VolumeOutput::resolve(&ktx2, "-o", None, Default::default()).unwrap();
+    refused(
+        volume_file::save(&Volume::new(0, 4, 4, 1), &ktx2, output),
+        "sides of at least one voxel",
+    );
+    let vti = dir.path().join("v.vti");
+    let output =
+        VolumeOutput::resolve(&vti, "-o", Some(VolumeFormat::Vti), Default::default()).unwrap();
+    let mut writer = VolumeWriter::create(&vti, output, [4, 4, 8], 3).unwrap();
+    refused(
+        writer.write_slab(&Volume::new(8, 8, 1, 1)),
+        "does not continue",
+    );
+    writer.write_slab(&Volume::new(4, 4, 2, 3)).unwrap();
+    refused(writer.finish(), "2 of its 8 z slices");
+    assert!(!vti.exists() && !ktx2.exists());
+
+    // Gradient solids and their edits.
+    use solidsynth::gradient::{edit, GradientSolid, Query};
+    let mut solid = GradientSolid::new([3, 3, 3], 3).unwrap();
+    refused(
+        edit::edit(&mut solid, &[], &[255.0, 0.0, 0.0], Default::default()),
+        "no strokes",
+    );
+    let hollow = GradientSolid {
+        data: vec![],
+        ..solid.clone()
+    };
+    refused(
+        Compute::Cpu.tricubic_eval(&hollow, &Query::volume([4, 4, 4])),
+        "holds 0 values",
+    );
+
+    // PTMs: texels that disagree with the sizes, a quilt overlap past any block.
+    use solidsynth::ptm::{Lighting, Ptm, PtmFormat};
+    let empty = Ptm {
+        format: PtmFormat::Rgb,
+        width: 4,
+        height: 4,
+        scale: [1.0; 6],
+        bias: [0; 6],
+        texels: vec![],
+    };
+    let light = Lighting {
+        lu: 0.0,
+        lv: 0.0,
+        specular: 0.0,
+    };
+    refused(
+        Compute::Cpu.ptm_relight(&empty, &light),
+        "holds 0 bytes of texels",
+    );
+    refused(
+        solidsynth::ptm::format::save(&dir.path().join("e.ptm"), &empty),
+        "holds 0 bytes of texels",
+    );
+    use solidsynth::ptm::capture;
+    let source =
+        solidsynth::ptm::fit::fit(&capture::synthetic(32, 8, 1), PtmFormat::Rgb, "c").unwrap();
+    let quilt = solidsynth::ptm::quilt::QuiltParams {
+        overlap: 1 << 31,
+        ..solidsynth::ptm::quilt::QuiltParams::new(64)
+    };
+    refused(quilt.validate(&source), "--overlap 2147483648");
+
+    // Captures: saved without names (then named by place) and read back; a horizon light
+    // renders (its shadow march is bounded).
+    let mut unnamed = capture::synthetic(16, 8, 1);
+    unnamed.names.clear();
+    capture::save(&unnamed, &dir.path().join("cap")).unwrap();
+    assert_eq!(
+        capture::load(&dir.path().join("cap"), None).unwrap().images,
+        unnamed.images
+    );
+    let horizon = capture::Light { lu: 1.0, lv: 0.0 };
+    assert_eq!(
+        capture::render(&capture::surface(16, 1), horizon).dimensions(),
+        (16, 16)
+    );
+
+    // Frames of no images.
+    refused(
+        solidsynth::analysis::frame::resolve_frame(&[], None),
+        "0 images",
+    );
+}

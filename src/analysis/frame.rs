@@ -58,6 +58,9 @@ impl std::str::FromStr for InputFrame {
 /// transposed must have Ex's size (every square image can; a non-square one only as three
 /// exemplars with Ey given turned).
 pub fn paper_frame_fits(images: &[crate::exemplar::Image]) -> bool {
+    if images.is_empty() {
+        return false;
+    }
     let (x, y) = (&images[0], &images[images.len().min(2) - 1]);
     (y.height, y.width) == (x.width, x.height)
 }
@@ -78,6 +81,15 @@ pub fn resolve_frame(
     images: &[crate::exemplar::Image],
     requested: Option<InputFrame>,
 ) -> crate::Result<InputFrame> {
+    if !matches!(images.len(), 1 | 3) {
+        return Err(crate::Error::invalid(
+            "exemplars",
+            format!(
+                "{} images: give one (all planes) or three (x, y, z)",
+                images.len()
+            ),
+        ));
+    }
     match requested {
         Some(InputFrame::Paper) if !paper_frame_fits(images) => {
             let y = &images[images.len().min(2) - 1];

@@ -120,6 +120,7 @@ impl Compute {
 
     /// Kernel `tricubic_eval`: `solid.channels` values per point of `query`, in query order.
     pub fn tricubic_eval(&self, solid: &GradientSolid, query: &Query) -> Result<Vec<f32>> {
+        solid.check()?;
         match self {
             Compute::Cpu => Ok(crate::cpu::tricubic_eval::tricubic_eval(solid, query)),
             Compute::Gpu(g) => crate::gpu::tricubic_eval::tricubic_eval(g, solid, query),
@@ -130,6 +131,7 @@ impl Compute {
     /// else its values quantized on the host: the same bytes either way.
     pub fn tricubic_eval_u8(&self, solid: &GradientSolid, query: &Query) -> Result<Vec<u8>> {
         use crate::cpu::tricubic_eval::{quantize, tricubic_eval_u8};
+        solid.check()?;
         match self {
             Compute::Cpu => Ok(tricubic_eval_u8(solid, query)),
             Compute::Gpu(g) if solid.channels <= 4 => {
@@ -144,6 +146,8 @@ impl Compute {
 
     /// Kernel `ptm_relight`: r, g, b per pixel (unit intensity, unclamped) under `light`.
     pub fn ptm_relight(&self, ptm: &Ptm, light: &Lighting) -> Result<Vec<f32>> {
+        // (The kernels index texels by the PTM's sizes.)
+        ptm.check("PTM")?;
         match self {
             Compute::Cpu => Ok(crate::cpu::ptm_relight::ptm_relight(ptm, light)),
             Compute::Gpu(g) => crate::gpu::ptm_relight::ptm_relight(g, ptm, light),

@@ -16,6 +16,43 @@ pub struct GradientSolid {
     pub detail: u32,
 }
 
+impl GradientSolid {
+    /// Refuse a solid built by hand whose fields disagree: at least 2 control points per axis,
+    /// 1..=16 channels, 4 finite values (a value and its three derivatives) per channel and
+    /// control point.
+    pub fn check(&self) -> crate::Result<()> {
+        let what = "gradient solid";
+        if self.dims.iter().any(|&d| d < 2) || !(1..=16).contains(&self.channels) {
+            return Err(crate::Error::invalid(
+                what,
+                format!(
+                    "needs at least 2 control points per axis and 1..=16 channels, got {:?} x {}",
+                    self.dims, self.channels
+                ),
+            ));
+        }
+        let values = self
+            .dims
+            .iter()
+            .try_fold(u64::from(self.channels) * 4, |n, &d| n.checked_mul(u64::from(d)));
+        if values != Some(self.data.len() as u64) {
+            return Err(crate::Error::invalid(
+                what,
+                format!(
+                    "holds {} values; {:?} control points of {} channels take 4 each",
+                    self.data.len(),
+                    self.dims,
+                    self.channels
+                ),
+            ));
+        }
+        if let Some(i) = self.data.iter().position(|v| !v.is_finite()) {
+            return Err(crate::Error::invalid(what, format!("value {i} is not finite")));
+        }
+        Ok(())
+    }
+}
+
 /// Cubic Hermite value basis of corner `c` (0 or 1) at `s` in [0, 1] (the kernels' order of
 /// operations).
 #[inline]

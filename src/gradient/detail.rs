@@ -13,7 +13,7 @@ use super::vectorize::{fit_point, point_position};
 use super::GradientSolid;
 use crate::backend::host_tricubic_eval as tricubic_eval;
 use crate::contract::tricubic::Query;
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::util::hash::hash32;
 use crate::volume::Volume;
 use rayon::prelude::*;
@@ -55,6 +55,17 @@ pub fn noise(x: [f32; 3], c: u32) -> f32 {
 
 /// `solid` (colours only) with sigma channels fitted to its residual against `v`.
 pub fn with_detail(solid: &GradientSolid, v: &Volume) -> Result<GradientSolid> {
+    solid.check()?;
+    v.check("volume")?;
+    if v.channels != solid.channels {
+        return Err(Error::invalid(
+            "volume",
+            format!(
+                "has {} channels; the gradient solid has {}",
+                v.channels, solid.channels
+            ),
+        ));
+    }
     let n = v.dims();
     let c = solid.channels as usize;
     let fitted = tricubic_eval(solid, &Query::volume(n));

@@ -58,20 +58,27 @@ pub fn parse_strokes(text: &str, name: &str) -> Result<Vec<Stroke>> {
     let s: Strokes = serde_json::from_str(text).map_err(|e| {
         Error::invalid(name, format!("expected {{\"strokes\": [{{\"position\": [x, y, z], \"strength\": s}}, ...]}}: {e}"))
     })?;
-    if s.strokes.is_empty() {
+    check_strokes(&s.strokes, name)?;
+    Ok(s.strokes)
+}
+
+/// Refuse strokes no fit can use: none, more than [`MAX_STROKES`], a position that is not
+/// finite, a strength outside [0, 1]. `name` labels errors.
+pub fn check_strokes(strokes: &[Stroke], name: &str) -> Result<()> {
+    if strokes.is_empty() {
         return Err(Error::invalid(name, "no strokes"));
     }
-    if s.strokes.len() > MAX_STROKES {
+    if strokes.len() > MAX_STROKES {
         return Err(Error::invalid(
             name,
             format!(
                 "holds {} strokes; at most {MAX_STROKES} are fitted (each adds a row of \
                  {MAX_CENTRES} kernel values to the fit)",
-                s.strokes.len()
+                strokes.len()
             ),
         ));
     }
-    for (i, k) in s.strokes.iter().enumerate() {
+    for (i, k) in strokes.iter().enumerate() {
         if !k.position.iter().all(|v| v.is_finite()) {
             return Err(Error::invalid(
                 name,
@@ -85,7 +92,7 @@ pub fn parse_strokes(text: &str, name: &str) -> Result<Vec<Stroke>> {
             ));
         }
     }
-    Ok(s.strokes)
+    Ok(())
 }
 
 struct Centre {
@@ -210,11 +217,12 @@ pub fn edit(
             "alpha must be positive and beta non-negative (finite numbers)",
         ));
     }
+    check_strokes(strokes, "strokes")?;
     let channels = solid.channels as usize;
-    if reference.len() != channels {
+    if reference.len() != channels || !reference.iter().all(|c| c.is_finite()) {
         return Err(Error::invalid(
             "--color",
-            format!("needs {channels} components for this solid"),
+            format!("needs {channels} finite components for this solid"),
         ));
     }
     let inf = Influence::fit(solid, strokes, propagation);

@@ -12,6 +12,21 @@ pub struct SlabOrder {
     slices_written: u32,
 }
 
+/// Refuse a volume no format holds: a side of zero voxels, or other than 1 to 4 channels.
+pub fn check_dims(dims: [u32; 3], channels: u32) -> Result<()> {
+    if dims.contains(&0) || !(1..=4).contains(&channels) {
+        return Err(Error::invalid(
+            "volume",
+            format!(
+                "is {}x{}x{} voxels of {channels} channels; a volume has sides of at least one \
+                 voxel and 1 to 4 channels",
+                dims[0], dims[1], dims[2]
+            ),
+        ));
+    }
+    Ok(())
+}
+
 impl SlabOrder {
     pub fn new(dims: [u32; 3], channels: u32) -> SlabOrder {
         SlabOrder {

@@ -482,6 +482,8 @@ pub fn to_bytes(v: &Volume, options: VdbOptions) -> Vec<u8> {
 }
 
 pub fn save(v: &Volume, path: &Path, options: VdbOptions) -> Result<()> {
+    crate::io::slab_order::check_dims(v.dims(), v.channels)?;
+    v.check("volume")?;
     atomic::write_file(path, &to_bytes(v, options))
 }
 

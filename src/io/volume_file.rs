@@ -153,7 +153,7 @@ enum Target {
     Npy(npy::SlabWriter),
     Tiff(tiff_stack::SlabWriter),
     /// Formats written from the whole volume, at the end.
-    Whole(Volume),
+    Whole(Volume, crate::io::slab_order::SlabOrder),
 }
 
 /// A volume file written slab by slab along z: atomic (nothing at the path until the staged
@@ -171,6 +171,7 @@ impl VolumeWriter {
         dims: [u32; 3],
         channels: u32,
     ) -> Result<VolumeWriter> {
+        crate::io::slab_order::check_dims(dims, channels)?;
         output.check(path, dims)?;
         let target = match output.format {
             VolumeFormat::Nrrd | VolumeFormat::NrrdGzip => {
@@ -186,7 +187,10 @@ impl VolumeWriter {
                 Target::Tiff(tiff_stack::SlabWriter::create(path, dims, channels)?)
             }
             VolumeFormat::Ktx2 | VolumeFormat::Vdb | VolumeFormat::Vti | VolumeFormat::Png => {
-                Target::Whole(Volume::new(dims[0], dims[1], 0, channels))
+                Target::Whole(
+                    Volume::new(dims[0], dims[1], 0, channels),
+                    crate::io::slab_order::SlabOrder::new(dims, channels),
+                )
             }
         };
         Ok(VolumeWriter {
@@ -202,7 +206,8 @@ impl VolumeWriter {
             Target::Nrrd(w) => w.write_slab(slab),
             Target::Npy(w) => w.write_slab(slab),
             Target::Tiff(w) => w.write_slab(slab),
-            Target::Whole(v) => {
+            Target::Whole(v, order) => {
+                order.advance(slab)?;
                 v.data.extend_from_slice(&slab.data);
                 v.nz += slab.nz;
                 Ok(())
@@ -216,7 +221,8 @@ impl VolumeWriter {
             Target::Nrrd(w) => w.finish(),
             Target::Npy(w) => w.finish(),
             Target::Tiff(w) => w.finish(),
-            Target::Whole(v) => {
+            Target::Whole(v, order) => {
+                order.finish()?;
                 let bytes = match self.output.format {
                     VolumeFormat::Ktx2 => ktx2::to_bytes(&v, self.output.texture),
                     VolumeFormat::Vdb => vdb::to_bytes(&v, self.output.vdb),
@@ -233,6 +239,8 @@ impl VolumeWriter {
 
 /// The file of `v` in `output`'s format, in memory (the server's downloads).
 pub fn to_bytes(v: &Volume, output: VolumeOutput) -> Result<Vec<u8>> {
+    crate::io::slab_order::check_dims(v.dims(), v.channels)?;
+    v.check("volume")?;
     let mut bytes = match output.format {
         VolumeFormat::Nrrd => nrrd::header(v).into_bytes(),
         VolumeFormat::NrrdGzip => {

@@ -34,6 +34,8 @@ pub fn to_bytes(v: &Volume) -> Vec<u8> {
 }
 
 pub fn save(v: &Volume, path: &Path) -> Result<()> {
+    crate::io::slab_order::check_dims(v.dims(), v.channels)?;
+    v.check("volume")?;
     atomic::write_file(path, &to_checked_bytes(v, path)?)
 }
 

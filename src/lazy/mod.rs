@@ -290,8 +290,9 @@ impl Synthesizer {
     }
 
     /// Synthesize every voxel of the finest-level bricks `requested` (4^3 voxels each, see
-    /// [`bricks`]), computing only what they depend on. Large requests are split into groups of
-    /// nearby bricks, each synthesized independently (determinism makes that invisible).
+    /// `lazy::bricks`), computing only what they depend on. Large requests are split into
+    /// groups of nearby bricks, each synthesized independently (determinism makes that
+    /// invisible).
     pub fn synthesize_bricks(
         &mut self,
         requested: &[Brick],

@@ -93,6 +93,16 @@ impl Capture {
                 ),
             ));
         }
+        if let Some(i) = self
+            .lights
+            .iter()
+            .position(|l| !(l.lu.is_finite() && l.lv.is_finite() && l.lu.hypot(l.lv) <= 1.0 + 1e-9))
+        {
+            return Err(Error::invalid(
+                what,
+                format!("light {i}: (lu, lv) must be finite, within the unit disc"),
+            ));
+        }
         let (w, h) = (self.width(), self.height());
         // (Names are optional for a capture built in memory: an image is then named by its
         // place.)
@@ -341,14 +351,20 @@ pub fn load(dir: &Path, lights: Option<&Path>) -> Result<Capture> {
 /// Write a capture: its images as PNG and `lights.lp`, into an existing empty or new directory.
 /// Each file is written atomically.
 pub fn save(capture: &Capture, dir: &Path) -> Result<()> {
+    capture.validate("capture")?;
+    // (A capture made in memory may have no names: its images are then named by their place.)
+    let names: Vec<String> = (0..capture.images.len())
+        .map(|i| {
+            capture
+                .names
+                .get(i)
+                .cloned()
+                .unwrap_or_else(|| format!("img_{i:03}.png"))
+        })
+        .collect();
     std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
     let mut lp = format!("{}\n", capture.images.len());
-    for ((img, light), name) in capture
-        .images
-        .iter()
-        .zip(&capture.lights)
-        .zip(&capture.names)
-    {
+    for ((img, light), name) in capture.images.iter().zip(&capture.lights).zip(&names) {
         let rgba = image::DynamicImage::ImageRgb8(img.clone()).to_rgba8();
         crate::io::atomic::save_png(&dir.join(name), &rgba)?;
         let d = light.direction();
@@ -463,7 +479,10 @@ fn shadow(s: &Surface, x: usize, y: usize, light: [f64; 3]) -> f64 {
     let h0 = s.height[y * n + x];
     let max_h = s.max_height;
     let mut t = 0.75;
-    while h0 + t * rise <= max_h {
+    // Four periods at the most: a light at the horizon (rise 0) would march for ever over a
+    // pixel as high as any; one that nothing has blocked by then is taken as unblocked.
+    let farthest = 4.0 * n as f64;
+    while h0 + t * rise <= max_h && t < farthest {
         let sx = ((x as f64 + t * dx).round() as i64).rem_euclid(n as i64) as usize;
         let sy = ((y as f64 + t * dy).round() as i64).rem_euclid(n as i64) as usize;
         if s.height[sy * n + sx] > h0 + t * rise + 0.05 {

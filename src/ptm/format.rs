@@ -223,5 +223,6 @@ pub fn load(path: &std::path::Path) -> crate::Result<Ptm> {
 
 /// Write a `.ptm` file atomically.
 pub fn save(path: &std::path::Path, ptm: &Ptm) -> crate::Result<()> {
+    ptm.check("PTM")?;
     crate::io::atomic::write_file(path, &to_bytes(ptm))
 }

@@ -91,7 +91,7 @@ impl QuiltParams {
                 ),
             ));
         }
-        if self.overlap == 0 || 2 * self.overlap > self.block {
+        if self.overlap == 0 || u64::from(self.overlap) * 2 > u64::from(self.block) {
             return Err(Error::invalid(
                 format!("--overlap {}", self.overlap),
                 format!("must be 1..={} (at most half of --block)", self.block / 2),
@@ -168,6 +168,7 @@ pub struct QuiltReport {
 
 /// Refuse a source too small to copy blocks from; `name` names it in the message.
 pub fn check_source(src: &Ptm, name: &str) -> Result<()> {
+    src.check(name)?;
     if src.width.min(src.height) < MIN_BLOCK {
         return Err(Error::invalid(
             name,
