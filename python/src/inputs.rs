@@ -1,7 +1,8 @@
 //! Python arguments into the library's types: images and volumes from paths or NumPy arrays,
 //! and the option strings the command line's flags take, refused with the flag's name.
 
-use crate::errors::invalid;
+use crate::errors::{engine_err, invalid};
+use crate::ints::Int;
 use numpy::prelude::*;
 use numpy::{PyArrayDyn, PyUntypedArray};
 use pyo3::exceptions::PyTypeError;
@@ -9,9 +10,10 @@ use pyo3::prelude::*;
 use pyo3::types::{PyBool, PyBytes, PyString};
 use solidsynth::analysis::frame::InputFrame;
 use solidsynth::exemplar::{load_image, Image};
+use solidsynth::solid::limits;
 use solidsynth::solid::FeatureMasks;
 use solidsynth::synth::{CandidateMode, ColorSource, PassSchedule};
-use solidsynth::{BackendChoice, Volume};
+use solidsynth::{BackendChoice, Box3, Volume};
 use std::path::{Path, PathBuf};
 
 /// An image argument: a file the library decodes, or pixels already in memory.
@@ -346,4 +348,24 @@ impl<'a, 'py> FromPyObject<'a, 'py> for CacheArg {
         }
         Ok(CacheArg::Dir(dir))
     }
+}
+
+/// `(lo, hi)` as the command line checks `--box X0,Y0,Z0,X1,Y1,Z1`, with its messages.
+pub fn checked_box(lo: [Int; 3], hi: [Int; 3]) -> PyResult<Box3> {
+    let all = [&lo[..], &hi[..]].concat();
+    let what = format!(
+        "--box {}",
+        all.iter().map(Int::text).collect::<Vec<_>>().join(",")
+    );
+    let (Some(lo), Some(hi)) = (to_i64(&lo), to_i64(&hi)) else {
+        return Err(invalid(
+            what,
+            format!("coordinates must lie within +-{}", limits::COORDINATE_LIMIT),
+        ));
+    };
+    limits::checked_box(&what, lo, hi, limits::MAX_BOX_SIDE as i64).map_err(engine_err)
+}
+
+fn to_i64(corner: &[Int; 3]) -> Option<[i64; 3]> {
+    Some([corner[0].get()?, corner[1].get()?, corner[2].get()?])
 }

@@ -10,154 +10,36 @@ mod errors;
 mod evaluate;
 mod inputs;
 mod ints;
+mod settings;
+mod turns;
 
 use detached::run_detached;
 use errors::{engine_err, invalid, Error};
 use inputs::{
-    backend_choice, candidate_mode, color_source, exemplar_pair, feature_masks, input_frame,
-    CacheArg, PassesArg, Picture,
+    checked_box, exemplar_pair, feature_masks, input_frame, CacheArg, PassesArg, Picture,
 };
 use ints::Int;
 use numpy::prelude::*;
 use numpy::{PyArray1, PyArray3, PyArray4};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
+use settings::SynthSettings;
 use solidsynth::analysis::Analysis;
 use solidsynth::io::{atomic, ssa};
 use solidsynth::solid::{limits, memory, AnalysisCache, ExemplarInput};
 use solidsynth::synth::check_tileable_size;
 use solidsynth::{
-    BackendChoice, Box3, CancelToken, Compute, CutSpec, GpuOptions, Image, Solid, SolidBuilder,
-    SynthOptions, SynthParams, Volume,
+    BackendChoice, CancelToken, Compute, CutSpec, Image, Solid, SolidBuilder, SynthOptions,
+    SynthParams, Volume,
 };
 use std::path::PathBuf;
-use std::sync::{Arc, Condvar, Mutex, MutexGuard, PoisonError};
-
-/// How often a request waiting behind another one looks whether its caller gave up (it is
-/// woken at once when the other one ends).
-const ENGINE_POLL: std::time::Duration = std::time::Duration::from_millis(10);
-
-/// Requests take turns on a solid's engine: `busy` says one holds it, `released` wakes one
-/// waiting request when it ends. (A plain lock cannot be given up while waiting for it.)
-#[derive(Default)]
-struct Turns {
-    busy: Mutex<bool>,
-    released: Condvar,
-}
-
-impl Turns {
-    /// Wait for the turn; None as soon as `abandoned()` says the caller gave up.
-    fn take(&self, abandoned: impl Fn() -> bool) -> Option<Turn<'_>> {
-        let mut busy = lock(&self.busy);
-        while *busy {
-            if abandoned() {
-                return None;
-            }
-            busy = self
-                .released
-                .wait_timeout(busy, ENGINE_POLL)
-                .unwrap_or_else(PoisonError::into_inner)
-                .0;
-        }
-        *busy = true;
-        Some(Turn(self))
-    }
-}
-
-/// A request's turn, given back when it is dropped.
-struct Turn<'a>(&'a Turns);
-
-impl Drop for Turn<'_> {
-    fn drop(&mut self) {
-        *lock(&self.0.busy) = false;
-        self.0.released.notify_one();
-    }
-}
+use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
+use turns::Turns;
 
 fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
     // A request that panicked is reported as an error and its solid rebuilt (`Engine::ready`):
     // the lock itself stays usable.
     m.lock().unwrap_or_else(PoisonError::into_inner)
-}
-
-/// A solid's synthesis settings as given: what `Solid.options` reports and `Solid.load` takes
-/// (the analysis settings live in the analysis, and so in its `.ssa` file).
-#[derive(Clone)]
-struct SynthSettings {
-    params: SynthParams,
-    max_group: Option<u32>,
-    backend: String,
-    choice: BackendChoice,
-    adapter: Option<String>,
-}
-
-impl SynthSettings {
-    #[allow(clippy::too_many_arguments)]
-    fn parse(
-        seed: Int,
-        jitter: f32,
-        backend: String,
-        adapter: Option<String>,
-        candidates: &str,
-        passes: &PassesArg,
-        color: &str,
-        coarse_cache: Option<Int>,
-        max_group: Option<Int>,
-    ) -> PyResult<SynthSettings> {
-        let choice = backend_choice(&backend)?;
-        let seed: u64 = seed.in_range("seed")?;
-        // Values past u32 get the engine's own message for a size it refuses (its real range).
-        let cache_refused = || {
-            SynthParams {
-                coarse_cache: Some(0),
-                ..SynthParams::default()
-            }
-            .validate()
-            .unwrap_err()
-        };
-        let coarse_cache: Option<u32> = coarse_cache
-            .map(|c| c.or_refused(cache_refused()))
-            .transpose()?;
-        let max_group: Option<u32> = max_group
-            .map(|g| g.or_refused(limits::check_max_group(0).unwrap_err()))
-            .transpose()?;
-        if let Some(side) = max_group {
-            limits::check_max_group(side).map_err(engine_err)?;
-        }
-        let params = SynthParams {
-            seed,
-            jitter,
-            candidates: candidate_mode(candidates)?,
-            passes: passes.schedule()?,
-            color: color_source(color)?,
-            coarse_cache,
-        };
-        params.validate().map_err(engine_err)?;
-        Ok(SynthSettings {
-            params,
-            max_group,
-            backend,
-            choice,
-            adapter,
-        })
-    }
-
-    /// The GPU options as the command line makes them: the environment's, `adapter` first.
-    fn gpu_options(&self) -> GpuOptions {
-        let mut options = GpuOptions::from_env();
-        if self.adapter.is_some() {
-            options.adapter_filter = self.adapter.clone();
-        }
-        options
-    }
-
-    /// The engine's options as the command line gives them (its defaults but `--max-group`).
-    fn synth_options(&self) -> SynthOptions {
-        SynthOptions {
-            max_group: self.max_group,
-            ..Default::default()
-        }
-    }
 }
 
 /// The facade's solid and what rebuilding it takes. A solid's cancellation token is fixed when
@@ -350,26 +232,6 @@ enum Phase {
     Abandoned,
     Running,
     Done,
-}
-
-/// `(lo, hi)` as the command line checks `--box X0,Y0,Z0,X1,Y1,Z1`, with its messages.
-fn checked_box(lo: [Int; 3], hi: [Int; 3]) -> PyResult<Box3> {
-    let all = [&lo[..], &hi[..]].concat();
-    let what = format!(
-        "--box {}",
-        all.iter().map(Int::text).collect::<Vec<_>>().join(",")
-    );
-    let (Some(lo), Some(hi)) = (to_i64(&lo), to_i64(&hi)) else {
-        return Err(invalid(
-            what,
-            format!("coordinates must lie within +-{}", limits::COORDINATE_LIMIT),
-        ));
-    };
-    limits::checked_box(&what, lo, hi, limits::MAX_BOX_SIDE as i64).map_err(engine_err)
-}
-
-fn to_i64(corner: &[Int; 3]) -> Option<[i64; 3]> {
-    Some([corner[0].get()?, corner[1].get()?, corner[2].get()?])
 }
 
 /// A volume as a (Z, Y, X, C) array: its bytes are already in that order (x fastest, channels

@@ -219,5 +219,31 @@ pub fn dilate(set: &[Brick], lo: [i32; 3], hi: [i32; 3]) -> Vec<Brick> {
     out
 }
 
+/// The box `voxels` fill exactly (each of its voxels once, in any order), if they do.
+pub(super) fn voxel_box(voxels: &[[i32; 3]]) -> Option<Box3> {
+    let (lo, hi) = bounds(voxels)?;
+    let b = Box3::new(lo, hi.map(|v| v.saturating_add(1)));
+    if b.voxels() != voxels.len() as u64 {
+        return None;
+    }
+    // (Outside only at the edge of i32, where the box saturated.)
+    if !voxels.iter().all(|p| b.contains(*p)) {
+        return None;
+    }
+    // A z cut lists its box in storage order: no voxel can repeat then.
+    if voxels.iter().enumerate().all(|(i, p)| b.index(*p) == i) {
+        return Some(b);
+    }
+    let mut seen = vec![0u64; voxels.len().div_ceil(64)];
+    for p in voxels {
+        let i = b.index(*p);
+        if seen[i / 64] & (1 << (i % 64)) != 0 {
+            return None;
+        }
+        seen[i / 64] |= 1 << (i % 64);
+    }
+    Some(b)
+}
+
 #[cfg(test)]
 mod tests;

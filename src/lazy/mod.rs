@@ -388,7 +388,7 @@ impl Synthesizer {
         // An axis-aligned cut at unit spacing asks for a box of voxels (one voxel thick):
         // planned voxel-exactly, its dependency padding surrounds one layer, not four. Its
         // bricks are the box's (sorted as they come), not found voxel by voxel and sorted.
-        let exact = voxel_box(voxels);
+        let exact = bricks::voxel_box(voxels);
         let wanted = match exact {
             Some(b) => bricks::bricks_of_box(b),
             None => bricks::bricks_of_voxels(voxels),
@@ -530,58 +530,7 @@ impl Synthesizer {
     }
 }
 
-/// The box `voxels` fill exactly (each of its voxels once, in any order), if they do.
-fn voxel_box(voxels: &[[i32; 3]]) -> Option<Box3> {
-    let (lo, hi) = bricks::bounds(voxels)?;
-    let b = Box3::new(lo, hi.map(|v| v.saturating_add(1)));
-    if b.voxels() != voxels.len() as u64 {
-        return None;
-    }
-    // (Outside only at the edge of i32, where the box saturated.)
-    if !voxels.iter().all(|p| b.contains(*p)) {
-        return None;
-    }
-    // A z cut lists its box in storage order: no voxel can repeat then.
-    if voxels.iter().enumerate().all(|(i, p)| b.index(*p) == i) {
-        return Some(b);
-    }
-    let mut seen = vec![0u64; voxels.len().div_ceil(64)];
-    for p in voxels {
-        let i = b.index(*p);
-        if seen[i / 64] & (1 << (i % 64)) != 0 {
-            return None;
-        }
-        seen[i / 64] |= 1 << (i % 64);
-    }
-    Some(b)
-}
 
-#[cfg(test)]
-mod voxel_box_tests {
-    use super::*;
-
-    #[test]
-    fn voxel_box_recognizes_exactly_the_boxes() {
-        let mut slice: Vec<[i32; 3]> = (0..6)
-            .flat_map(|y| (0..5).map(move |x| [x - 2, y, 7]))
-            .collect();
-        slice.reverse();
-        assert_eq!(voxel_box(&slice), Some(Box3::new([-2, 0, 7], [3, 6, 8])));
-        // A repeat in place of a voxel: as many voxels as the box, not the box.
-        let mut repeated = slice.clone();
-        repeated[3] = repeated[4];
-        assert_eq!(voxel_box(&repeated), None);
-        assert_eq!(voxel_box(&slice[1..]), None);
-        // In storage order (x fastest), as a z cut lists them, and with a repeat there.
-        let mut ordered = slice.clone();
-        ordered.reverse();
-        assert_eq!(voxel_box(&ordered), Some(Box3::new([-2, 0, 7], [3, 6, 8])));
-        ordered[3] = ordered[4];
-        assert_eq!(voxel_box(&ordered), None);
-        assert_eq!(voxel_box(&[]), None);
-        assert_eq!(voxel_box(&[[i32::MAX, 0, 0]]), None);
-    }
-}
 
 /// Milliseconds since `timer` started (for debug logs).
 fn ms(timer: std::time::Instant) -> f64 {

@@ -75,18 +75,14 @@ pub fn check_cut_size(what: &str, size: i64) -> Result<u32> {
     Ok(size as u32)
 }
 
-/// A `--max-group` edge: within [`MAX_GROUP_SIDES`].
+/// A `--max-group` edge: within [`MAX_GROUP_SIDES`] (the synthesizer's own check, which
+/// `SynthOptions::validate` makes).
 pub fn check_max_group(side: u32) -> Result<u32> {
-    if !MAX_GROUP_SIDES.contains(&side) {
-        return Err(Error::invalid(
-            format!("--max-group {side}"),
-            format!(
-                "must be {}..={}",
-                MAX_GROUP_SIDES.start(),
-                MAX_GROUP_SIDES.end()
-            ),
-        ));
+    crate::lazy::SynthOptions {
+        max_group: Some(side),
+        ..Default::default()
     }
+    .validate()?;
     Ok(side)
 }
 

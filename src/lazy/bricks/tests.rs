@@ -246,3 +246,25 @@ fn sparse_plan_reads_stay_inside_storage() {
     }
     assert_eq!(levels.last().unwrap().deliver.len(), 3);
 }
+
+    #[test]
+    fn voxel_box_recognizes_exactly_the_boxes() {
+        let mut slice: Vec<[i32; 3]> = (0..6)
+            .flat_map(|y| (0..5).map(move |x| [x - 2, y, 7]))
+            .collect();
+        slice.reverse();
+        assert_eq!(voxel_box(&slice), Some(Box3::new([-2, 0, 7], [3, 6, 8])));
+        // A repeat in place of a voxel: as many voxels as the box, not the box.
+        let mut repeated = slice.clone();
+        repeated[3] = repeated[4];
+        assert_eq!(voxel_box(&repeated), None);
+        assert_eq!(voxel_box(&slice[1..]), None);
+        // In storage order (x fastest), as a z cut lists them, and with a repeat there.
+        let mut ordered = slice.clone();
+        ordered.reverse();
+        assert_eq!(voxel_box(&ordered), Some(Box3::new([-2, 0, 7], [3, 6, 8])));
+        ordered[3] = ordered[4];
+        assert_eq!(voxel_box(&ordered), None);
+        assert_eq!(voxel_box(&[]), None);
+        assert_eq!(voxel_box(&[[i32::MAX, 0, 0]]), None);
+    }
