@@ -41,7 +41,7 @@ impl SlabWriter {
         file.write_all(&header(dims, channels))?;
         Ok(SlabWriter {
             file,
-            order: SlabOrder::new(dims, channels),
+            order: SlabOrder::new(dims, channels)?,
         })
     }
 

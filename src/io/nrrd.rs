@@ -77,7 +77,7 @@ impl SlabWriter {
         file.write_all(header_encoded(dims, channels, gzip).as_bytes())?;
         Ok(SlabWriter {
             file,
-            order: crate::io::slab_order::SlabOrder::new(dims, channels),
+            order: crate::io::slab_order::SlabOrder::new(dims, channels)?,
             gzip: gzip
                 .then(|| flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::default())),
         })

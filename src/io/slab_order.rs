@@ -28,12 +28,15 @@ pub fn check_dims(dims: [u32; 3], channels: u32) -> Result<()> {
 }
 
 impl SlabOrder {
-    pub fn new(dims: [u32; 3], channels: u32) -> SlabOrder {
-        SlabOrder {
+    /// A volume of `dims` voxels of `channels` bytes, refused where no format holds it
+    /// ([`check_dims`]).
+    pub fn new(dims: [u32; 3], channels: u32) -> Result<SlabOrder> {
+        check_dims(dims, channels)?;
+        Ok(SlabOrder {
             dims,
             channels,
             slices_written: 0,
-        }
+        })
     }
 
     /// Count `slab`, which must continue the volume and hold the bytes its sizes say.
@@ -52,15 +55,6 @@ impl SlabOrder {
                     self.dims,
                     self.channels,
                     self.slices_written
-                ),
-            ));
-        }
-        if slab.nx == 0 || slab.ny == 0 {
-            return Err(Error::invalid(
-                "volume",
-                format!(
-                    "is {:?}; a volume's sides are at least one voxel",
-                    self.dims
                 ),
             ));
         }

@@ -67,7 +67,7 @@ impl SlabWriter {
             file,
             encoder,
             path: path.to_path_buf(),
-            order: SlabOrder::new(dims, channels),
+            order: SlabOrder::new(dims, channels)?,
         })
     }
 
@@ -102,11 +102,9 @@ pub fn to_bytes(v: &Volume) -> Result<Vec<u8>> {
     let mut cursor = std::io::Cursor::new(Vec::new());
     let path = Path::new("volume.tif");
     let mut encoder = TiffEncoder::new(&mut cursor).map_err(|e| tiff_error(path, e))?;
+    crate::io::slab_order::check_dims(v.dims(), v.channels)?;
     v.check("volume")?;
     let slice_len = v.nx as usize * v.ny as usize * v.channels as usize;
-    if slice_len == 0 {
-        return Err(crate::Error::invalid("volume", "has a side of zero voxels"));
-    }
     for (z, page) in v.data.chunks_exact(slice_len).enumerate() {
         let description = (z == 0).then(|| imagej_description(v.nz));
         write_page(&mut encoder, v.nx, v.ny, v.channels, page, description)

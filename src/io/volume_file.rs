@@ -189,7 +189,7 @@ impl VolumeWriter {
             VolumeFormat::Ktx2 | VolumeFormat::Vdb | VolumeFormat::Vti | VolumeFormat::Png => {
                 Target::Whole(
                     Volume::new(dims[0], dims[1], 0, channels),
-                    crate::io::slab_order::SlabOrder::new(dims, channels),
+                    crate::io::slab_order::SlabOrder::new(dims, channels)?,
                 )
             }
         };
