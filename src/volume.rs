@@ -59,18 +59,44 @@ impl Volume {
     }
 
     fn offset(&self, x: u32, y: u32, z: u32) -> usize {
+        assert!(
+            x < self.nx && y < self.ny && z < self.nz,
+            "voxel ({x}, {y}, {z}) is outside the {}x{}x{} volume",
+            self.nx,
+            self.ny,
+            self.nz
+        );
         ((z as usize * self.ny as usize + y as usize) * self.nx as usize + x as usize)
             * self.channels as usize
     }
 
+    /// The channels of voxel (x, y, z).
+    ///
+    /// # Panics
+    /// If the voxel is outside the volume.
     pub fn at(&self, x: u32, y: u32, z: u32) -> &[u8] {
         let i = self.offset(x, y, z);
         &self.data[i..i + self.channels as usize]
     }
 
+    /// The channels of voxel (x, y, z), to change.
+    ///
+    /// # Panics
+    /// If the voxel is outside the volume.
     pub fn at_mut(&mut self, x: u32, y: u32, z: u32) -> &mut [u8] {
         let i = self.offset(x, y, z);
         let c = self.channels as usize;
         &mut self.data[i..i + c]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Volume;
+
+    #[test]
+    #[should_panic(expected = "voxel (4, 0, 0) is outside the 4x2x2 volume")]
+    fn a_voxel_past_a_row_is_not_the_next_rows_first() {
+        Volume::new(4, 2, 2, 1).at(4, 0, 0);
     }
 }

@@ -276,3 +276,118 @@ fn the_other_domains_refuse_hand_built_values() {
         "0 images",
     );
 }
+
+#[test]
+fn meshes_atlases_and_writers_refuse_what_does_not_fit() {
+    use solidsynth::mesh::{bake, glb, Mesh, Placement};
+    let triangle = Mesh {
+        positions: vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
+        triangles: vec![[0, 1, 2]],
+        uvs: None,
+        normals: None,
+    };
+    let beyond = Mesh {
+        triangles: vec![[0, 1, 7]],
+        ..triangle.clone()
+    };
+    // The parsers return only meshes that validate (they used to leave that to `mesh::load`).
+    let ply = b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n\
+        property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n\
+        0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n";
+    refused(
+        solidsynth::mesh::parse_ply(ply, "t.ply"),
+        "beyond the 3 defined",
+    );
+
+    // An atlas belongs to its mesh: the writers refuse another before writing anything.
+    let place = Placement::fit(&triangle, 16);
+    assert!(bake::Atlas::fitted(&beyond, &place, 1.0, 0).is_none());
+    refused(
+        bake::Atlas::fitted_within(&beyond, &place, Some(1.0), 0, |_| true),
+        "beyond the 3 defined",
+    );
+    let two = bake::Atlas::new(2, 4, 0).unwrap();
+    refused(
+        glb::glb_bytes(&triangle, &two, &[0; 8]),
+        "made for 2 triangles",
+    );
+    refused(
+        glb::glb_bytes(&beyond, &two, &[0; 8]),
+        "beyond the 3 defined",
+    );
+    refused(
+        bake::obj_text(&triangle, &two, "m.mtl"),
+        "made for 2 triangles",
+    );
+    let mut out = Vec::new();
+    let e = glb::write_glb(&mut out, &triangle, &two, &[0; 8]).unwrap_err();
+    assert_eq!(e.kind(), std::io::ErrorKind::InvalidInput);
+    assert!(out.is_empty());
+    let one = bake::Atlas::new(1, 4, 0).unwrap();
+    assert!(glb::glb_bytes(&triangle, &one, &[0; 8]).is_ok());
+
+    // The in-memory volume writers check what the file writers check.
+    let short = Volume {
+        data: vec![0; 10],
+        ..Volume::new(4, 4, 4, 3)
+    };
+    refused(
+        solidsynth::io::ktx2::to_bytes(&short, Default::default()),
+        "holds 10 bytes",
+    );
+    refused(solidsynth::io::vti::to_bytes(&short), "holds 10 bytes");
+    refused(
+        solidsynth::io::vdb::to_bytes(&short, Default::default()),
+        "holds 10 bytes",
+    );
+    let nan_voxels = solidsynth::io::vdb::VdbOptions {
+        voxel_size: f64::NAN,
+        ..Default::default()
+    };
+    refused(
+        solidsynth::io::vdb::to_bytes(&Volume::new(2, 2, 2, 1), nan_voxels),
+        "VDB voxel size",
+    );
+    refused(
+        solidsynth::lapped::exemplar::SolidExemplar::from_volume(&short, "solid exemplar"),
+        "holds 10 bytes",
+    );
+    refused(
+        solidsynth::io::zarr::Layout::new([8, 8, 8], 3, 0),
+        "chunk 0",
+    );
+    let layout = solidsynth::io::zarr::Layout::new([u32::MAX; 3], 4, 1).unwrap();
+    assert_eq!(layout.chunk_count(), u64::MAX, "saturates, not wraps");
+
+    // Gradient synthesis levels and masks.
+    use solidsynth::gradient::synth::{GradientSynthParams, LevelSpec, MaskedExemplar};
+    let params = GradientSynthParams {
+        levels: vec![LevelSpec {
+            spacing: u32::MAX,
+            size: u32::MAX,
+        }],
+        ..Default::default()
+    };
+    refused(params.validate(), "odd slice size in 3..=63");
+    let exemplar = common::fixture("marble32.png");
+    let no_channels = Image {
+        channels: 0,
+        pixels: vec![],
+        ..exemplar.clone()
+    };
+    refused(
+        MaskedExemplar::new(&exemplar, &no_channels, "--mask m.png"),
+        "image has 0 channels",
+    );
+
+    // Gray and alpha become gray RGB with that alpha.
+    let gray_alpha = Image {
+        width: 1,
+        height: 1,
+        channels: 2,
+        pixels: vec![70, 9],
+    };
+    assert_eq!(gray_alpha.with_channels(3).pixels, [70, 70, 70]);
+    assert_eq!(gray_alpha.with_channels(4).pixels, [70, 70, 70, 9]);
+    assert_eq!(gray_alpha.with_channels(1).pixels, [70]);
+}

@@ -233,7 +233,7 @@ fn a_ktx2_texture_loads_into_a_wgpu_3d_texture_unchanged() {
         .iter_mut()
         .enumerate()
         .for_each(|(i, b)| *b = (i * 7 % 251) as u8);
-    let bytes = solidsynth::io::ktx2::to_bytes(&v, Default::default());
+    let bytes = solidsynth::io::ktx2::to_bytes(&v, Default::default()).unwrap();
     let reader = ktx2::Reader::new(&bytes[..]).unwrap();
     let header = reader.header();
     assert_eq!(header.format, Some(ktx2::Format::R8G8B8A8_UNORM));

@@ -178,7 +178,7 @@ fn every_parser_survives_structured_mutations() {
     // (NPY, TIFF and KTX2 are only written, by the tool).
     let sphere = solidsynth::lapped::shapes::sphere(6, 3);
     let atlas = solidsynth::mesh::bake::Atlas::new(sphere.triangles.len(), 2, 0).unwrap();
-    let glb = solidsynth::mesh::glb::glb_bytes(&sphere, &atlas, &[0u8; 16]);
+    let glb = solidsynth::mesh::glb::glb_bytes(&sphere, &atlas, &[0u8; 16]).unwrap();
     fuzz("glb", &glb, |b| {
         solidsynth::mesh::gltf_in::parse_gltf(b, "fuzz", None)
     });

@@ -436,9 +436,10 @@ fn bake(args: BakeArgs, quiet: bool) -> anyhow::Result<()> {
     // The scale a patch was pasted at is in its texture coordinates: one texture unit spans
     // |grad w|^-1 model units. Estimate it from the first layer of the first surface tet.
     let scale = layer_scale(&model, tets[0] as usize);
-    let texels = args
-        .texels
-        .unwrap_or_else(|| lapped::bake::auto_texels(&surface, &model, scale));
+    let texels = match args.texels {
+        Some(texels) => texels,
+        None => lapped::bake::auto_texels(&surface, &model, scale)?,
+    };
     let atlas = mesh_bake::Atlas::new(surface.triangles.len(), texels, 0)?;
     let image = lapped::bake::bake(&model, &surface, &tets, &atlas)?;
     let png = atomic::png_bytes(&image)?;

@@ -199,11 +199,7 @@ pub fn write_zarr(
     }
     solid.check_box_memory(&format!("--chunk {chunk}"), [chunk as u64; 3])?;
     let channels = solid.color_channels();
-    let layout = Layout {
-        dims: job.region.size(),
-        channels,
-        chunk,
-    };
+    let layout = Layout::new(job.region.size(), channels, chunk)?;
     let total = layout.chunk_count();
     let ours = || (first as u64..total).step_by(step as usize);
     let assigned = ours().count() as u64;

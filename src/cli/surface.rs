@@ -162,7 +162,7 @@ pub fn run(args: SurfaceArgs, quiet: bool) -> anyhow::Result<()> {
             outputs.write_file(mtl, bake::mtl_text(&name(png_path)).as_bytes())?;
             outputs.write_file(
                 &args.output,
-                bake::obj_text(&mesh, atlas, &name(mtl)).as_bytes(),
+                bake::obj_text(&mesh, atlas, &name(mtl))?.as_bytes(),
             )?;
             outputs.commit()?;
         }

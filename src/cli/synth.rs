@@ -224,7 +224,7 @@ impl SolidArgs {
         let mut output = VolumeOutput::resolve(&self.output, "-o", self.format, texture)?;
         // (The VDB transform stores 1 / size^2 too, so the size stays far from both ends of
         // f64.)
-        if !(1e-6..=1e6).contains(&self.voxel_size) {
+        if !crate::io::vdb::VOXEL_SIZE_RANGE.contains(&self.voxel_size) {
             return Err(Error::invalid(
                 format!("--voxel-size {}", crate::util::number_text(self.voxel_size)),
                 "must be a number from 1e-6 to 1e6",

@@ -86,6 +86,7 @@ pub fn feature_channel(
     what: &str,
     _border: Border,
 ) -> Result<Image> {
+    mask.check(what)?;
     if (mask.width, mask.height) != (exemplar.width, exemplar.height) {
         return Err(Error::invalid(
             what,

@@ -72,6 +72,31 @@ impl Image {
             pixels: vec![0; width as usize * height as usize * channels as usize],
         }
     }
+    /// Check a hand-built image: 1 to 4 channels, and pixels that match its sizes; `what` names
+    /// it in errors.
+    pub fn check(&self, what: &str) -> Result<()> {
+        if !(1..=4).contains(&self.channels) {
+            return Err(Error::invalid(
+                what,
+                format!("image has {} channels; 1 to 4 expected", self.channels),
+            ));
+        }
+        let bytes = (self.width as u64 * self.height as u64).checked_mul(self.channels as u64);
+        if bytes != Some(self.pixels.len() as u64) {
+            return Err(Error::invalid(
+                what,
+                format!(
+                    "image holds {} bytes; {}x{} pixels of {} channels take {}",
+                    self.pixels.len(),
+                    self.width,
+                    self.height,
+                    self.channels,
+                    bytes.map_or("more than 2^64".into(), |b| b.to_string())
+                ),
+            ));
+        }
+        Ok(())
+    }
     pub fn pixel_count(&self) -> usize {
         self.width as usize * self.height as usize
     }
@@ -127,9 +152,18 @@ impl Image {
         }
         out
     }
-    /// The same pixels with `target` channels: gray replicated into RGB, an opaque alpha added,
-    /// surplus channels dropped.
+    /// The same pixels with `target` channels, 1 to 4 channels being gray, gray and alpha, RGB
+    /// and RGBA: gray replicated into RGB, alpha kept where both have it, an opaque alpha added,
+    /// surplus colour channels dropped (RGB to gray keeps red).
+    ///
+    /// # Panics
+    /// If either channel count is outside 1 to 4.
     pub fn with_channels(&self, target: u32) -> Image {
+        assert!(
+            (1..=4).contains(&self.channels) && (1..=4).contains(&target),
+            "with_channels converts between 1 and 4 channels, not {} to {target}",
+            self.channels
+        );
         if self.channels == target {
             return self.clone();
         }
@@ -139,12 +173,16 @@ impl Image {
             .chunks_exact_mut(target as usize)
             .zip(self.pixels.chunks_exact(self.channels as usize))
         {
+            let gray = s.len() <= 2;
+            let alpha = match s.len() {
+                2 | 4 => s[s.len() - 1],
+                _ => 255,
+            };
             for (k, v) in d.iter_mut().enumerate() {
-                *v = match (s.len(), k) {
-                    (1, k) if k < 3 => s[0],
-                    (n, 3) if n < 4 => 255,
-                    (n, k) if k < n => s[k],
-                    (n, _) => s[n - 1],
+                *v = match (target, k) {
+                    (2, 1) | (4, 3) => alpha,
+                    _ if gray => s[0],
+                    (_, k) => s[k],
                 };
             }
         }
@@ -271,18 +309,7 @@ pub fn check_exemplar_size(img: &Image, what: &str) -> Result<()> {
             format!("exemplar is {w}x{h}; each side must be at most {MAX_EXEMPLAR_SIDE} pixels"),
         ));
     }
-    let bytes = img.pixel_count() * img.channels as usize;
-    if img.pixels.len() != bytes {
-        return Err(Error::invalid(
-            what,
-            format!(
-                "image holds {} bytes; {w}x{h} pixels of {} channels take {bytes}",
-                img.pixels.len(),
-                img.channels
-            ),
-        ));
-    }
-    Ok(())
+    img.check(what)
 }
 
 /// The exemplar built into the binary: a 128x128 slice of [`procedural::cells_3d`] (made by

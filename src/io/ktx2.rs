@@ -128,8 +128,12 @@ pub fn check(dims: [u32; 3], what: &str) -> Result<()> {
     Ok(())
 }
 
-/// The KTX2 file of `v`.
-pub fn to_bytes(v: &Volume, options: TextureOptions) -> Vec<u8> {
+/// The KTX2 file of `v`; an error for a volume with a zero side, other than 1 to 4 channels,
+/// data that does not match its sizes, or a side over [`MAX_SIDE`].
+pub fn to_bytes(v: &Volume, options: TextureOptions) -> Result<Vec<u8>> {
+    crate::io::slab_order::check_dims(v.dims(), v.channels)?;
+    v.check("volume")?;
+    check(v.dims(), "volume")?;
     let (base, texel) = texels(v);
     let mut levels = vec![base];
     let mut dims = [v.nx as usize, v.ny as usize, v.nz as usize];
@@ -191,7 +195,7 @@ pub fn to_bytes(v: &Volume, options: TextureOptions) -> Vec<u8> {
         out.extend_from_slice(level);
     }
     out.resize(data_at, 0);
-    out
+    Ok(out)
 }
 
 #[cfg(test)]
@@ -208,7 +212,8 @@ mod tests {
                 srgb: false,
                 mips: true,
             },
-        );
+        )
+        .unwrap();
         assert_eq!(&bytes[..12], &IDENTIFIER);
         let word = |i: usize| u32::from_le_bytes(bytes[i..i + 4].try_into().unwrap());
         assert_eq!(word(12), VK_FORMAT_R8_UNORM);

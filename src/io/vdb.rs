@@ -39,7 +39,7 @@
 //! `scripts/vdb_check.py` reads a file with OpenVDB and compares it with the raw volume.
 
 use super::atomic;
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::volume::Volume;
 use flate2::{Compress, Compression, FlushCompress, Status};
 use rayon::prelude::*;
@@ -75,6 +75,32 @@ impl Default for VdbOptions {
             origin: [0.0; 3],
             zip: true,
         }
+    }
+}
+
+/// The voxel sizes a file takes, in world units: the transform also stores 1 / size^2, which
+/// stays well inside f64 for these.
+pub const VOXEL_SIZE_RANGE: std::ops::RangeInclusive<f64> = 1e-6..=1e6;
+
+impl VdbOptions {
+    /// Refuse a voxel size outside [`VOXEL_SIZE_RANGE`] or an origin that is not finite.
+    pub fn check(&self) -> Result<()> {
+        if !VOXEL_SIZE_RANGE.contains(&self.voxel_size) {
+            return Err(Error::invalid(
+                format!(
+                    "VDB voxel size {}",
+                    crate::util::number_text(self.voxel_size)
+                ),
+                "must be a number from 1e-6 to 1e6",
+            ));
+        }
+        if self.origin.iter().any(|c| !c.is_finite()) {
+            return Err(Error::invalid(
+                format!("VDB origin {:?}", self.origin),
+                "must be finite",
+            ));
+        }
+        Ok(())
     }
 }
 
@@ -447,23 +473,21 @@ fn put_grid(out: &mut Vec<u8>, v: &Volume, o: &VdbOptions, grid: &Grid) {
     }
 }
 
-/// The .vdb bytes of a volume (see the module documentation for the layout).
-///
-/// # Panics
-/// If the volume is empty, has other than 1 to 4 channels or a data length that does not
-/// match its dimensions, or is wider than OpenVDB's i32 coordinates.
-pub fn to_bytes(v: &Volume, options: VdbOptions) -> Vec<u8> {
+/// The .vdb bytes of a volume (see the module documentation for the layout). An error for an
+/// empty volume, one with other than 1 to 4 channels or a data length that does not match its
+/// dimensions, one wider than OpenVDB's i32 coordinates, or options [`VdbOptions::check`]
+/// refuses.
+pub fn to_bytes(v: &Volume, options: VdbOptions) -> Result<Vec<u8>> {
+    crate::io::slab_order::check_dims(v.dims(), v.channels)?;
+    v.check("volume")?;
+    options.check()?;
+    if v.dims().iter().any(|&n| n > i32::MAX as u32) {
+        return Err(Error::invalid(
+            "volume",
+            "is wider than OpenVDB's coordinates (2^31 - 1 voxels a side)",
+        ));
+    }
     let voxels = v.nx as usize * v.ny as usize * v.nz as usize;
-    assert!(voxels > 0 && (1..=4).contains(&v.channels), "not a volume");
-    assert_eq!(
-        v.data.len(),
-        voxels * v.channels as usize,
-        "data does not match dims"
-    );
-    assert!(
-        v.dims().iter().all(|&n| n <= i32::MAX as u32),
-        "too wide for OpenVDB"
-    );
     // Zipped values of a synthesized solid take about a fifth of their raw 16 bytes a voxel.
     let per_voxel = if options.zip { 4 } else { 16 };
     let mut out = Vec::with_capacity(voxels * per_voxel + (1 << 16));
@@ -478,13 +502,11 @@ pub fn to_bytes(v: &Volume, options: VdbOptions) -> Vec<u8> {
     for grid in &GRIDS {
         put_grid(&mut out, v, &options, grid);
     }
-    out
+    Ok(out)
 }
 
 pub fn save(v: &Volume, path: &Path, options: VdbOptions) -> Result<()> {
-    crate::io::slab_order::check_dims(v.dims(), v.channels)?;
-    v.check("volume")?;
-    atomic::write_file(path, &to_bytes(v, options))
+    atomic::write_file(path, &to_bytes(v, options)?)
 }
 
 #[cfg(test)]

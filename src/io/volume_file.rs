@@ -224,8 +224,8 @@ impl VolumeWriter {
             Target::Whole(v, order) => {
                 order.finish()?;
                 let bytes = match self.output.format {
-                    VolumeFormat::Ktx2 => ktx2::to_bytes(&v, self.output.texture),
-                    VolumeFormat::Vdb => vdb::to_bytes(&v, self.output.vdb),
+                    VolumeFormat::Ktx2 => ktx2::to_bytes(&v, self.output.texture)?,
+                    VolumeFormat::Vdb => vdb::to_bytes(&v, self.output.vdb)?,
                     VolumeFormat::Vti => crate::io::vti::to_checked_bytes(&v, &self.path)?,
                     _ => crate::io::atomic::rgba_png_bytes(&crate::io::flipbook::to_image(&v))?,
                 };
@@ -250,9 +250,9 @@ pub fn to_bytes(v: &Volume, output: VolumeOutput) -> Result<Vec<u8>> {
         }
         VolumeFormat::Npy => npy::header(v.dims(), v.channels),
         VolumeFormat::Tiff => return tiff_stack::to_bytes(v),
-        VolumeFormat::Ktx2 => return Ok(ktx2::to_bytes(v, output.texture)),
-        VolumeFormat::Vdb => return Ok(vdb::to_bytes(v, output.vdb)),
-        VolumeFormat::Vti => return Ok(crate::io::vti::to_bytes(v)),
+        VolumeFormat::Ktx2 => return ktx2::to_bytes(v, output.texture),
+        VolumeFormat::Vdb => return vdb::to_bytes(v, output.vdb),
+        VolumeFormat::Vti => return crate::io::vti::to_bytes(v),
         VolumeFormat::Png => {
             return crate::io::atomic::rgba_png_bytes(&crate::io::flipbook::to_image(v));
         }

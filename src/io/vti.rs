@@ -24,8 +24,13 @@ fn header(v: &Volume) -> String {
     )
 }
 
-/// The .vti bytes of a volume.
-pub fn to_bytes(v: &Volume) -> Vec<u8> {
+/// The .vti bytes of a volume; an error for a volume with a zero side, other than 1 to 4
+/// channels, data that does not match its sizes, or over 4 GiB of data.
+pub fn to_bytes(v: &Volume) -> Result<Vec<u8>> {
+    to_checked_bytes(v, Path::new("volume"))
+}
+
+fn encode(v: &Volume) -> Vec<u8> {
     let mut out = header(v).into_bytes();
     out.extend((v.data.len() as u32).to_le_bytes());
     out.extend_from_slice(&v.data);
@@ -34,20 +39,20 @@ pub fn to_bytes(v: &Volume) -> Vec<u8> {
 }
 
 pub fn save(v: &Volume, path: &Path) -> Result<()> {
-    crate::io::slab_order::check_dims(v.dims(), v.channels)?;
-    v.check("volume")?;
     atomic::write_file(path, &to_checked_bytes(v, path)?)
 }
 
-/// [`to_bytes`], refusing a volume the format cannot hold (`path` names the output).
+/// [`to_bytes`], its errors naming `path` (the output) for a volume the format cannot hold.
 pub fn to_checked_bytes(v: &Volume, path: &Path) -> Result<Vec<u8>> {
+    crate::io::slab_order::check_dims(v.dims(), v.channels)?;
+    v.check("volume")?;
     if v.data.len() > u32::MAX as usize {
         return Err(Error::invalid(
             path.display().to_string(),
             "a volume over 4 GiB does not fit a UInt32-headed .vti",
         ));
     }
-    Ok(to_bytes(v))
+    Ok(encode(v))
 }
 
 /// Read back a .vti written by [`to_bytes`] (this layout only: tests and round trips).
@@ -105,7 +110,7 @@ mod tests {
         for (i, b) in v.data.iter_mut().enumerate() {
             *b = (i * 7 % 251) as u8;
         }
-        let bytes = to_bytes(&v);
+        let bytes = to_bytes(&v).unwrap();
         assert_eq!(from_bytes(&bytes, "t").unwrap(), v);
         assert!(from_bytes(&bytes[..bytes.len() / 2], "t").is_err());
         let text = String::from_utf8_lossy(&bytes[..200]).to_string();

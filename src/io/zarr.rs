@@ -30,15 +30,51 @@ const TEMPORARY_PREFIX: &str = ".solidsynth-";
 const TEMPORARY_SUFFIX: &str = ".partial";
 
 /// The array's geometry: a volume of `dims` voxels (x, y, z) with `channels` bytes a voxel, in
-/// cubic chunks of `chunk` voxels.
+/// cubic chunks of `chunk` voxels. Made by [`Layout::new`], which checks it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Layout {
-    pub dims: [u32; 3],
-    pub channels: u32,
-    pub chunk: u32,
+    dims: [u32; 3],
+    channels: u32,
+    chunk: u32,
 }
 
+/// Largest chunk edge a layout takes: a chunk is one file held whole in memory (1024^3 voxels of
+/// 4 bytes: 4 GiB).
+pub const MAX_CHUNK: u32 = 1024;
+
 impl Layout {
+    /// The layout of a `dims` volume of `channels` (1 to 4) bytes a voxel in chunks of `chunk`
+    /// (1..=[`MAX_CHUNK`]) voxels a side; an error naming the value that is out of range.
+    pub fn new(dims: [u32; 3], channels: u32, chunk: u32) -> Result<Layout> {
+        crate::io::slab_order::check_dims(dims, channels)?;
+        if !(1..=MAX_CHUNK).contains(&chunk) {
+            return Err(Error::invalid(
+                format!("chunk {chunk}"),
+                format!("must be 1..={MAX_CHUNK} voxels"),
+            ));
+        }
+        Ok(Layout {
+            dims,
+            channels,
+            chunk,
+        })
+    }
+
+    /// The volume's size in voxels (x, y, z).
+    pub fn dims(&self) -> [u32; 3] {
+        self.dims
+    }
+
+    /// Bytes a voxel.
+    pub fn channels(&self) -> u32 {
+        self.channels
+    }
+
+    /// The chunk edge in voxels.
+    pub fn chunk(&self) -> u32 {
+        self.chunk
+    }
+
     /// The array's shape, (Z, Y, X, C).
     pub fn shape(&self) -> [u64; 4] {
         let [x, y, z] = self.dims.map(u64::from);
@@ -54,7 +90,7 @@ impl Layout {
 
     /// Chunks in the array.
     pub fn chunk_count(&self) -> u64 {
-        self.grid().iter().product()
+        self.grid().iter().fold(1u64, |n, &g| n.saturating_mul(g))
     }
 
     /// Bytes of every chunk file (edge chunks included).

@@ -38,8 +38,10 @@ pub fn surface(model: &LstModel) -> (Mesh, Vec<u32>) {
 }
 
 /// Texels per triangle giving about `texels_per_unit` texels per exemplar voxel on the median
-/// face: the atlas resolves the pasted texture without blowing up.
-pub fn auto_texels(mesh: &Mesh, model: &LstModel, scale: f64) -> u32 {
+/// face: the atlas resolves the pasted texture without blowing up. An error for a mesh
+/// [`Mesh::validate`] refuses.
+pub fn auto_texels(mesh: &Mesh, model: &LstModel, scale: f64) -> Result<u32> {
+    mesh.validate("mesh")?;
     let mut edges: Vec<f64> = mesh
         .triangles
         .iter()
@@ -51,7 +53,7 @@ pub fn auto_texels(mesh: &Mesh, model: &LstModel, scale: f64) -> u32 {
     edges.sort_by(f64::total_cmp);
     let median = edges[edges.len() / 2];
     let voxels = median / scale * model.exemplar.size as f64;
-    (voxels.ceil() as u32 + 1).clamp(2, 64)
+    Ok((voxels.ceil() as u32 + 1).clamp(2, 64))
 }
 
 /// The atlas image (RGBA) of the surface `mesh` whose triangle k lies on tet `tets[k]`.

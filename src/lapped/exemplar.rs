@@ -63,6 +63,7 @@ impl SolidExemplar {
                 format!("1 to 4 channels expected, found {c}"),
             ));
         }
+        v.check(what)?;
         let rgba = v
             .data
             .chunks_exact(c)

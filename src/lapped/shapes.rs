@@ -5,7 +5,14 @@ use crate::mesh::Mesh;
 use std::f32::consts::PI;
 
 /// The unit sphere with `segments` around and `rings` from pole to pole.
+///
+/// # Panics
+/// With fewer than 3 segments or 2 rings (no closed surface).
 pub fn sphere(segments: u32, rings: u32) -> Mesh {
+    assert!(
+        segments >= 3 && rings >= 2,
+        "a sphere needs at least 3 segments and 2 rings; asked for {segments} and {rings}"
+    );
     let mut positions = vec![[0.0, 0.0, 1.0f32]];
     for r in 1..rings {
         let th = PI * r as f32 / rings as f32;
@@ -44,7 +51,14 @@ pub fn sphere(segments: u32, rings: u32) -> Mesh {
 
 /// A tube of radius `radius` whose axis is a quarter circle of radius `bend` in the xy plane
 /// (from (bend, 0, 0) to (0, bend, 0)), capped at both ends.
+///
+/// # Panics
+/// With fewer than 3 vertices `around` or 1 step `along` (no closed surface).
 pub fn bent_cylinder(radius: f32, bend: f32, around: u32, along: u32) -> Mesh {
+    assert!(
+        around >= 3 && along >= 1,
+        "a tube needs at least 3 vertices around and 1 step along; asked for {around} and {along}"
+    );
     let mut positions = Vec::new();
     for a in 0..=along {
         let t = 0.5 * PI * a as f32 / along as f32;
@@ -116,5 +130,11 @@ mod tests {
         let mid = std::f64::consts::FRAC_PI_4;
         assert!((c.at(DVec3::new(mid.cos(), mid.sin(), 0.0)) - 1.0).abs() < 1e-6);
         assert!(c.at(DVec3::ZERO).abs() < 1e-6);
+    }
+
+    #[test]
+    #[should_panic(expected = "at least 3 segments and 2 rings")]
+    fn a_sphere_of_one_ring_is_refused() {
+        sphere(8, 1);
     }
 }

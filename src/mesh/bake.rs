@@ -16,6 +16,7 @@
 //!   coordinates; texels outside every triangle are filled by dilation.
 
 use super::{Mesh, Placement};
+use crate::error::{Error, Result};
 use glam::DVec3;
 
 /// Largest atlas side accepted.
@@ -109,6 +110,29 @@ impl Atlas {
             TexelLayout::Cells(_) => Some(self.gutter),
             TexelLayout::MeshUvs => None,
         }
+    }
+
+    /// Check that this atlas was made for `mesh` (named `what` in errors): the mesh passes
+    /// [`Mesh::validate`] and the atlas has texture coordinates (and, packed, a cell) for each of
+    /// its triangles. The writers check it, so a mismatch is an error rather than a file whose
+    /// faces refer to texture coordinates it lacks.
+    pub fn check_mesh(&self, mesh: &Mesh, what: &str) -> Result<()> {
+        mesh.validate(what)?;
+        let triangles = mesh.triangles.len();
+        let cells = match &self.texels {
+            TexelLayout::Cells(cells) => cells.len(),
+            TexelLayout::MeshUvs => triangles,
+        };
+        if self.uvs.len() != triangles || cells != triangles {
+            return Err(Error::invalid(
+                what,
+                format!(
+                    "the atlas was made for {} triangles, not this mesh's {triangles}",
+                    self.uvs.len()
+                ),
+            ));
+        }
+        Ok(())
     }
 
     /// Whether a renderer may sample the atlas through mipmaps: the gutter keeps at least the
@@ -325,8 +349,10 @@ pub fn atlas_pixel(color: u32, channels: u32) -> [u8; 4] {
 
 /// OBJ + MTL referring to the atlas PNG (`png_name`, beside them); corners get their own
 /// texture coordinates (v flipped: OBJ's v grows upwards) and normals ([`Mesh::corner_normals`]).
-pub fn obj_text(mesh: &Mesh, atlas: &Atlas, mtl_name: &str) -> String {
+/// An error when the atlas was not made for the mesh ([`Atlas::check_mesh`]).
+pub fn obj_text(mesh: &Mesh, atlas: &Atlas, mtl_name: &str) -> Result<String> {
     use std::fmt::Write;
+    atlas.check_mesh(mesh, "mesh")?;
     let mut s = String::new();
     writeln!(
         s,
@@ -364,7 +390,7 @@ pub fn obj_text(mesh: &Mesh, atlas: &Atlas, mtl_name: &str) -> String {
         )
         .unwrap();
     }
-    s
+    Ok(s)
 }
 
 pub fn mtl_text(png_name: &str) -> String {

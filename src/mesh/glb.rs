@@ -9,11 +9,13 @@ use super::Mesh;
 use serde_json::json;
 use std::collections::HashMap;
 
-/// The .glb bytes of `mesh` textured by `png` through `atlas`.
-pub fn glb_bytes(mesh: &Mesh, atlas: &Atlas, png: &[u8]) -> Vec<u8> {
+/// The .glb bytes of `mesh` textured by `png` through `atlas`; an error when the atlas was not
+/// made for the mesh ([`Atlas::check_mesh`]).
+pub fn glb_bytes(mesh: &Mesh, atlas: &Atlas, png: &[u8]) -> crate::Result<Vec<u8>> {
+    atlas.check_mesh(mesh, "mesh")?;
     let mut out = Vec::new();
-    write_glb(&mut out, mesh, atlas, png).expect("writing to memory");
-    out
+    write_glb(&mut out, mesh, atlas, png).expect("writing to memory, the mesh checked");
+    Ok(out)
 }
 
 /// The distinct corners of the mesh (position index, texture coordinate, normal, by their
@@ -52,13 +54,17 @@ fn vertices(mesh: &Mesh, atlas: &Atlas) -> Vertices {
 }
 
 /// Write the .glb of [`glb_bytes`] to `out`, the PNG straight from `png` (a large atlas's PNG is
-/// not copied into the file's bytes first).
+/// not copied into the file's bytes first). An `InvalidInput` error, before anything is
+/// written, when the atlas was not made for the mesh ([`Atlas::check_mesh`]).
 pub fn write_glb(
     out: &mut impl std::io::Write,
     mesh: &Mesh,
     atlas: &Atlas,
     png: &[u8],
 ) -> std::io::Result<()> {
+    atlas
+        .check_mesh(mesh, "mesh")
+        .map_err(|e| std::io::Error::new(std::io::ErrorKind::InvalidInput, e.to_string()))?;
     let v = vertices(mesh, atlas);
     let count = v.positions.len();
     // The binary chunk: positions, normals, texture coordinates, indices, the PNG, zeros to a
@@ -164,7 +170,7 @@ mod tests {
         };
         let atlas = Atlas::new(1, 4, 0).unwrap();
         let png = [1u8, 2, 3, 4, 5];
-        let b = glb_bytes(&mesh, &atlas, &png);
+        let b = glb_bytes(&mesh, &atlas, &png).unwrap();
         assert_eq!(&b[0..4], b"glTF");
         assert_eq!(
             u32::from_le_bytes(b[8..12].try_into().unwrap()) as usize,

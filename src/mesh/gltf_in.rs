@@ -8,7 +8,7 @@ use crate::error::{Error, Result};
 use std::path::Path;
 
 /// Parse glTF `bytes` (binary or JSON) named `name`; external buffers are read relative to
-/// `base` (none: only embedded and GLB buffers).
+/// `base` (none: only embedded and GLB buffers). The mesh passes [`Mesh::validate`].
 pub fn parse_gltf(bytes: &[u8], name: &str, base: Option<&Path>) -> Result<Mesh> {
     // The crate's validator indexes some arrays unchecked (gltf-json 1.4.1 panics on a POSITION
     // accessor index out of range): the indices are checked first, and any panic left in the
@@ -68,6 +68,7 @@ fn parse_checked(bytes: &[u8], name: &str, base: Option<&Path>) -> Result<Mesh> 
     if mesh.triangles.is_empty() {
         return Err(invalid("has no triangles in its scene".into()));
     }
+    mesh.validate(name)?;
     Ok(mesh)
 }
 
@@ -414,7 +415,7 @@ mod tests {
             normals: None,
         };
         let atlas = crate::mesh::bake::Atlas::new(1, 4, 0).unwrap();
-        let glb = crate::mesh::glb::glb_bytes(&mesh, &atlas, &[0u8; 8]);
+        let glb = crate::mesh::glb::glb_bytes(&mesh, &atlas, &[0u8; 8]).unwrap();
         let back = parse_gltf(&glb, "t.glb", None).unwrap();
         assert_eq!(back.triangles.len(), 1);
         assert_eq!(back.positions, mesh.positions);

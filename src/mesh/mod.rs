@@ -102,6 +102,9 @@ impl Mesh {
 
     /// Per triangle, its corners' unit normals: the file's (normalized; a zero one becomes the
     /// area-weighted normal of its vertex) when it has them, else [`Self::vertex_normals`].
+    ///
+    /// # Panics
+    /// If a triangle refers to a vertex beyond `positions` (a mesh [`Self::validate`] refuses).
     pub fn corner_normals(&self) -> Vec<[[f32; 3]; 3]> {
         let smooth = self.vertex_normals();
         let from_vertex = |t: &[u32; 3]| t.map(|i| smooth[i as usize]);
@@ -128,6 +131,9 @@ impl Mesh {
     /// weighted by their areas (the unnormalized cross products), in the triangles' winding.
     /// A vertex whose triangles cancel out or have no area gets +z, so every normal is a unit
     /// vector (glTF requires it).
+    ///
+    /// # Panics
+    /// If a triangle refers to a vertex beyond `positions` (a mesh [`Self::validate`] refuses).
     pub fn vertex_normals(&self) -> Vec<[f32; 3]> {
         let mut sums = vec![DVec3::ZERO; self.positions.len()];
         let at = |i: u32| {
@@ -208,11 +214,10 @@ pub fn load(path: &Path) -> Result<Mesh> {
             "unknown mesh format: expected .obj, .ply, .ply.gz, .glb or .gltf",
         ));
     };
-    mesh.validate(&name)?;
     Ok(mesh)
 }
 
-/// Parse OBJ text (materials are ignored).
+/// Parse OBJ text (materials are ignored). The mesh passes [`Mesh::validate`].
 pub fn parse_obj(bytes: &[u8], name: &str) -> Result<Mesh> {
     let options = tobj::LoadOptions {
         triangulate: true,
@@ -279,6 +284,7 @@ pub fn parse_obj(bytes: &[u8], name: &str) -> Result<Mesh> {
     let (all_uvs, all_normals) = obj_corners_have_attributes(bytes);
     mesh.uvs = uvs.filter(|u| all_uvs && !u.is_empty());
     mesh.normals = normals.filter(|n| all_normals && !n.is_empty());
+    mesh.validate(name)?;
     Ok(mesh)
 }
 
@@ -498,8 +504,8 @@ mod tests {
     fn quads_are_fanned_and_bad_meshes_are_refused() {
         let quad = parse_obj(b"v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n", "q").unwrap();
         assert_eq!(quad.triangles.len(), 2);
-        let empty = parse_obj(b"v 0 0 0\n", "e").unwrap();
-        assert!(empty.validate("e").is_err());
+        let empty = parse_obj(b"v 0 0 0\n", "e").unwrap_err().to_string();
+        assert!(empty.contains("no triangles"), "{empty}");
         let nan = Mesh {
             positions: vec![[0.0, f32::NAN, 0.0]; 3],
             triangles: vec![[0, 1, 2]],

@@ -52,10 +52,11 @@ impl Atlas {
     /// cell's edges (so every point of the triangle lies within one texel size of a texel's
     /// point), each triangle's right-angle corner put where its cell is smallest, the cells
     /// shelf-packed (tallest first) into a near-square atlas. `None` when the atlas would pass
-    /// [`MAX_ATLAS_SIDE`] (or the texel size is not a positive number). Each cell has `gutter`
-    /// texels of room on every side.
+    /// [`MAX_ATLAS_SIDE`], the texel size is not a positive number or the mesh does not pass
+    /// [`Mesh::validate`] ([`Self::fitted_within`] says which). Each cell has `gutter` texels of
+    /// room on every side.
     pub fn fitted(mesh: &Mesh, place: &Placement, texel_size: f64, gutter: u32) -> Option<Atlas> {
-        if !(texel_size > 0.0 && texel_size.is_finite()) {
+        if !(texel_size > 0.0 && texel_size.is_finite()) || mesh.validate("mesh").is_err() {
             return None;
         }
         let texels_along = |from: DVec3, to: DVec3| {
@@ -119,6 +120,7 @@ impl Atlas {
         gutter: u32,
         fits: impl Fn(&Atlas) -> bool,
     ) -> Result<(Atlas, f64)> {
+        mesh.validate("mesh")?;
         if let Some(size) = texel_size {
             if !(size > 0.0 && size.is_finite()) {
                 return Err(Error::invalid(

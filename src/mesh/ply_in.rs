@@ -12,7 +12,8 @@ const BYTES_PER_ELEMENT: u64 = 64;
 const BYTES_PER_PROPERTY: u64 = 128;
 
 /// Parse a PLY file (ASCII or binary): `vertex` elements with x, y, z and `face` elements with
-/// a `vertex_indices` (or `vertex_index`) list; polygons are fanned into triangles.
+/// a `vertex_indices` (or `vertex_index`) list; polygons are fanned into triangles. The mesh
+/// passes [`Mesh::validate`].
 pub fn parse_ply(bytes: &[u8], name: &str) -> Result<Mesh> {
     use ply_rs_bw::parser::{Parser, Reader};
     use ply_rs_bw::ply::{DefaultElement, Property};
@@ -105,12 +106,14 @@ pub fn parse_ply(bytes: &[u8], name: &str) -> Result<Mesh> {
             .map(|t| per_corner(t, &|i| n.get(i).copied()))
             .collect()
     });
-    Ok(Mesh {
+    let mesh = Mesh {
         positions,
         triangles,
         uvs,
         normals,
-    })
+    };
+    mesh.validate(name)?;
+    Ok(mesh)
 }
 
 /// How far into a gzipped PLY's inflated bytes its header is looked for.

@@ -247,7 +247,7 @@ fn bake(
     job.progress("encoding the texture".into(), 0.96);
     let png = baked.png()?;
     drop(baked);
-    let glb = mesh::glb::glb_bytes(&mesh.mesh, &plan.atlas, &png);
+    let glb = mesh::glb::glb_bytes(&mesh.mesh, &plan.atlas, &png)?;
     let surface = Arc::new(Surface {
         id: state.next_id(),
         solid: solid.id,

@@ -163,6 +163,13 @@ impl Default for GradientSynthParams {
 /// seed-to-seed spread of 8 probes' and of the exact search's, in 15-20% less time than 8.
 pub const DEFAULT_PROBES: u32 = 4;
 
+/// Most synthesis levels ([`GradientSynthParams::levels`]).
+pub const MAX_LEVELS: usize = 8;
+/// Largest slice a level matches, in samples per side (the paper's finest is 21).
+pub const MAX_LEVEL_SLICE: u32 = 63;
+/// Largest spacing of a level's samples (the paper's coarsest is 4).
+pub const MAX_LEVEL_SPACING: u32 = 64;
+
 /// Largest accepted size (the control grid of 1024^3 is 256^3 points).
 pub const MAX_SIZE: u32 = 1024;
 /// Largest size of `--mask --optimize` (measured: 875 MB peak RSS at 128).
@@ -212,15 +219,19 @@ impl GradientSynthParams {
             bounded("crossbar candidates N1", n1, 256)?;
             bounded("crossbar candidates N2", n2, 256)?;
         }
-        if self.levels.is_empty()
-            || self
-                .levels
-                .iter()
-                .any(|l| l.size % 2 == 0 || l.size < 3 || l.spacing == 0)
+        if !(1..=MAX_LEVELS).contains(&self.levels.len())
+            || self.levels.iter().any(|l| {
+                l.size % 2 == 0
+                    || !(3..=MAX_LEVEL_SLICE).contains(&l.size)
+                    || !(1..=MAX_LEVEL_SPACING).contains(&l.spacing)
+            })
         {
             return Err(Error::invalid(
-                "levels",
-                "need at least one level, each with an odd slice size >= 3 and a spacing >= 1",
+                format!("levels {:?}", self.levels),
+                format!(
+                    "need 1 to {MAX_LEVELS} levels, each with an odd slice size in \
+                     3..={MAX_LEVEL_SLICE} and a spacing in 1..={MAX_LEVEL_SPACING}"
+                ),
             ));
         }
         Ok(())
@@ -319,6 +330,7 @@ impl MaskedExemplar {
     /// `mask`: same size as `exemplar`, set where its first channel is >= 128, with both
     /// regions present. `mask_name` labels errors (e.g. "--mask m.png").
     pub fn new(exemplar: &Image, mask: &Image, mask_name: &str) -> Result<MaskedExemplar> {
+        exemplar.check("exemplar")?;
         let colour = colour_exemplar(exemplar);
         let distance = crate::exemplar::feature::feature_channel(
             mask,

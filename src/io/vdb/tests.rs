@@ -61,7 +61,7 @@ fn i64_at(b: &[u8], at: usize) -> i64 {
 
 #[test]
 fn header_and_descriptors() {
-    let b = to_bytes(&pattern(13, 7, 21, 3), raw());
+    let b = to_bytes(&pattern(13, 7, 21, 3), raw()).unwrap();
     assert_eq!(&b[..8], b" BDV\0\0\0\0");
     assert_eq!(
         (u32_at(&b, 8), u32_at(&b, 12), u32_at(&b, 16)),
@@ -99,7 +99,7 @@ fn length_follows_the_tree_shape() {
         ([8, 8, 8], 1, translated()),
         ([4100, 2, 3], 1, raw()),
     ] {
-        let b = to_bytes(&pattern(dims[0], dims[1], dims[2], c), o);
+        let b = to_bytes(&pattern(dims[0], dims[1], dims[2], c), o).unwrap();
         assert_eq!(
             b.len(),
             expected_len(dims, o.origin != [0.0; 3]),
@@ -114,7 +114,7 @@ fn length_follows_the_tree_shape() {
 #[test]
 fn first_leaf_holds_density_in_leaf_order() {
     let v = pattern(8, 8, 8, 3);
-    let b = to_bytes(&v, raw());
+    let b = to_bytes(&v, raw()).unwrap();
     let block_pos = i64_at(&b, 65 + 4 + 7 + 4 + 16 + 4 + 8) as usize;
     assert!(b[block_pos..block_pos + 64].iter().all(|&m| m == 0xff));
     assert_eq!(b[block_pos + 64], NO_MASK_OR_INACTIVE_VALS);
@@ -142,7 +142,7 @@ fn golden_files() {
         ([8, 8, 8], 1, translated(), 0xd01f21f9, "d3ac1c26-3b0d"),
         ([4100, 2, 3], 1, raw(), 0xf8f2acb7, "532d167f-770c"),
     ] {
-        let b = to_bytes(&pattern(dims[0], dims[1], dims[2], c), o);
+        let b = to_bytes(&pattern(dims[0], dims[1], dims[2], c), o).unwrap();
         assert_eq!(
             std::str::from_utf8(&b[21..34]).unwrap(),
             uuid_head,
@@ -155,11 +155,11 @@ fn golden_files() {
 #[test]
 fn equal_inputs_give_equal_files() {
     let v = pattern(9, 4, 3, 2);
-    let a = to_bytes(&v, VdbOptions::default());
-    assert_eq!(a, to_bytes(&v, VdbOptions::default()));
+    let a = to_bytes(&v, VdbOptions::default()).unwrap();
+    assert_eq!(a, to_bytes(&v, VdbOptions::default()).unwrap());
     let mut w = v.clone();
     w.data[0] ^= 1;
-    let b = to_bytes(&w, VdbOptions::default());
+    let b = to_bytes(&w, VdbOptions::default()).unwrap();
     assert_ne!(&a[21..57], &b[21..57], "the UUID follows the content");
 }
 
@@ -176,8 +176,8 @@ fn files_do_not_depend_on_the_thread_count() {
         .build()
         .unwrap();
     for options in [VdbOptions::default(), raw()] {
-        let serial = one.install(|| to_bytes(&v, options));
-        assert_eq!(serial, three.install(|| to_bytes(&v, options)));
+        let serial = one.install(|| to_bytes(&v, options).unwrap());
+        assert_eq!(serial, three.install(|| to_bytes(&v, options).unwrap()));
     }
 }
 
@@ -236,8 +236,8 @@ fn leaf_buffers(b: &[u8]) -> Vec<(Vec<u8>, u8, Vec<u8>)> {
 fn zipped_files_hold_the_raw_files_values() {
     for (dims, c) in [([8, 8, 8], 3), ([13, 7, 21], 1), ([100, 40, 9], 4)] {
         let v = pattern(dims[0], dims[1], dims[2], c);
-        let zipped = to_bytes(&v, VdbOptions::default());
-        let plain = to_bytes(&v, raw());
+        let zipped = to_bytes(&v, VdbOptions::default()).unwrap();
+        let plain = to_bytes(&v, raw()).unwrap();
         assert!(zipped.len() < plain.len(), "{dims:?}");
         // Both grids zipped; their topology gains the longer `file_compression` string and an
         // empty zip chunk (8 bytes) per internal node.
@@ -263,8 +263,8 @@ fn zipped_files_hold_the_raw_files_values() {
     // A flat volume: each leaf keeps its 64-byte mask, its values shrink to a few bytes.
     let flat = Volume::new(64, 64, 64, 3);
     let (z, p) = (
-        to_bytes(&flat, VdbOptions::default()),
-        to_bytes(&flat, raw()),
+        to_bytes(&flat, VdbOptions::default()).unwrap(),
+        to_bytes(&flat, raw()).unwrap(),
     );
     assert!(z.len() * 20 < p.len(), "{} against {}", z.len(), p.len());
 }
