@@ -29,8 +29,7 @@ use solidsynth::io::{atomic, ssa};
 use solidsynth::solid::{limits, memory, AnalysisCache, ExemplarInput};
 use solidsynth::synth::check_tileable_size;
 use solidsynth::{
-    BackendChoice, CancelToken, Compute, CutSpec, Image, Solid, SolidBuilder, SynthOptions,
-    SynthParams, Volume,
+    CancelToken, Compute, CutSpec, Image, Solid, SolidBuilder, SynthOptions, SynthParams, Volume,
 };
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
@@ -454,15 +453,13 @@ impl PySolid {
             spacing,
         };
         spec.frame().map_err(engine_err)?;
-        // The command line's check before a cut: the largest group unless --max-group, and
-        // its own 24 bytes a pixel (image and sample positions).
-        memory::check_cut(
-            &format!("cut --size {size} --spacing {spacing}"),
-            spec.size,
-            spacing,
-            memory::planned_group(self.settings.max_group, BackendChoice::Gpu),
+        // `Solid::cut`'s own check, made before waiting for a turn; the array takes the
+        // image's bytes without a copy.
+        memory::check_cut_request(
+            &spec,
+            self.settings.max_group,
             self.settings.params.coarse_cache,
-            spec.size as u64 * spec.size as u64 * 24,
+            0,
         )
         .map_err(engine_err)?;
         let image = self.request(py, move |solid| solid.cut(&spec))?;

@@ -84,16 +84,12 @@ pub fn run(args: CutArgs, quiet: bool) -> anyhow::Result<()> {
     spec.frame()?;
     let params = args.solid.synth_params();
     params.validate()?;
-    crate::solid::memory::check_cut(
-        &format!("cut --size {} --spacing {}", args.size, args.spacing),
-        args.size,
-        args.spacing,
-        args.solid
-            .max_group
-            .unwrap_or(crate::lazy::memory::LARGEST_GROUP),
+    // The PNG beside the image: at most the image's 4 bytes a pixel again, and its encoder's.
+    crate::solid::memory::check_cut_request(
+        &spec,
+        args.solid.max_group,
         args.solid.coarse_cache,
-        // The image, its PNG and the sample positions.
-        args.size as u64 * args.size as u64 * 24,
+        8,
     )?;
     let (compute, analysis) = open_and_analyze(&args.solid.input, quiet || args.json)?;
     let mut session = args

@@ -61,6 +61,30 @@ pub fn cut_bricks(size: u32, spacing: f64) -> u64 {
     ((extent / 4.0 + 2.0).powi(2) * 1.75).min(pixels as f64) as u64
 }
 
+/// Bytes a cut's own outputs take a pixel: the image (at most 4 channels) and the sample
+/// positions (three f32).
+pub const CUT_BYTES_PER_PIXEL: u64 = 16;
+
+/// The check [`crate::Solid::cut`] makes before a cut of `spec` by a solid with these
+/// `max_group` and `coarse_cache` settings, with `extra_per_pixel` bytes a pixel of the
+/// caller's own (a PNG, say) beside the cut's [`CUT_BYTES_PER_PIXEL`]: a caller that queues
+/// cuts runs it before queueing, so the refusal comes at once and says the same.
+pub fn check_cut_request(
+    spec: &crate::lazy::cut::CutSpec,
+    max_group: Option<u32>,
+    coarse_cache: Option<u32>,
+    extra_per_pixel: u64,
+) -> Result<u64> {
+    check_cut(
+        &format!("cut --size {} --spacing {}", spec.size, spec.spacing),
+        spec.size,
+        spec.spacing,
+        max_group.unwrap_or(memory::LARGEST_GROUP),
+        coarse_cache,
+        (spec.size as u64).pow(2) * (CUT_BYTES_PER_PIXEL + extra_per_pixel),
+    )
+}
+
 /// The bytes a square cut of `size` pixels `spacing` voxels apart needs in groups of edge
 /// `group_side`, with `output_bytes` of the caller's outputs; refused, naming `what`, when that
 /// exceeds the memory available.

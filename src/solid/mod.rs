@@ -526,17 +526,11 @@ impl Solid {
     /// ([`memory::check_cut`]; a [`CutSession`]'s caller checks its largest cut itself).
     pub fn cut(&mut self, spec: &CutSpec) -> Result<Image> {
         spec.frame()?;
-        memory::check_cut(
-            &format!("cut --size {} --spacing {}", spec.size, spec.spacing),
-            spec.size,
-            spec.spacing,
-            self.synth
-                .options()
-                .max_group
-                .unwrap_or(lazy::memory::LARGEST_GROUP),
+        memory::check_cut_request(
+            spec,
+            self.synth.options().max_group,
             self.synth.params.coarse_cache,
-            // The image and the sample positions.
-            spec.size as u64 * spec.size as u64 * 16,
+            0,
         )?;
         crate::lazy::cut::cut(&mut self.synth, spec)
     }
