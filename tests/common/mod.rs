@@ -131,3 +131,22 @@ pub fn assert_refused(out: &std::process::Output, needle: &str, path: &std::path
     assert!(!err.contains("(os error"), "{err}");
     assert!(!path.exists(), "{} was written", path.display());
 }
+
+/// A 16^3 tileable solid exemplar (lapped textures) of colour waves plus a few hashed speckles (so layers differ).
+pub fn lapped_exemplar_volume() -> solidsynth::volume::Volume {
+    let n = 16u32;
+    let mut v = solidsynth::volume::Volume::new(n, n, n, 3);
+    let tau = std::f64::consts::TAU / n as f64;
+    for z in 0..n {
+        for y in 0..n {
+            for x in 0..n {
+                let h = solidsynth::util::hash::hash32(x + n * (y + n * z));
+                let c = v.at_mut(x, y, z);
+                c[0] = (128.0 + 90.0 * (tau * x as f64).sin()) as u8 ^ (h as u8 & 0x1f);
+                c[1] = (128.0 + 90.0 * (tau * y as f64).sin()) as u8;
+                c[2] = (128.0 + 90.0 * (tau * z as f64).cos()) as u8;
+            }
+        }
+    }
+    v
+}
