@@ -46,6 +46,32 @@ impl Error {
         }
     }
 
+    /// Refuse, naming `what`, a hand-built value whose data (`held` elements, counted in
+    /// `unit`s: "bytes", "values") disagrees with its sizes: `extents` times `per_cell` elements,
+    /// multiplied without overflow. `shape` describes the sizes for the message, with its verb
+    /// ("4x4x4 voxels of 3 channels take").
+    pub(crate) fn check_held(
+        what: &str,
+        held: usize,
+        extents: &[u32],
+        per_cell: u64,
+        unit: &str,
+        shape: impl FnOnce() -> String,
+    ) -> Result<()> {
+        let needed = extents
+            .iter()
+            .try_fold(per_cell, |n, &e| n.checked_mul(u64::from(e)));
+        if needed == Some(held as u64) {
+            return Ok(());
+        }
+        // (None: more than a u64 counts, which no data holds.)
+        let needed = needed.map_or("more than 2^64".to_string(), |n| n.to_string());
+        Err(Error::invalid(
+            what,
+            format!("holds {held} {unit}; {} {needed}", shape()),
+        ))
+    }
+
     /// Shorthand for [`Error::CorruptFile`].
     pub fn corrupt(path: impl Into<PathBuf>, problem: impl Into<String>) -> Self {
         Error::CorruptFile {

@@ -30,28 +30,19 @@ impl Volume {
                 format!("has {} channels; volumes have 1 to 4", self.channels),
             ));
         }
-        // (None: more bytes than a u64 counts, which no data holds.)
-        let bytes = self
-            .dims()
-            .iter()
-            .try_fold(u64::from(self.channels), |b, &d| {
-                b.checked_mul(u64::from(d))
-            });
-        if bytes != Some(self.data.len() as u64) {
-            let bytes = bytes.map_or("more than 2^64".to_string(), |b| b.to_string());
-            return Err(crate::Error::invalid(
-                what,
+        crate::Error::check_held(
+            what,
+            self.data.len(),
+            &self.dims(),
+            u64::from(self.channels),
+            "bytes",
+            || {
                 format!(
-                    "holds {} bytes; {}x{}x{} voxels of {} channels take {bytes}",
-                    self.data.len(),
-                    self.nx,
-                    self.ny,
-                    self.nz,
-                    self.channels
-                ),
-            ));
-        }
-        Ok(())
+                    "{}x{}x{} voxels of {} channels take",
+                    self.nx, self.ny, self.nz, self.channels
+                )
+            },
+        )
     }
 
     pub fn dims(&self) -> [u32; 3] {

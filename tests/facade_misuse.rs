@@ -37,7 +37,10 @@ fn hand_built_inputs_that_disagree_with_their_sizes_are_refused() {
     let build = |img: Image| Solid::builder().exemplar(img).cpu().build();
     refused(build(image(0, vec![])), "image has 0 channels");
     refused(build(image(2, vec![0; 2048])), "image has 2 channels");
-    refused(build(image(3, vec![0; 100])), "image holds 100 bytes");
+    refused(
+        build(image(3, vec![0; 100])),
+        "holds 100 bytes; 32x32 pixels of 3 channels take 3072",
+    );
     let gradient = solidsynth::gradient::synth::synthesize(
         &Image::new(0, 0, 3),
         &Default::default(),

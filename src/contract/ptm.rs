@@ -65,19 +65,20 @@ impl Ptm {
     /// Refuse a PTM built by hand whose fields disagree: sides of at least one texel, its
     /// format's bytes for every texel, finite scales. `what` names it.
     pub fn check(&self, what: &str) -> crate::Result<()> {
-        let texels = u64::from(self.width) * u64::from(self.height);
-        let bytes = texels * self.format.texel_bytes() as u64;
-        if texels == 0 || self.texels.len() as u64 != bytes {
+        if self.width == 0 || self.height == 0 {
             return Err(crate::Error::invalid(
                 what,
-                format!(
-                    "holds {} bytes of texels; a {}x{} PTM of its format takes {bytes}",
-                    self.texels.len(),
-                    self.width,
-                    self.height
-                ),
+                format!("is {}x{} texels: it has none", self.width, self.height),
             ));
         }
+        crate::Error::check_held(
+            what,
+            self.texels.len(),
+            &[self.width, self.height],
+            self.format.texel_bytes() as u64,
+            "bytes of texels",
+            || format!("a {}x{} PTM of its format takes", self.width, self.height),
+        )?;
         if !self.scale.iter().all(|s| s.is_finite()) {
             return Err(crate::Error::invalid(what, "its scales must be finite"));
         }

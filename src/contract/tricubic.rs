@@ -31,21 +31,19 @@ impl GradientSolid {
                 ),
             ));
         }
-        let values = self
-            .dims
-            .iter()
-            .try_fold(u64::from(self.channels) * 4, |n, &d| n.checked_mul(u64::from(d)));
-        if values != Some(self.data.len() as u64) {
-            return Err(crate::Error::invalid(
-                what,
+        crate::Error::check_held(
+            what,
+            self.data.len(),
+            &self.dims,
+            u64::from(self.channels) * 4,
+            "values",
+            || {
                 format!(
-                    "holds {} values; {:?} control points of {} channels take 4 each",
-                    self.data.len(),
-                    self.dims,
-                    self.channels
-                ),
-            ));
-        }
+                    "{:?} control points of {} channels (4 values each) take",
+                    self.dims, self.channels
+                )
+            },
+        )?;
         if let Some(i) = self.data.iter().position(|v| !v.is_finite()) {
             return Err(crate::Error::invalid(what, format!("value {i} is not finite")));
         }

@@ -81,21 +81,19 @@ impl Image {
                 format!("image has {} channels; 1 to 4 expected", self.channels),
             ));
         }
-        let bytes = (self.width as u64 * self.height as u64).checked_mul(self.channels as u64);
-        if bytes != Some(self.pixels.len() as u64) {
-            return Err(Error::invalid(
-                what,
+        Error::check_held(
+            what,
+            self.pixels.len(),
+            &[self.width, self.height],
+            u64::from(self.channels),
+            "bytes",
+            || {
                 format!(
-                    "image holds {} bytes; {}x{} pixels of {} channels take {}",
-                    self.pixels.len(),
-                    self.width,
-                    self.height,
-                    self.channels,
-                    bytes.map_or("more than 2^64".into(), |b| b.to_string())
-                ),
-            ));
-        }
-        Ok(())
+                    "{}x{} pixels of {} channels take",
+                    self.width, self.height, self.channels
+                )
+            },
+        )
     }
     pub fn pixel_count(&self) -> usize {
         self.width as usize * self.height as usize
