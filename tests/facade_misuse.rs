@@ -123,6 +123,10 @@ fn values_past_the_engines_ranges_are_refused() {
         Solid::builder().max_group(Some(3)).cpu().build(),
         "--max-group 3",
     );
+    refused(
+        Solid::builder().max_group(Some(6)).cpu().build(),
+        "--max-group 6: must be a multiple of 4",
+    );
     let mut solid = marble_solid();
     refused(solid.sample(&[[i32::MAX, 0, 0]]), "lies beyond");
     let huge = Box3::new([-(1 << 28); 3], [1 << 28; 3]);

@@ -75,7 +75,7 @@ def test_a_damaged_analysis_file_is_refused(tmp_path):
         (dict(seed=-1), r"invalid --seed -1: must be 0..=18446744073709551615"),
         (dict(seed=2**64), "invalid --seed 18446744073709551616"),
         (dict(coarse_cache=-64), "invalid --coarse-cache -64: must be a multiple of 64 in"),
-        (dict(max_group=2**40), r"invalid --max-group 1099511627776: must be 4..=512"),
+        (dict(max_group=2**40), r"invalid --max-group 1099511627776: must be a multiple of 4 \(whole bricks\) in 4..=512"),
         (dict(seed=2**128), "invalid --seed 340282366920938463463374607431768211456: must be 0"),
         (dict(balance_rounds=-1), "invalid --balance-rounds -1: must be 0..="),
         (dict(passes=-1), "invalid --passes -1"),

@@ -90,12 +90,31 @@ fn parse_feature_mask(s: &str) -> Result<FeatureMask, String> {
 }
 
 impl InputArgs {
-    /// Whether a feature-mask option other than the default was given.
-    pub fn feature_mask_given(&self) -> bool {
-        self.feature_mask != FeatureMask::Auto
-            || self.ey_feature_mask.is_some()
-            || self.ez_feature_mask.is_some()
-            || self.feature_weight != crate::analysis::DEFAULT_FEATURE_WEIGHT
+    /// The analysis flags given other than at their defaults, by name: what an `.ssa` input
+    /// (which holds its analysis) or a missing INPUT (`serve` analyses the built-in exemplar
+    /// its own way) refuses.
+    pub fn analysis_flags_given(&self) -> Vec<&'static str> {
+        let given = [
+            ("--ey", self.ey.is_some()),
+            ("--frame", self.frame.is_some()),
+            ("--feature-mask", self.feature_mask != FeatureMask::Auto),
+            ("--ey-feature-mask", self.ey_feature_mask.is_some()),
+            ("--ez-feature-mask", self.ez_feature_mask.is_some()),
+            (
+                "--feature-weight",
+                self.feature_weight != crate::analysis::DEFAULT_FEATURE_WEIGHT,
+            ),
+            ("--periodic", self.periodic),
+            (
+                "--balance-rounds",
+                self.balance_rounds != analysis::balance::DEFAULT_ROUNDS,
+            ),
+            ("--balance-strength", self.balance_strength != 1.0),
+        ];
+        given
+            .into_iter()
+            .filter_map(|(flag, on)| on.then_some(flag))
+            .collect()
     }
 
     fn is_ssa(&self) -> bool {
@@ -175,22 +194,11 @@ impl InputArgs {
     pub fn builder(&self) -> crate::Result<SolidBuilder> {
         let builder = Solid::builder().backend(self.backend.backend, self.backend.gpu_options());
         if self.is_ssa() {
-            if self.ey.is_some()
-                || self.feature_mask_given()
-                || self.frame.is_some()
-                || self.periodic
-            {
+            let given = self.analysis_flags_given();
+            if !given.is_empty() {
                 return Err(Error::invalid(
-                    "--ey/--frame/--periodic/--feature-mask/--feature-weight",
-                    "are analysis inputs; an .ssa file already holds them",
-                ));
-            }
-            if self.balance_rounds != analysis::balance::DEFAULT_ROUNDS
-                || self.balance_strength != 1.0
-            {
-                return Err(Error::invalid(
-                    "--balance-rounds/--balance-strength",
-                    "are analysis parameters; an .ssa file already holds them",
+                    given.join(" "),
+                    "analysis settings; an .ssa file already holds them",
                 ));
             }
             return Ok(builder.analysis(ssa::load(self.input.as_ref().unwrap())?));

@@ -113,7 +113,7 @@ pub struct BenchSynthArgs {
     #[arg(long, default_value = "2", value_name = "N|N,N,N,N")]
     pub passes: crate::lazy::PassSchedule,
     /// Largest group, as `synth --max-group`.
-    #[arg(long, value_name = "VOXELS")]
+    #[arg(long, value_name = "VOXELS", value_parser = super::synth::parse_max_group)]
     pub max_group: Option<u32>,
     /// Print the results as JSON instead of a table.
     #[arg(help_heading = "Output", long)]

@@ -20,7 +20,8 @@ Environment:
                                machine or its cgroup has available)
   SOLIDSYNTH_SHADER_DIR        read the WGSL kernels from this directory (development)
   NO_COLOR                     no ANSI colour in log lines (colour is used on terminals only)
-  LP_NATIVE_VECTOR_WIDTH       lavapipe's vector width (set to 512 on AVX-512 hosts unless given)
+  LP_NATIVE_VECTOR_WIDTH       lavapipe's vector width (unless given, on AVX-512 hosts: 512,
+                               or 256 for `lapped render`)
 
 Examples:
   solidsynth synth --size 64 -o solid.nrrd --sheet sheet.png

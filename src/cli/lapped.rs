@@ -41,7 +41,7 @@ pub enum LappedCommand {
 #[derive(Args, Debug)]
 #[command(next_help_heading = "Exemplar")]
 pub struct ExemplarArgs {
-    /// The procedural exemplar (only `kiwi` so far).
+    /// The procedural exemplar: `kiwi`, the one there is.
     #[arg(long, default_value = "kiwi")]
     pub kind: String,
     #[arg(long, default_value_t = 64, value_parser = clap::value_parser!(u32).range(8..=256))]

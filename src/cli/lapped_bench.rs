@@ -12,7 +12,7 @@ pub struct BenchLappedArgs {
     /// Mesh to fill (a file, or builtin:sphere / builtin:bent-cylinder).
     #[arg(long, default_value = "builtin:sphere")]
     pub mesh: PathBuf,
-    /// Tet lattice resolution (builtin:sphere at 10: ~5,000 tets).
+    /// Tet lattice resolution (builtin:sphere at 10: 6,768 tets).
     #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u32)
         .range(crate::lapped::stuffing::MIN_RESOLUTION as i64..=crate::lapped::stuffing::MAX_RESOLUTION as i64))]
     pub resolution: u32,

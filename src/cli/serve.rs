@@ -37,9 +37,9 @@ pub struct ServeArgs {
     #[arg(help_heading = "Server", long, default_value_t = 1024, value_parser = clap::value_parser!(u32).range(16..=2048))]
     pub max_surface_resolution: u32,
     /// Synthesize every level for each request instead of reading the coarse levels from the
-    /// coarse-level cache (period 64) that `serve` uses by default: cuts then cost 3-5x more
-    /// (measured in BENCHMARKS.md), and the solid is the one `synth` makes without
-    /// `--coarse-cache`.
+    /// coarse-level cache (period 64) that `serve` uses by default: cuts then cost 2.5-4.6x more
+    /// (256 to 64 pixels a side, CPU backend of an AMD EPYC machine; BENCHMARKS.md), and the
+    /// solid is the one `synth` makes without `--coarse-cache`.
     #[arg(help_heading = "Server", long, conflicts_with = "coarse_cache")]
     pub full_levels: bool,
     /// The solid: INPUT (image or .ssa; default the built-in exemplar) and its flags, as for
@@ -93,8 +93,14 @@ pub fn run(args: ServeArgs, quiet: bool) -> anyhow::Result<()> {
             analysis: load_or_analyze(&args.solid.input, &compute, quiet)?,
         },
         None => {
-            if args.solid.input.ey.is_some() || args.solid.input.feature_mask_given() {
-                return Err(Error::invalid("--ey/--feature-mask", "need an INPUT image").into());
+            let given = args.solid.input.analysis_flags_given();
+            if !given.is_empty() {
+                return Err(Error::invalid(
+                    given.join(" "),
+                    "analysis settings need an INPUT image; without one the built-in exemplar is \
+                     analysed as the page's exemplars are",
+                )
+                .into());
             }
             let b = jobs::builtin("cells").expect("built-in");
             Source::Image {

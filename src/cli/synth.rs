@@ -108,8 +108,7 @@ pub struct SolidParams {
     #[arg(
         long,
         value_name = "VOXELS",
-        value_parser = clap::value_parser!(u32)
-            .range(*limits::MAX_GROUP_SIDES.start() as i64..=*limits::MAX_GROUP_SIDES.end() as i64),
+        value_parser = parse_max_group,
         help_heading = "Performance"
     )]
     pub max_group: Option<u32>,
@@ -292,6 +291,22 @@ pub fn parse_coarse_cache(text: &str) -> Result<u32, String> {
             format!(
                 "expected a multiple of 64 in {:?}",
                 crate::lazy::COARSE_CACHE_PERIODS
+            )
+        })
+}
+
+/// `--max-group N`: a group side the engine takes ([`limits::check_max_group`]: whole bricks
+/// within [`limits::MAX_GROUP_SIDES`]).
+pub fn parse_max_group(text: &str) -> Result<u32, String> {
+    text.trim()
+        .parse::<u32>()
+        .ok()
+        .filter(|&n| limits::check_max_group(n).is_ok())
+        .ok_or_else(|| {
+            format!(
+                "expected a multiple of 4 in {}..={}",
+                limits::MAX_GROUP_SIDES.start(),
+                limits::MAX_GROUP_SIDES.end()
             )
         })
 }

@@ -2,6 +2,7 @@
 //! compare every setting's bytes), with the library's defaults.
 
 use crate::error::{Error, Result};
+use crate::contract::bricks::BRICK;
 use crate::util::cancel::CancelToken;
 
 /// How a `super::Synthesizer` runs. `Default` is the library's choice for the backend, the
@@ -51,11 +52,12 @@ impl SynthOptions {
     /// Refuse settings no synthesis can run with, named as the command line names them.
     pub fn validate(&self) -> Result<()> {
         if let Some(side) = self.max_group {
-            if !MAX_GROUP_SIDES.contains(&side) {
+            // Groups are whole 4^3-voxel bricks: another side would be rounded down unseen.
+            if !MAX_GROUP_SIDES.contains(&side) || !side.is_multiple_of(BRICK as u32) {
                 return Err(Error::invalid(
                     format!("--max-group {side}"),
                     format!(
-                        "must be {}..={}",
+                        "must be a multiple of {BRICK} (whole bricks) in {}..={}",
                         MAX_GROUP_SIDES.start(),
                         MAX_GROUP_SIDES.end()
                     ),

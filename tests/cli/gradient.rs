@@ -66,10 +66,14 @@ fn gradient_vectorize_and_render_round_trip_and_refuse_corrupt_files() {
         "16",
         "--backend",
         "cpu",
+        "--json",
         "-o",
         png.to_str().unwrap(),
     ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let summary: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(summary["size"], serde_json::json!([16, 16, 1]));
+    assert_eq!(summary["output"], png.to_str().unwrap());
     let img = image::open(&png).unwrap().to_rgba8();
     for y in 0..16 {
         for x in 0..16 {

@@ -326,12 +326,16 @@ fn region_is_the_same_solid_as_synth_and_checks_its_box() {
         "--box",
         "0,0,0,10,10,10",
         "--max-group",
-        "2",
+        "6",
         "-o",
         g.to_str().unwrap(),
     ]);
     assert_eq!(o.status.code(), Some(2));
-    assert!(String::from_utf8_lossy(&o.stderr).contains("--max-group"));
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        stderr.contains("--max-group") && stderr.contains("a multiple of 4"),
+        "{stderr}"
+    );
     let keep = ["c.ssa", "a.nrrd", "b.nrrd", "c.nrrd"];
     for (bad, needle) in [
         ("1,1,1,1,2,2", "X1 must be greater"),

@@ -61,6 +61,16 @@ fn bad_serve_flags_exit_2_naming_the_flag() {
         (&["serve", "--bind", "nowhere"][..], "--bind"),
         (&["serve", "--max-cut-size", "5000"][..], "--max-cut-size"),
         (&["serve", "--jitter", "99"][..], "--jitter"),
+        // Without INPUT the built-in exemplar is analysed the page's way: analysis flags are
+        // refused by name, not ignored.
+        (
+            &["serve", "--port", "0", "--frame", "cyclic", "--periodic"][..],
+            "invalid --frame --periodic: analysis settings need an INPUT image",
+        ),
+        (
+            &["serve", "--port", "0", "--feature-weight", "5"][..],
+            "invalid --feature-weight:",
+        ),
         (&["bench", "serve", "--clients", "0"][..], "--clients"),
         (&["bench", "serve", "--mixed", "0"][..], "--mixed"),
         (

@@ -68,7 +68,8 @@ pub struct SynthArgs {
     pub search: SearchArg,
     /// Nearest-patch search: P > 0 approximate (the paper's ANN step), scanning the P lists (of
     /// about sqrt(candidates), k-means of the patches' projections) nearest to each query; 0
-    /// exact (exhaustive, about 3x slower; the same quality by `eval`).
+    /// exact (exhaustive: about 4x slower at --size 64 on a 2-core Xeon, CPU backend; the same
+    /// quality by `eval`).
     #[arg(help_heading = "Gradient synthesis", long, default_value_t = crate::gradient::synth::DEFAULT_PROBES,
           value_parser = crate::cli::whole_number_in::<0, 65536>)]
     pub probes: u32,

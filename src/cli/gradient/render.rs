@@ -118,7 +118,15 @@ fn render_slice(
         }
     });
     atomic::save_png(&a.output, &img)?;
-    if !quiet {
+    if a.json {
+        print_summary(&RenderSummary {
+            output: &a.output,
+            size: [spec.size, spec.size, 1],
+            channels: solid.channels(),
+            seconds: start.elapsed().as_secs_f64(),
+            backend: compute.describe(),
+        });
+    } else if !quiet {
         eprintln!(
             "rendered a {0}x{0} slice in {1:.3} s -> {2}",
             spec.size,
@@ -137,7 +145,8 @@ fn blend_of(a: &RenderArgs) -> Blend {
     }
 }
 
-/// `gradient render --json` (a volume).
+/// `gradient render --json`: a volume's size, or a slice's as N x N x 1; `channels` are the
+/// solid's (a slice's PNG holds them as gray or RGB(A)).
 #[derive(serde::Serialize)]
 struct RenderSummary<'a> {
     output: &'a Path,
