@@ -40,7 +40,7 @@ ss lapped exemplar --kind kiwi --size 32 -o kiwi.nrrd
 ss lapped fill --mesh builtin:sphere --exemplar kiwi.nrrd --field "$repo/examples/lapped/kiwi.json" --resolution 8 -o kiwi.lst
 ss lapped cut kiwi.lst --origin center --normal 0,0.3,1 --size 192 -o "$out/kiwi-lapped-cut.png"
 # A gradient solid synthesized directly, then cut at an angle (tricubic evaluation).
-ss gradient synth --size 32 --seed 5 --backend cpu -o gradient.gsolid
+ss gradient synth --size 64 --seed 5 --backend cpu -o gradient.gsolid
 ss gradient render gradient.gsolid --normal 1,1,1 --size 192 --backend cpu -o "$out/gradient-cut.png"
 # A relightable texture: fitted, synthesized larger by quilting, relit from four directions.
 ss ptm capture --size 64 --lights 24 -o capture

@@ -83,29 +83,44 @@ impl AnalysisParams {
             return Err(Error::invalid("2D candidates", "1..=8 per pixel"));
         }
         if !(1..=256).contains(&self.strips_per_axis) {
-            return Err(Error::invalid("--strips", "must be 1..=256"));
+            return Err(Error::invalid(
+                format!("--strips {}", self.strips_per_axis),
+                "must be 1..=256",
+            ));
         }
         if !(1..=1000).contains(&self.crossbar_keep) {
-            return Err(Error::invalid("--crossbar-keep", "must be 1..=1000"));
+            return Err(Error::invalid(
+                format!("--crossbar-keep {}", self.crossbar_keep),
+                "must be 1..=1000",
+            ));
         }
         if !(1..=32).contains(&self.max_3d) {
-            return Err(Error::invalid("--max-candidates", "must be 1..=32"));
+            return Err(Error::invalid(
+                format!("--max-candidates {}", self.max_3d),
+                "must be 1..=32",
+            ));
         }
         if !(self.feature_weight.is_finite() && (0.0..=16.0).contains(&self.feature_weight)) {
             return Err(Error::invalid(
-                "--feature-weight",
+                format!(
+                    "--feature-weight {}",
+                    crate::util::number_text(self.feature_weight as f64)
+                ),
                 "must be a number in 0..=16",
             ));
         }
         if self.balance_rounds > balance::MAX_ROUNDS {
             return Err(Error::invalid(
-                "--balance-rounds",
+                format!("--balance-rounds {}", self.balance_rounds),
                 format!("must be 0..={}", balance::MAX_ROUNDS),
             ));
         }
         if !(self.balance_strength.is_finite() && (0.0..=8.0).contains(&self.balance_strength)) {
             return Err(Error::invalid(
-                "--balance-strength",
+                format!(
+                    "--balance-strength {}",
+                    crate::util::number_text(self.balance_strength as f64)
+                ),
                 "must be a number in 0..=8",
             ));
         }

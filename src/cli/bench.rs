@@ -94,7 +94,7 @@ pub struct BenchSynthArgs {
     pub input: Option<PathBuf>,
     /// Volume edges, comma-separated.
     #[arg(long, value_delimiter = ',', default_values_t = vec![64u32, 128],
-          value_parser = clap::value_parser!(u32).range(1..=super::synth::MAX_SIZE as i64))]
+          value_parser = clap::value_parser!(u32).range(8..=super::synth::MAX_SIZE as i64))]
     pub sizes: Vec<u32>,
     /// Backends to compare, comma-separated.
     #[arg(long, value_delimiter = ',', default_values_t = vec!["cpu".to_string(), "gpu".to_string()],

@@ -50,17 +50,25 @@ pub fn main() {
         std::process::exit(130);
     });
     let default_level = if args.quiet { "warn" } else { "info" };
+    let default_filter = || format!("{default_level},wgpu_core=warn,wgpu_hal=warn,naga=warn");
+    // A filter that does not parse is said once the log is up (it cannot log itself).
+    let (filter, bad_filter) = match std::env::var("SOLIDSYNTH_LOG") {
+        Ok(text) => match tracing_subscriber::EnvFilter::try_new(&text) {
+            Ok(filter) => (filter, None),
+            Err(e) => (default_filter().into(), Some((text, e))),
+        },
+        Err(_) => (default_filter().into(), None),
+    };
     tracing_subscriber::fmt()
-        .with_env_filter(
-            tracing_subscriber::EnvFilter::try_from_env("SOLIDSYNTH_LOG").unwrap_or_else(|_| {
-                format!("{default_level},wgpu_core=warn,wgpu_hal=warn,naga=warn").into()
-            }),
-        )
+        .with_env_filter(filter)
         .with_writer(output::LogWriter)
         .with_ansi(output::use_color())
         .without_time()
         .with_target(false)
         .init();
+    if let Some((text, e)) = bad_filter {
+        tracing::warn!("SOLIDSYNTH_LOG={text} ignored: not a log filter ({e})");
+    }
     if let Err(e) = run(args) {
         // A benchmark's child that refused the user's values is the user's input too.
         let user = e

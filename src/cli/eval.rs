@@ -59,10 +59,25 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
         seed: args.seed,
         ..Default::default()
     };
+    // The library names the volume and the exemplars by role; the command by their files.
+    // (One image stands for all three planes unless --ey and --ez are given.)
+    let file = |what: &str| -> Option<String> {
+        let (flag, path) = match (what, &args.ey, &args.ez) {
+            ("volume", ..) => ("volume", &args.volume),
+            ("exemplar y", Some(ey), _) => ("--ey", ey),
+            ("exemplar z", _, Some(ez)) => ("--ez", ez),
+            ("exemplar" | "exemplar x" | "exemplar y" | "exemplar z", ..) => {
+                ("exemplar", &args.exemplar)
+            }
+            _ => return None,
+        };
+        Some(format!("{flag} {}", path.display()))
+    };
     let report = metrics::evaluate(&volume, &exemplars, &params).map_err(|e| match e {
-        crate::Error::InvalidInput { what, problem } if what == "volume" => {
-            crate::Error::invalid(format!("volume {}", args.volume.display()), problem)
-        }
+        crate::Error::InvalidInput { what, problem } => match file(&what) {
+            Some(named) => crate::Error::invalid(named, problem),
+            None => crate::Error::InvalidInput { what, problem },
+        },
         other => other,
     })?;
     if let Some(path) = &args.sheet {
@@ -114,19 +129,33 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
         ("swd 1/4", |s| s.swd[2]),
         ("spectrum", |s| s.spectrum),
     ];
+    // A scale whose images hold no 5x5 patch has no distance (NaN; null in --json).
+    let cell = |v: f64, precision: usize| match v.is_nan() {
+        true => format!("{:>8}", "n/a"),
+        false => format!("{v:>8.precision$}"),
+    };
+    let mut unscored = false;
     for (name, get) in multi_rows {
-        println!(
-            "{:<13} {:>8.3} {:>8.3} {:>8.3} {:>8.3} {:>8.3} {:>8.2}",
-            name,
+        let values = [
             get(&m.per_axis[0]),
             get(&m.per_axis[1]),
             get(&m.per_axis[2]),
             get(&m.worst_axis),
             get(&m.floor),
-            get(&m.worst_ratio)
+        ];
+        unscored |= values.iter().any(|v| v.is_nan());
+        let cells: Vec<String> = values.iter().map(|&v| cell(v, 3)).collect();
+        println!(
+            "{:<13} {} {}",
+            name,
+            cells.join(" "),
+            cell(get(&m.worst_ratio), 2)
         );
     }
     println!("lower is better; floor = one half of the exemplar scored against the other; ratio = worst / floor");
     println!("swd: sliced Wasserstein distance of mean-removed 5x5 patches at full, half and quarter resolution; spectrum: radially averaged log power spectrum");
+    if unscored {
+        println!("n/a: the slices or the exemplar's halves are too small for 5x5 patches at that resolution (a quarter needs at least 20 pixels a side)");
+    }
     Ok(())
 }

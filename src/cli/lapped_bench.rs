@@ -68,10 +68,24 @@ fn child(exe: &Path, args: &[&str]) -> anyhow::Result<serde_json::Value> {
     let mut command = Command::new(exe);
     crate::gpu::context::user_driver_environment(&mut command);
     command.args(args);
-    super::bench_child::run_json(&mut command, &args.join(" "))
+    // Named by its subcommand (`lapped fill`): the full line holds this run's temporary paths.
+    let job: Vec<&str> = args
+        .iter()
+        .copied()
+        .filter(|a| !a.starts_with('-'))
+        .take(2)
+        .collect();
+    super::bench_child::run_json(&mut command, &job.join(" "))
 }
 
 pub fn run(args: BenchLappedArgs) -> anyhow::Result<()> {
+    // The inputs are checked before the exemplar is synthesized for them.
+    if !args.mesh.to_string_lossy().starts_with("builtin:") {
+        crate::mesh::load(&args.mesh)?;
+    }
+    if let Some(exemplar) = &args.exemplar {
+        crate::io::nrrd::load(exemplar)?;
+    }
     let dir = tempfile::tempdir()?;
     let exe = std::env::current_exe()?;
     let s = |p: &Path| p.to_string_lossy().into_owned();

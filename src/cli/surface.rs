@@ -68,10 +68,25 @@ fn outputs(path: &Path) -> crate::Result<Option<(PathBuf, PathBuf)>> {
         .map(|e| e.to_ascii_lowercase());
     match ext.as_deref() {
         Some("glb") => Ok(None),
-        Some("obj") => Ok(Some((
-            path.with_extension("mtl"),
-            path.with_extension("png"),
-        ))),
+        Some("obj") => {
+            // The OBJ names its .mtl, and the .mtl its .png, by file name on a line of
+            // whitespace-separated words: a name with a space would be read as two.
+            let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned());
+            if stem
+                .as_deref()
+                .is_some_and(|s| s.chars().any(char::is_whitespace))
+            {
+                return Err(Error::invalid(
+                    format!("-o {}", path.display()),
+                    "an .obj output's name may not contain spaces: the .obj and .mtl refer to \
+                     its .mtl and .png by name, and OBJ readers split names at spaces",
+                ));
+            }
+            Ok(Some((
+                path.with_extension("mtl"),
+                path.with_extension("png"),
+            )))
+        }
         _ => Err(Error::invalid(
             format!("-o {}", path.display()),
             "the output must end in .glb or .obj",

@@ -14,6 +14,14 @@ pub struct GradientSolid {
     /// Trailing channels that hold the detail residual's standard deviation sigma (paper 5.4),
     /// one per colour channel, or 0. See `gradient::detail`.
     pub detail: u32,
+    /// The voxels (x, y, z) from voxel 0 the solid stands for: a vectorized volume's size, a
+    /// synthesized solid's period (at most the extent, d (n - 1) + 1); what a render draws by
+    /// default.
+    pub size: [u32; 3],
+    /// The solid repeats with period `size` (a synthesized solid, whose last face of control
+    /// points repeats the first): a render wraps points into [0, size). Otherwise points
+    /// outside the control grid take the value at its nearest boundary.
+    pub periodic: bool,
 }
 
 impl GradientSolid {
@@ -46,6 +54,19 @@ impl GradientSolid {
         )?;
         if let Some(i) = self.data.iter().position(|v| !v.is_finite()) {
             return Err(crate::Error::invalid(what, format!("value {i} is not finite")));
+        }
+        let cells = self.dims.map(|n| SPACING * (n - 1));
+        let fits = (0..3).all(|a| (1..=cells[a] + 1).contains(&self.size[a]));
+        if !fits || (self.periodic && self.size != cells) {
+            return Err(crate::Error::invalid(
+                what,
+                format!(
+                    "stands for {:?} voxels{}; its control points span {cells:?} cells of {SPACING} \
+                     voxels (a periodic solid's size is that span, another's at most one more)",
+                    self.size,
+                    if self.periodic { ", periodic" } else { "" }
+                ),
+            ));
         }
         Ok(())
     }

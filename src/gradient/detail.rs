@@ -91,6 +91,7 @@ pub fn with_detail(solid: &GradientSolid, v: &Volume) -> Result<GradientSolid> {
         });
     let mut out = GradientSolid::new(solid.dims, 2 * solid.channels)?;
     out.detail = solid.channels;
+    (out.size, out.periodic) = (solid.size, solid.periodic);
     for (i, dst) in out.data.chunks_exact_mut(2 * c * 4).enumerate() {
         dst[..c * 4].copy_from_slice(&solid.data[i * c * 4..(i + 1) * c * 4]);
         dst[c * 4..].copy_from_slice(&sigma.data[i * c * 4..(i + 1) * c * 4]);

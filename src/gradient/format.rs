@@ -1,11 +1,14 @@
 //! The `.gsolid` file: a gradient solid's control grid.
 //!
-//! Little-endian. Header (52 bytes): magic `GSOLID\0\0`, u32 version (1), u32 nx, ny, nz (control
+//! Little-endian. Header (68 bytes): magic `GSOLID\0\0`, u32 version (2), u32 nx, ny, nz (control
 //! points per axis), u32 spacing (voxels, 4), u32 channels, u32 encoding (0: f32, 1: 8-bit),
-//! u64 payload length, u32 CRC-32 (of the header's first 44 bytes, then the payload), u32 detail
-//! channels (0, or half the channels: the trailing ones hold the detail residual's sigma, paper
-//! 5.4; files of earlier builds have 0 here). Payload: per point (x
-//! fastest), per channel, the four values f, df/dx, df/dy, df/dz.
+//! u64 payload length, u32 CRC-32 (of header bytes 0..44 and 48..68, then the payload), u32
+//! detail channels (0, or half the channels: the trailing ones hold the detail residual's sigma,
+//! paper 5.4), u32 size x, y, z (the voxels the solid stands for: a vectorized volume's size, a
+//! synthesized solid's period), u32 flags (bit 0: periodic with period `size`). Version 1 files
+//! (52 bytes of header, read too) end at the detail channels, their CRC covering bytes 0..44;
+//! they stand for their control grid's extent, d (n - 1) + 1 voxels, and are not periodic.
+//! Payload: per point (x fastest), per channel, the four values f, df/dx, df/dy, df/dz.
 //! - f32: the values as f32.
 //! - 8-bit: first, per (channel, component), an f32 minimum and an f32 step; then each value as
 //!   one byte q, standing for minimum + q * step. A quarter of the f32 size.
@@ -14,8 +17,12 @@ use super::{GradientSolid, SPACING};
 use crate::error::{Error, Result};
 
 const MAGIC: &[u8; 8] = b"GSOLID\0\0";
-const VERSION: u32 = 1;
-const HEADER: usize = 52;
+const VERSION: u32 = 2;
+const HEADER: usize = 68;
+/// The header of version 1 files, which lack the size and flags.
+const HEADER_V1: usize = 52;
+/// Bit 0 of the flags: periodic.
+const PERIODIC: u32 = 1;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
@@ -25,10 +32,14 @@ pub enum Encoding {
     U8,
 }
 
-/// CRC-32 of the header fields (bytes 0..44) and the payload.
+/// CRC-32 of the header's fields (bytes 0..44, and past the CRC, 48.., for version 2) and the
+/// payload.
 fn checksum(header: &[u8], payload: &[u8]) -> u32 {
     let mut h = crc32fast::Hasher::new();
     h.update(&header[..44]);
+    if header.len() > HEADER_V1 {
+        h.update(&header[48..]);
+    }
     h.update(payload);
     h.finalize()
 }
@@ -121,8 +132,15 @@ pub fn to_bytes(s: &GradientSolid, encoding: Encoding) -> Vec<u8> {
         out.extend(v.to_le_bytes());
     }
     out.extend((payload.len() as u64).to_le_bytes());
-    out.extend(checksum(&out, &payload).to_le_bytes());
+    let crc_at = out.len();
+    out.extend([0; 4]);
     out.extend(s.detail.to_le_bytes());
+    for v in s.size {
+        out.extend(v.to_le_bytes());
+    }
+    out.extend((if s.periodic { PERIODIC } else { 0 }).to_le_bytes());
+    let crc = checksum(&out, &payload);
+    out[crc_at..crc_at + 4].copy_from_slice(&crc.to_le_bytes());
     out.extend(payload);
     out
 }
@@ -130,16 +148,20 @@ pub fn to_bytes(s: &GradientSolid, encoding: Encoding) -> Vec<u8> {
 /// Parse a `.gsolid`; `name` labels errors.
 pub fn from_bytes(bytes: &[u8], name: &str) -> Result<GradientSolid> {
     let bad = |why: String| Error::invalid(name, why);
-    if bytes.len() < HEADER || &bytes[..8] != MAGIC {
+    if bytes.len() < HEADER_V1 || &bytes[..8] != MAGIC {
         return Err(bad("not a .gsolid file (bad magic or too short)".into()));
     }
     let word = |i: usize| u32::from_le_bytes(bytes[8 + 4 * i..12 + 4 * i].try_into().unwrap());
-    if word(0) != VERSION {
-        return Err(bad(format!(
-            "unsupported .gsolid version {} (this build reads {VERSION})",
-            word(0)
-        )));
-    }
+    let header = match word(0) {
+        1 => HEADER_V1,
+        VERSION if bytes.len() >= HEADER => HEADER,
+        VERSION => return Err(bad("the header is cut short".into())),
+        other => {
+            return Err(bad(format!(
+                "unsupported .gsolid version {other} (this build reads 1 and {VERSION})"
+            )))
+        }
+    };
     let dims = [word(1), word(2), word(3)];
     let (spacing, channels, encoding) = (word(4), word(5), word(6));
     if spacing != SPACING {
@@ -165,14 +187,14 @@ pub fn from_bytes(bytes: &[u8], name: &str) -> Result<GradientSolid> {
             "{detail} detail channels in a solid of {channels}: expected 0 or half"
         )));
     }
-    if len != (bytes.len() - HEADER) as u64 {
+    if len != (bytes.len() - header) as u64 {
         return Err(bad(format!(
             "payload length {len} but {} bytes follow the header",
-            bytes.len() - HEADER
+            bytes.len() - header
         )));
     }
-    let payload = &bytes[HEADER..];
-    if checksum(&bytes[..44], payload) != crc {
+    let payload = &bytes[header..];
+    if checksum(&bytes[..header], payload) != crc {
         return Err(bad("checksum mismatch: the file is corrupt".into()));
     }
     let values = dims.iter().map(|&d| d as usize).product::<usize>() * channels as usize * 4;
@@ -191,6 +213,18 @@ pub fn from_bytes(bytes: &[u8], name: &str) -> Result<GradientSolid> {
     let mut s = GradientSolid::new(dims, channels)?;
     s.data = data;
     s.detail = detail;
+    if header == HEADER {
+        s.size = [11, 12, 13].map(word);
+        let flags = word(14);
+        if flags & !PERIODIC != 0 {
+            return Err(bad(format!("unknown flags {flags:#x}")));
+        }
+        s.periodic = flags & PERIODIC != 0;
+        s.check().map_err(|e| match e {
+            Error::InvalidInput { problem, .. } => bad(problem),
+            other => other,
+        })?;
+    }
     Ok(s)
 }
 
@@ -221,6 +255,38 @@ mod tests {
         // Half a step of a 276-wide range over 255 levels.
         assert!(worst <= 276.0 / 255.0 / 2.0 + 1e-3, "{worst}");
         assert!(to_bytes(&s, Encoding::U8).len() * 2 < to_bytes(&s, Encoding::F32).len());
+    }
+
+    #[test]
+    fn the_size_and_periodicity_round_trip_and_version_1_still_reads() {
+        let periodic = sample().into_periodic();
+        assert_eq!(periodic.size, [8, 4, 12]);
+        let back = from_bytes(&to_bytes(&periodic, Encoding::F32), "t").unwrap();
+        assert!(back.periodic && back.size == [8, 4, 12]);
+        let mut vectorized = sample();
+        vectorized.size = [7, 2, 13];
+        assert_eq!(
+            from_bytes(&to_bytes(&vectorized, Encoding::U8), "t")
+                .unwrap()
+                .size,
+            [7, 2, 13]
+        );
+        // A size past the grid is refused, naming the file.
+        vectorized.size = [7, 2, 14];
+        let e = from_bytes(&to_bytes(&vectorized, Encoding::U8), "t.gsolid").unwrap_err();
+        assert!(
+            e.to_string().contains("t.gsolid: stands for [7, 2, 14]"),
+            "{e}"
+        );
+        // Version 1: the same bytes without the size and flags, read as the grid's extent.
+        let v2 = to_bytes(&periodic, Encoding::F32);
+        let mut v1 = [&v2[..HEADER_V1], &v2[HEADER..]].concat();
+        v1[8..12].copy_from_slice(&1u32.to_le_bytes());
+        let crc = checksum(&v1[..HEADER_V1], &v1[HEADER_V1..]);
+        v1[44..48].copy_from_slice(&crc.to_le_bytes());
+        let old = from_bytes(&v1, "old.gsolid").unwrap();
+        assert_eq!((old.size, old.periodic), ([9, 5, 13], false));
+        assert_eq!(old.data, periodic.data);
     }
 
     #[test]
@@ -262,7 +328,7 @@ mod tests {
             for _ in 0..1 + rng.below(4) {
                 // Mostly the header fields (dims, channels, encoding, length, detail).
                 let i = if rng.below(2) == 0 {
-                    8 + rng.below(44) as usize
+                    8 + rng.below(HEADER as u64 - 8) as usize
                 } else {
                     rng.below(b.len() as u64) as usize
                 };
@@ -278,7 +344,8 @@ mod tests {
             if rng.below(4) == 0 {
                 b.truncate(HEADER + rng.below((b.len() - HEADER) as u64) as usize);
             }
-            let crc = checksum(&b[..44], &b[HEADER.min(b.len())..]);
+            let header = HEADER.min(b.len());
+            let crc = checksum(&b[..header], &b[header..]);
             b[44..48].copy_from_slice(&crc.to_le_bytes());
             match from_bytes(&b, "fuzz.gsolid") {
                 Ok(s) => {

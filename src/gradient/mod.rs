@@ -12,7 +12,8 @@
 //! C^1 across cubes and exact on linear fields (both tested).
 //!
 //! Control point (i, j, k) sits at voxel position d (i, j, k); a solid of n points per axis covers
-//! positions [0, d (n - 1)]. Positions outside are clamped to the domain.
+//! positions [0, d (n - 1)]. Positions outside are clamped to the domain by the kernel; a
+//! periodic solid's renders wrap them into its period first ([`file::GradientFile`]).
 
 pub mod detail;
 pub mod edit;
@@ -45,7 +46,17 @@ impl GradientSolid {
             channels,
             data: vec![0.0; n * channels as usize * 4],
             detail: 0,
+            size: dims.map(|n| SPACING * (n - 1) + 1),
+            periodic: false,
         })
+    }
+
+    /// The same control grid made periodic: period d (n - 1) per axis, the last face of points
+    /// being the first's (as synthesis makes them).
+    pub fn into_periodic(mut self) -> GradientSolid {
+        self.size = self.dims.map(|n| SPACING * (n - 1));
+        self.periodic = true;
+        self
     }
 
     /// Voxels per axis covered: d (n - 1) + 1.

@@ -139,6 +139,7 @@ pub fn vectorize_regions(v: &Volume, mask: &Volume, mask_name: &str) -> Result<R
     // differences for the gradient. (Eq. 2's least squares over the 9^3 neighbourhood smooths a
     // curved boundary's distance and moves its zero set inward by up to a voxel.)
     let mut distance = GradientSolid::new(dims, 1)?;
+    distance.size = n;
     let sample = |q: [i64; 3]| {
         let c = [0, 1, 2].map(|a| q[a].clamp(0, n[a] as i64 - 1) as u32);
         sd[at(c[0], c[1], c[2])]
@@ -211,6 +212,7 @@ pub fn vectorize_regions(v: &Volume, mask: &Volume, mask_name: &str) -> Result<R
     let channels = v.channels;
     let fit_set = |keep: &(dyn Fn(f32) -> bool + Sync)| -> Result<GradientSolid> {
         let mut s = GradientSolid::new(dims, channels)?;
+        s.size = n;
         s.data
             .par_chunks_mut(channels as usize * 4)
             .enumerate()

@@ -24,6 +24,7 @@ pub fn vectorize(v: &Volume) -> Result<GradientSolid> {
     ];
     let channels = v.channels;
     let mut solid = GradientSolid::new(dims, channels)?;
+    solid.size = v.dims();
     let per_point = channels as usize * 4;
     solid
         .data

@@ -458,10 +458,16 @@ mod hostile_files {
         )
         .into_bytes()
     }
-    const ZEROS: &str =
-        "data:application/octet-stream;base64,AAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAAA";
+    /// The triangle (0, 0, 0), (1, 0, 0), (0, 1, 0) as little-endian f32s.
+    const TRIANGLE: [u8; 36] = [
+        0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 128, 63, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0,
+        0, 128, 63, 0, 0, 0, 0,
+    ];
+    /// [`TRIANGLE`] as a data URI.
+    const TRIANGLE_URI: &str =
+        "data:application/octet-stream;base64,AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAA";
     const FINE: &str = r#"{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
-        "min": [0, 0, 0], "max": [0, 0, 0]}"#;
+        "min": [0, 0, 0], "max": [1, 1, 0]}"#;
 
     fn refused(bytes: &[u8], base: Option<&Path>, needle: &str) {
         let e = parse_gltf(bytes, "m.gltf", base).unwrap_err().to_string();
@@ -471,7 +477,7 @@ mod hostile_files {
     #[test]
     fn accessors_are_checked_before_they_are_read() {
         assert_eq!(
-            parse_gltf(&gltf(FINE, ZEROS), "m.gltf", None)
+            parse_gltf(&gltf(FINE, TRIANGLE_URI), "m.gltf", None)
                 .unwrap()
                 .triangles
                 .len(),
@@ -481,11 +487,15 @@ mod hostile_files {
         let bomb = FINE
             .replace("\"bufferView\": 0, ", "")
             .replace("3,", "400000000,");
-        refused(&gltf(&bomb, ZEROS), None, "holds 400000000 elements");
+        refused(&gltf(&bomb, TRIANGLE_URI), None, "holds 400000000 elements");
         let bytes = FINE.replace("5126", "5121");
-        refused(&gltf(&bytes, ZEROS), None, "positions are Vec3 of F32");
         refused(
-            &gltf(&FINE.replace("\"count\": 3", "\"count\": 0"), ZEROS),
+            &gltf(&bytes, TRIANGLE_URI),
+            None,
+            "positions are Vec3 of F32",
+        );
+        refused(
+            &gltf(&FINE.replace("\"count\": 3", "\"count\": 0"), TRIANGLE_URI),
             None,
             "is empty",
         );
@@ -494,7 +504,7 @@ mod hostile_files {
             "\"bufferView\": 0, \"byteOffset\": 4,",
         );
         refused(
-            &gltf(&past, ZEROS),
+            &gltf(&past, TRIANGLE_URI),
             None,
             "reads 40 bytes of buffer view 0, which has 36",
         );
@@ -526,7 +536,7 @@ mod hostile_files {
             Some(dir.path()),
             "has 20 bytes",
         );
-        std::fs::write(dir.path().join("b.bin"), [0u8; 36]).unwrap();
+        std::fs::write(dir.path().join("b.bin"), TRIANGLE).unwrap();
         assert!(parse_gltf(&gltf(FINE, "b.bin"), "m.gltf", Some(dir.path())).is_ok());
     }
 }

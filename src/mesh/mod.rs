@@ -48,7 +48,10 @@ impl Mesh {
         {
             return Err(Error::invalid(
                 what,
-                format!("vertex {i} has a non-finite coordinate"),
+                format!(
+                    "vertex {i} has a non-finite coordinate (or one beyond f32's range, \
+                     about 3.4e38)"
+                ),
             ));
         }
         let n = self.positions.len() as u32;
@@ -60,6 +63,18 @@ impl Mesh {
             return Err(Error::invalid(
                 what,
                 format!("face {t} refers to a vertex beyond the {n} defined"),
+            ));
+        }
+        // Nothing to texture or fill: every triangle a point or a segment.
+        let at = |i: u32| glam::Vec3::from(self.positions[i as usize]).as_dvec3();
+        if self
+            .triangles
+            .iter()
+            .all(|t| (at(t[1]) - at(t[0])).cross(at(t[2]) - at(t[0])) == DVec3::ZERO)
+        {
+            return Err(Error::invalid(
+                what,
+                "every triangle has zero area (its corners coincide or lie on a line)",
             ));
         }
         if let Some(uvs) = &self.uvs {

@@ -169,29 +169,22 @@ pub fn evaluate(volume: &Volume, exemplars: &[Image], params: &EvalParams) -> Re
             ),
         ));
     }
-    for e in exemplars {
-        let bytes = e.pixel_count() as u64 * u64::from(e.channels);
-        if !(1..=4).contains(&e.channels) || e.pixels.len() as u64 != bytes {
-            return Err(Error::invalid(
-                "exemplar",
-                format!(
-                    "holds {} bytes for {}x{} pixels of {} channels",
-                    e.pixels.len(),
-                    e.width,
-                    e.height,
-                    e.channels
-                ),
-            ));
-        }
+    // Named "exemplar", or with three "exemplar x", "exemplar y", "exemplar z".
+    let name = |i: usize| match exemplars.len() {
+        1 => "exemplar".to_string(),
+        _ => format!("exemplar {}", ["x", "y", "z"][i]),
+    };
+    for (i, e) in exemplars.iter().enumerate() {
+        e.check(&name(i))?;
     }
     let ex: Vec<Image> = exemplars
         .iter()
         .map(|e| e.with_channels(volume.channels))
         .collect();
-    for e in &ex {
+    for (i, e) in ex.iter().enumerate() {
         if e.width < 2 * PATCH || e.height < 2 * PATCH {
             return Err(Error::invalid(
-                "exemplar",
+                name(i),
                 format!(
                     "is {}x{}; each side must be at least {}",
                     e.width,

@@ -97,14 +97,11 @@ impl ServeConfig {
                 "must be a multiple of 4 in 8..=256",
             ));
         }
-        if let Some(bad) = self.allow_hosts.iter().find(|h| {
-            h.is_empty()
-                || h.chars()
-                    .any(|c| c.is_whitespace() || c.is_control() || c == '/')
-        }) {
+        if let Some(bad) = self.allow_hosts.iter().find(|h| !is_host_name(h)) {
             return Err(Error::invalid(
                 format!("--allow-host {bad:?}"),
-                "must be a host name, optionally NAME:PORT (no spaces or slashes)",
+                "must be a host name, optionally NAME:PORT with a port in 1..=65535 (no spaces \
+                 or slashes)",
             ));
         }
         if self.workers <= self.max_queued || self.max_queued == 0 {
@@ -115,6 +112,37 @@ impl ServeConfig {
         }
         Ok(())
     }
+}
+
+/// Whether `text` is what a `Host` header may hold: a name (no spaces, slashes or control
+/// characters; an IPv6 address in brackets) and optionally `:PORT`, a port in 1..=65535.
+fn is_host_name(text: &str) -> bool {
+    // (name, the port's text when one is given)
+    let (name, port) = match text.strip_prefix('[') {
+        Some(rest) => match rest.split_once(']') {
+            Some((address, "")) => (address, None),
+            Some((address, tail)) => match tail.strip_prefix(':') {
+                Some(port) => (address, Some(port)),
+                None => return false,
+            },
+            None => return false,
+        },
+        None => match text.rsplit_once(':') {
+            Some((name, _)) if name.contains(':') => return false,
+            Some((name, port)) => (name, Some(port)),
+            None => (text, None),
+        },
+    };
+    let port_ok = port.is_none_or(|p| {
+        !p.is_empty()
+            && p.bytes().all(|b| b.is_ascii_digit())
+            && p.parse::<u16>().is_ok_and(|p| p > 0)
+    });
+    port_ok
+        && !name.is_empty()
+        && !name
+            .chars()
+            .any(|c| c.is_whitespace() || c.is_control() || c == '/')
 }
 
 /// A running server.
@@ -205,6 +233,30 @@ impl Server {
         }
         for w in self.workers.drain(..) {
             let _ = w.join();
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::is_host_name;
+
+    #[test]
+    fn allowed_hosts_are_names_with_an_optional_port() {
+        for good in [
+            "workstation.local",
+            "h:8080",
+            "[::1]",
+            "[::1]:80",
+            "10.0.0.2:65535",
+        ] {
+            assert!(is_host_name(good), "{good}");
+        }
+        for bad in [
+            "", "h:", "h:0", "h:99999", "h:abc", "h:+80", "a b", "http://x", "a:b:c", "[::1",
+            "[::1]x", "[::1]:",
+        ] {
+            assert!(!is_host_name(bad), "{bad}");
         }
     }
 }

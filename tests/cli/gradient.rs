@@ -32,13 +32,12 @@ fn gradient_vectorize_and_render_round_trip_and_refuse_corrupt_files() {
     // The rendering is an approximation of the volume: bounded error, well below random.
     let rms = summary["rms"].as_f64().unwrap();
     assert!(rms > 0.0 && rms < 40.0, "rms {rms}");
+    // By default the volume's own size comes back (its grid spans 17 voxels).
     let out = d.join("r.nrrd");
     let o = run(&[
         "gradient",
         "render",
         gs.to_str().unwrap(),
-        "--size",
-        "16",
         "--backend",
         "cpu",
         "-o",
@@ -108,21 +107,36 @@ fn gradient_vectorize_and_render_round_trip_and_refuse_corrupt_files() {
         at_stroke[0] > 200.0 && at_stroke[2] > 200.0 && at_stroke[1] < 60.0,
         "{at_stroke:?}"
     );
-    std::fs::write(&strokes, r#"{"strokes": []}"#).unwrap();
-    let o = run(&[
-        "gradient",
-        "edit",
-        gs.to_str().unwrap(),
-        "--strokes",
-        strokes.to_str().unwrap(),
-        "--color",
-        "255,0,255",
-        "-o",
-        d.join("x.gsolid").to_str().unwrap(),
-    ]);
-    assert_eq!(o.status.code(), Some(2));
-    assert!(String::from_utf8_lossy(&o.stderr).contains("no strokes"));
-    assert!(!d.join("x.gsolid").exists());
+    for (text, color, needle) in [
+        (r#"{"strokes": []}"#, "255,0,255", "no strokes"),
+        (
+            r#"{"strokes": [{"position": [1e30, 0, 0], "strength": 1.0}]}"#,
+            "255,0,255",
+            "the strokes change no control point",
+        ),
+        (
+            r#"{"strokes": [{"position": [8, 8, 8], "strength": 1.0}]}"#,
+            "300,0,255",
+            "--color 300,0,255",
+        ),
+    ] {
+        std::fs::write(&strokes, text).unwrap();
+        let o = run(&[
+            "gradient",
+            "edit",
+            gs.to_str().unwrap(),
+            "--strokes",
+            strokes.to_str().unwrap(),
+            "--color",
+            color,
+            "-o",
+            d.join("x.gsolid").to_str().unwrap(),
+        ]);
+        assert_eq!(o.status.code(), Some(2), "{text}");
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        assert!(stderr.contains(needle), "{needle}: {stderr}");
+        assert!(!d.join("x.gsolid").exists());
+    }
     // A corrupt file: exit 2 naming it, nothing written.
     let mut bytes = std::fs::read(&gs).unwrap();
     let last = bytes.len() - 1;
@@ -184,6 +198,52 @@ fn gradient_synth_writes_a_tileable_solid_and_refuses_bad_input() {
     let solid =
         solidsynth::gradient::format::from_bytes(&std::fs::read(&out).unwrap(), "s").unwrap();
     assert_eq!(solid.dims, [6, 6, 6]);
+    assert!(solid.periodic && solid.size == [20; 3]);
+    // Rendered: one period by default, repeating past it, in volumes and in slices anywhere.
+    let render = |args: &[&str], name: &str| -> std::path::PathBuf {
+        let path = d.join(name);
+        let mut all = vec![
+            "gradient",
+            "render",
+            out.to_str().unwrap(),
+            "--backend",
+            "cpu",
+        ];
+        all.extend_from_slice(args);
+        all.extend_from_slice(&["-o", path.to_str().unwrap()]);
+        let o = run(&all);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        path
+    };
+    let period = solidsynth::io::nrrd::load(&render(&[], "p.nrrd")).unwrap();
+    assert_eq!(period.dims(), [20; 3]);
+    let twice = solidsynth::io::nrrd::load(&render(&["--size", "40"], "t.nrrd")).unwrap();
+    for (x, y, z) in [(0, 0, 0), (25, 3, 39), (39, 39, 20), (20, 5, 7)] {
+        assert_eq!(
+            twice.at(x, y, z),
+            period.at(x % 20, y % 20, z % 20),
+            "{x},{y},{z}"
+        );
+    }
+    let slice = |origin: &str, name: &str| {
+        let path = render(
+            &["--normal", "1,2,3", "--origin", origin, "--size", "24"],
+            name,
+        );
+        image::open(path).unwrap().to_rgba8()
+    };
+    let near = slice("3,7,11", "near.png");
+    assert_eq!(
+        near,
+        slice("-37,1007,-9", "far.png"),
+        "shifted by whole periods"
+    );
+    let colours: std::collections::HashSet<_> = near.pixels().map(|p| p.0).collect();
+    assert!(
+        colours.len() > 50,
+        "a textured slice: {} colours",
+        colours.len()
+    );
 
     let bad = tempfile::tempdir().unwrap();
     let b = bad.path();
@@ -255,7 +315,7 @@ fn gradient_synth_with_a_mask_writes_a_region_solid_and_refuses_bad_masks() {
     );
     let rs = RegionSolid::from_bytes(&std::fs::read(&out).unwrap(), "r").unwrap();
     assert_eq!(rs.positive.dims, [5, 5, 5]);
-    // `gradient render` reads it: the volume is the solid's own exact rendering.
+    // `gradient render` reads it: the volume is the solid's own exact rendering, one period.
     let vol = d.join("r.nrrd");
     let o = run(&[
         "gradient",
@@ -271,7 +331,7 @@ fn gradient_synth_with_a_mask_writes_a_region_solid_and_refuses_bad_masks() {
     let rendered = solidsynth::io::nrrd::load(&vol).unwrap();
     assert_eq!(
         rendered,
-        rs.render([17; 3], &solidsynth::backend::Compute::Cpu, Blend::Exact)
+        rs.render([16; 3], &solidsynth::backend::Compute::Cpu, Blend::Exact)
             .unwrap()
     );
 

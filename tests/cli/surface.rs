@@ -178,11 +178,14 @@ fn surface_bakes_the_solid_at_each_texel_and_refuses_bad_meshes() {
     let b = bad.path();
     std::fs::write(b.join("nan.obj"), "v 0 0 0\nv nan 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
     std::fs::write(b.join("empty.obj"), "v 0 0 0\n").unwrap();
+    std::fs::write(b.join("point.obj"), "v 1 1 1\nv 1 1 1\nv 1 1 1\nf 1 2 3\n").unwrap();
     for (mesh, output, needle) in [
         ("nan.obj", "o.glb", "non-finite"),
         ("empty.obj", "o.glb", "no triangles"),
+        ("point.obj", "o.glb", "every triangle has zero area"),
         ("missing.ply", "o.glb", "missing.ply"),
         ("nan.obj", "o.txt", ".glb or .obj"),
+        ("nan.obj", "my mesh.obj", "may not contain spaces"),
     ] {
         let o = run(&[
             "surface",
@@ -194,7 +197,7 @@ fn surface_bakes_the_solid_at_each_texel_and_refuses_bad_meshes() {
             "-o",
             b.join(output).to_str().unwrap(),
         ]);
-        assert_user_error(&o, needle, b, &["nan.obj", "empty.obj"]);
+        assert_user_error(&o, needle, b, &["nan.obj", "empty.obj", "point.obj"]);
     }
     // Over the memory budget: the bricks holding the surface's texel positions, counted before
     // any synthesis (a one-triangle mesh scaled into a 2^20 box: a brick per texel, ~33 K for
@@ -222,6 +225,6 @@ fn surface_bakes_the_solid_at_each_texel_and_refuses_bad_meshes() {
         &o,
         "surface --resolution 1048576: needs about",
         b,
-        &["nan.obj", "empty.obj", "tri.obj"],
+        &["nan.obj", "empty.obj", "point.obj", "tri.obj"],
     );
 }

@@ -29,11 +29,11 @@ pub(super) fn edit(a: EditArgs, quiet: bool) -> anyhow::Result<()> {
         .map(|t| t.trim().parse::<f64>())
         .collect::<Result<_, _>>()
         .ok()
-        .filter(|v: &Vec<f64>| v.iter().all(|x| x.is_finite()))
+        .filter(|v: &Vec<f64>| v.iter().all(|x| (0.0..=255.0).contains(x)))
         .ok_or_else(|| {
             Error::invalid(
                 format!("--color {}", a.color),
-                "expected numbers like 255,0,0",
+                "expected numbers in 0..=255 like 255,0,0",
             )
         })?;
     let start = Instant::now();
@@ -41,8 +41,26 @@ pub(super) fn edit(a: EditArgs, quiet: bool) -> anyhow::Result<()> {
         alpha: a.alpha,
         beta: a.beta,
     };
+    let before = solid.data.clone();
     let residual = edit::edit(&mut solid, &strokes, &reference, propagation)?;
     let seconds = start.elapsed().as_secs_f64();
+    let values = solid.channels as usize * 4;
+    let changed = (solid.data.chunks_exact(values))
+        .zip(before.chunks_exact(values))
+        .filter(|(after, before)| after != before)
+        .count();
+    if changed == 0 {
+        // Nothing would be written but a copy: strokes far from the solid, or of strength 0.
+        let [x, y, z] = solid.extent().map(|e| e - 1);
+        return Err(Error::invalid(
+            a.strokes.display().to_string(),
+            format!(
+                "the strokes change no control point: their positions must reach the solid \
+                 (voxels 0..={x}, 0..={y}, 0..={z}) with a strength above 0"
+            ),
+        )
+        .into());
+    }
     // The file must read back: a reference colour far outside the solid's values can push
     // them past what the encoding holds (a u8 step that overflows to infinity).
     let bytes = format::to_bytes(&solid, a.encoding);
@@ -64,13 +82,14 @@ pub(super) fn edit(a: EditArgs, quiet: bool) -> anyhow::Result<()> {
             strokes: strokes.len(),
             seconds,
             strength_fit_rms: residual,
-            control_points: solid.data.len() / (solid.channels as usize * 4),
+            control_points: solid.data.len() / values,
+            changed_points: changed,
         });
     } else if !quiet {
         eprintln!(
-            "edited {} control points with {} strokes in {seconds:.3} s (strength fit RMS \
-             {residual:.3}) -> {}",
-            solid.data.len() / (solid.channels as usize * 4),
+            "changed {changed} of {} control points with {} strokes in {seconds:.3} s \
+             (strength fit RMS {residual:.3}) -> {}",
+            solid.data.len() / values,
             strokes.len(),
             a.output.display()
         );
@@ -86,4 +105,6 @@ struct EditSummary<'a> {
     seconds: f64,
     strength_fit_rms: f64,
     control_points: usize,
+    /// Control points whose values the strokes changed.
+    changed_points: usize,
 }

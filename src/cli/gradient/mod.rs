@@ -71,7 +71,7 @@ pub struct SynthArgs {
     /// exact (exhaustive: about 4x slower at --size 64 on a 2-core Xeon, CPU backend; the same
     /// quality by `eval`).
     #[arg(help_heading = "Gradient synthesis", long, default_value_t = crate::gradient::synth::DEFAULT_PROBES,
-          value_parser = crate::cli::whole_number_in::<0, 65536>)]
+          value_parser = crate::cli::whole_number_in::<0, { crate::gradient::synth::MAX_PROBES }>)]
     pub probes: u32,
     /// Slices matched per check point: 3, or 2 (orthogonal to x and y only) for anisotropic
     /// exemplars such as brick walls or strata.
@@ -91,7 +91,7 @@ pub struct SynthArgs {
     #[arg(help_heading = "Gradient synthesis", long)]
     pub optimize: bool,
     /// Conjugate-gradient steps of --optimize.
-    #[arg(help_heading = "Gradient synthesis", long, default_value_t = 20, value_parser = clap::value_parser!(u32).range(1..=1000))]
+    #[arg(help_heading = "Gradient synthesis", long, default_value_t = 20, requires = "optimize", value_parser = clap::value_parser!(u32).range(1..=1000))]
     pub optimize_iterations: u32,
     /// Region separation (paper 3.2, 4.3): a binary mask image of the exemplar's size (set
     /// where its first channel >= 128, both regions present). Its signed distance is
@@ -121,7 +121,7 @@ pub struct EditArgs {
     /// Strokes JSON: {"strokes": [{"position": [x, y, z], "strength": s}, ...]} (voxels; s in [0, 1]).
     #[arg(long)]
     pub strokes: PathBuf,
-    /// Reference colour, one number per channel (e.g. R,G,B in 0..255).
+    /// Reference colour, one number per channel in 0..=255 (e.g. R,G,B).
     #[arg(long)]
     pub color: String,
     /// Propagation alpha of eq. 4 (larger: a more local edit in space and colour).
@@ -153,7 +153,7 @@ pub struct VectorizeArgs {
     #[arg(long)]
     pub optimize: bool,
     /// Conjugate-gradient steps of --optimize.
-    #[arg(long, default_value_t = 40, value_parser = clap::value_parser!(u32).range(1..=1000))]
+    #[arg(long, default_value_t = 40, requires = "optimize", value_parser = clap::value_parser!(u32).range(1..=1000))]
     pub iterations: u32,
     /// Region separation (paper 3.2): a binary mask volume (NRRD, same size; set where its
     /// first channel >= 128). Stores a signed distance field and two feature sets at the control
@@ -178,8 +178,9 @@ pub struct VectorizeArgs {
 pub struct RenderArgs {
     /// Input .gsolid.
     pub input: PathBuf,
-    /// Edge of the rendered cube [0, N)^3 (default: the solid's extent); with --normal, the
-    /// side of the slice in pixels (default 256).
+    /// Edge of the rendered cube [0, N)^3 (default: the voxels the solid stands for, its
+    /// period or its source volume's size); with --normal, the side of the slice in pixels
+    /// (default 256). A periodic solid (from `gradient synth`) repeats past its period.
     #[arg(help_heading = "Rendering", long, value_parser = clap::value_parser!(u32).range(1..=4096))]
     pub size: Option<u32>,
     /// Render a planar slice instead (PNG): its normal NX,NY,NZ, with the conventions of `cut`.
@@ -222,8 +223,8 @@ pub struct RenderArgs {
     /// .ktx2, .vdb, .vti, .png flipbook); with --normal a PNG slice.
     #[arg(help_heading = "Output", short, long)]
     pub output: PathBuf,
-    /// The volume's format, whatever the extension.
-    #[arg(help_heading = "Output", long, value_enum)]
+    /// The volume's format, whatever the extension (not with --normal: a slice is a PNG).
+    #[arg(help_heading = "Output", long, value_enum, conflicts_with = "normal")]
     pub format: Option<crate::io::volume_file::VolumeFormat>,
     /// Print a JSON summary on stdout.
     #[arg(help_heading = "Output", long)]

@@ -34,7 +34,7 @@ pub(super) fn render(a: RenderArgs, quiet: bool) -> anyhow::Result<()> {
     if let Some(normal) = &a.normal {
         return render_slice(&a, &solid, normal, quiet);
     }
-    let n = a.size.map(|s| [s; 3]).unwrap_or_else(|| solid.extent());
+    let n = a.size.map(|s| [s; 3]).unwrap_or_else(|| solid.size());
     if n.iter().any(|&s| s > 2048) {
         return Err(
             Error::invalid(format!("--size {}", n[0]), "a volume side is at most 2048").into(),
@@ -44,9 +44,8 @@ pub(super) fn render(a: RenderArgs, quiet: bool) -> anyhow::Result<()> {
     solid.check_render_memory(n)?;
     let compute = a.backend.open()?;
     let start = Instant::now();
-    let query = Query::volume(n);
     let mut v = crate::volume::Volume::new(n[0], n[1], n[2], solid.channels());
-    v.data = solid.eval_u8(&query, &compute, blend_of(&a), !a.no_detail)?;
+    v.data = solid.render_volume_u8(n, &compute, blend_of(&a), !a.no_detail)?;
     crate::io::volume_file::save(&v, &a.output, output)?;
     if a.json {
         print_summary(&RenderSummary {
@@ -79,7 +78,7 @@ fn render_slice(
     normal: &str,
     quiet: bool,
 ) -> anyhow::Result<()> {
-    let centre = solid.extent().map(|e| (e as f64 - 1.0) / 2.0);
+    let centre = solid.size().map(|e| (e as f64 - 1.0) / 2.0);
     let spec = crate::lazy::cut::CutSpec {
         origin: match &a.origin {
             Some(o) => crate::cli::cut::triple(o, "--origin")?,

@@ -52,6 +52,9 @@ impl Default for GpuOptions {
     }
 }
 
+/// The longest `SOLIDSYNTH_GPU_TIMEOUT_S` taken, in seconds (a day).
+const MAX_TIMEOUT_S: f64 = 86_400.0;
+
 impl GpuOptions {
     /// Defaults, with the adapter filter and timeout taken from the environment when set.
     pub fn from_env() -> Self {
@@ -59,12 +62,20 @@ impl GpuOptions {
             adapter_filter: std::env::var(ADAPTER_ENV).ok().filter(|s| !s.is_empty()),
             ..GpuOptions::default()
         };
-        if let Some(s) = std::env::var(TIMEOUT_ENV)
-            .ok()
-            .and_then(|s| s.parse::<f64>().ok())
-        {
-            if s > 0.0 {
-                o.timeout = Duration::from_secs_f64(s);
+        if let Ok(text) = std::env::var(TIMEOUT_ENV) {
+            // A day at most: past that a submission is not waited for, it has hung.
+            match text.trim().parse::<f64>() {
+                Ok(s) if s > 0.0 && s <= MAX_TIMEOUT_S => o.timeout = Duration::from_secs_f64(s),
+                _ => {
+                    // Options are read for every device a command opens: one warning.
+                    static WARNED: std::sync::Once = std::sync::Once::new();
+                    WARNED.call_once(|| {
+                        tracing::warn!(
+                            "{TIMEOUT_ENV}={text} ignored: not a number of seconds in (0, \
+                             {MAX_TIMEOUT_S}]"
+                        )
+                    });
+                }
             }
         }
         o.byte_weights = match std::env::var(WEIGHT_LAYOUT_ENV).as_deref() {
@@ -174,11 +185,17 @@ impl GpuContext {
                         .into(),
                 )
             } else {
-                Error::Gpu(format!(
-                    "no adapter matches '{}' (from --adapter or {ADAPTER_ENV}); available: {}",
-                    opts.adapter_filter.as_deref().unwrap_or(""),
-                    names.join(", ")
-                ))
+                // A name that matches nothing is the user's input, not a failure of the device.
+                Error::invalid(
+                    format!(
+                        "--adapter {}",
+                        opts.adapter_filter.as_deref().unwrap_or("")
+                    ),
+                    format!(
+                        "no adapter matches (from --adapter or {ADAPTER_ENV}); available: {}",
+                        names.join(", ")
+                    ),
+                )
             }
         })?;
         let info = adapter.get_info();

@@ -163,6 +163,9 @@ impl Default for GradientSynthParams {
 /// seed-to-seed spread of 8 probes' and of the exact search's, in 15-20% less time than 8.
 pub const DEFAULT_PROBES: u32 = 4;
 
+/// Most lists an approximate search may probe (`--probes`; 0 there is the exact search).
+pub const MAX_PROBES: u32 = 65536;
+
 /// Most synthesis levels ([`GradientSynthParams::levels`]).
 pub const MAX_LEVELS: usize = 8;
 /// Largest slice a level matches, in samples per side (the paper's finest is 21).
@@ -211,6 +214,12 @@ impl GradientSynthParams {
                     "the final optimization keeps every voxel's sample: at most \
                      {MAX_OPTIMIZE_SIZE}^3"
                 ),
+            ));
+        }
+        if let Some(probes) = self.probes.filter(|p| !(1..=MAX_PROBES).contains(p)) {
+            return Err(Error::invalid(
+                format!("--probes {probes}"),
+                format!("must be 0 (the exact search) or 1..={MAX_PROBES}"),
             ));
         }
         if let SliceSearch::Crossbar { n1, n2 } | SliceSearch::CrossbarNearest { n1, n2 } =

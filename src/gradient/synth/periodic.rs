@@ -144,6 +144,6 @@ impl PeriodicSolid {
                 }
             }
         }
-        Ok(out)
+        Ok(out.into_periodic())
     }
 }

@@ -141,7 +141,7 @@ fn one_period(padded: &RegionSolid, m: u32) -> Result<RegionSolid> {
                 }
             }
         }
-        Ok(out)
+        Ok(out.into_periodic())
     };
     let distance = cut(&padded.distance)?;
     let split = (0..(m as usize + 1).pow(3))
