@@ -37,7 +37,7 @@ pub enum BenchCommand {
     /// Load test of `serve`: concurrent cut requests on loopback; throughput, p50/p95 latency,
     /// failures.
     #[command(after_help = super::help::BENCH_SERVE)]
-    Serve(super::serve::BenchServeArgs),
+    Serve(super::serve_bench::BenchServeArgs),
     /// The same jobs (a volume, warm cuts, a surface) on the CPU backend and on every GPU adapter
     /// present, software ones labelled: medians, CPU/GPU ratios and a same-bytes check, as
     /// Markdown or JSON.
@@ -170,7 +170,7 @@ pub fn run(cmd: BenchCommand) -> anyhow::Result<()> {
         BenchCommand::GradientRender(args) => bench_gradient_render(args),
         BenchCommand::Ptm(args) => super::ptm_bench::run(args),
         BenchCommand::Lapped(args) => super::lapped_bench::run(args),
-        BenchCommand::Serve(args) => super::serve::bench(args),
+        BenchCommand::Serve(args) => super::serve_bench::bench(args),
         BenchCommand::Compare(args) => super::bench_compare::run(args),
     }
 }

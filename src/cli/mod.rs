@@ -17,8 +17,10 @@ pub mod ptm;
 pub mod ptm_bench;
 pub mod region_zarr;
 pub mod serve;
+pub mod serve_bench;
 pub mod surface;
 pub mod synth;
+mod triples;
 
 use clap::{Args, Parser, Subcommand};
 

@@ -6,6 +6,7 @@ mod analysis;
 mod common;
 mod eval;
 mod gradient;
+mod gradient_edit;
 mod lapped;
 mod outputs;
 mod surface;
