@@ -111,6 +111,9 @@ pub struct Influence {
     weights: Vec<f64>,
     colour_channels: usize,
     propagation: Propagation,
+    /// A periodic solid's period: distances to the strokes are taken to their nearest copies,
+    /// so the edit repeats with the solid and it stays periodic.
+    period: Option<[f64; 3]>,
     /// RMS difference between h at the strokes and their strengths.
     pub residual: f64,
 }
@@ -124,6 +127,12 @@ impl Influence {
             solid.eval(p.map(|v| v as f32), &mut out);
             out.into_iter().map(|v| v as f64).collect::<Vec<f64>>()
         };
+        let period = solid.periodic.then(|| solid.size.map(f64::from));
+        // A stroke on a periodic solid stands for all its copies: read its colour in the period.
+        let at = |p: [f64; 3]| match period {
+            Some(period) => std::array::from_fn(|a| p[a].rem_euclid(period[a])),
+            None => p,
+        };
         let step = strokes.len().div_ceil(MAX_CENTRES);
         let mut inf = Influence {
             centres: strokes
@@ -131,18 +140,19 @@ impl Influence {
                 .step_by(step)
                 .map(|s| Centre {
                     position: s.position,
-                    color: eval(s.position),
+                    color: eval(at(s.position)),
                 })
                 .collect(),
             weights: Vec::new(),
             colour_channels: channels.min(3),
             propagation,
+            period,
             residual: 0.0,
         };
         let mut a = ndarray::Array2::<f64>::zeros((strokes.len(), inf.centres.len()));
         let mut b = ndarray::Array1::<f64>::zeros(strokes.len());
         for (j, s) in strokes.iter().enumerate() {
-            let c = eval(s.position);
+            let c = eval(at(s.position));
             for (k, centre) in inf.centres.iter().enumerate() {
                 a[[j, k]] = inf.kernel(s.position, &c, centre);
             }
@@ -154,8 +164,18 @@ impl Influence {
         inf
     }
 
+    /// p - q along `axis`; for a periodic solid, to q's nearest copy, in [-P/2, P/2) (the same
+    /// for p and p + P, so the first and last faces of control points stay equal).
+    fn offset(&self, p: [f64; 3], q: [f64; 3], axis: usize) -> f64 {
+        let d = p[axis] - q[axis];
+        match self.period {
+            Some(period) => (d + period[axis] / 2.0).rem_euclid(period[axis]) - period[axis] / 2.0,
+            None => d,
+        }
+    }
+
     fn kernel(&self, p: [f64; 3], c: &[f64], k: &Centre) -> f64 {
-        let dp: f64 = (0..3).map(|i| (p[i] - k.position[i]).powi(2)).sum();
+        let dp: f64 = (0..3).map(|i| self.offset(p, k.position, i).powi(2)).sum();
         let Propagation { alpha, beta } = self.propagation;
         (-alpha * (beta * dp + color_d2(c, &k.color, self.colour_channels))).exp()
     }
@@ -191,7 +211,7 @@ impl Influence {
                     * 2.0
                     * alpha
                     * hk
-                    * (beta * (p[axis] - centre.position[axis]) + colour_term);
+                    * (beta * self.offset(p, centre.position, axis) + colour_term);
             }
         }
         if !(0.0..=1.0).contains(&h) {
@@ -323,6 +343,48 @@ mod tests {
             let (a, b) = (before.at([i, 1, 1], 2)[0], s.at([i, 1, 1], 2)[0]);
             assert!((a - b).abs() < 1.0, "point {i}: {a} -> {b}");
         }
+    }
+
+    /// A periodic solid stays periodic: a stroke near one face reaches the opposite face through
+    /// its copy, so the last face of control points still equals the first.
+    #[test]
+    fn an_edit_of_a_periodic_solid_repeats_with_it() {
+        let mut s = GradientSolid::new([5, 5, 5], 3).unwrap();
+        let mut rng = crate::util::hash::SeededRng::new(3);
+        for v in s.data.chunks_mut(4) {
+            v[0] = 100.0 + rng.below(60) as f32;
+        }
+        // The last face a copy of the first, as synthesis writes it.
+        for k in 0..5 {
+            for j in 0..5 {
+                for ch in 0..3 {
+                    let first = s.at([0, j, k], ch).to_vec();
+                    s.at_mut([4, j, k], ch).copy_from_slice(&first);
+                }
+            }
+        }
+        let mut s = s.into_periodic();
+        let strokes = parse_strokes(
+            r#"{"strokes": [{"position": [15.5, 8, 8], "strength": 1.0}]}"#,
+            "s",
+        )
+        .unwrap();
+        let propagation = Propagation {
+            alpha: 1e-3,
+            beta: 1.0,
+        };
+        edit(&mut s, &strokes, &[0.0, 255.0, 0.0], propagation).unwrap();
+        for k in 0..5 {
+            for j in 0..5 {
+                for ch in 0..3 {
+                    assert_eq!(s.at([0, j, k], ch), s.at([4, j, k], ch), "{j},{k},{ch}");
+                }
+            }
+        }
+        // The stroke at x = 15.5 reached x = 0 (half a voxel away through the period).
+        let mut out = [0f32; 3];
+        s.eval([0.0, 8.0, 8.0], &mut out);
+        assert!(out[1] > 200.0, "{out:?}");
     }
 
     /// Eqs. 5-6 are the derivative of c'(p) = (1 - h(p, c(p))) c(p) + h c_ref along the original

@@ -48,10 +48,11 @@ fn strokes_recolour_the_solid_and_bad_edits_are_refused() {
         at_stroke[0] > 200.0 && at_stroke[2] > 200.0 && at_stroke[1] < 60.0,
         "{at_stroke:?}"
     );
-    let far = r#"{"strokes": [{"position": [1e30, 0, 0], "strength": 1.0}]}"#;
+    // (The solid is periodic: a stroke anywhere in space reaches it; one of strength 0 not.)
+    let none = r#"{"strokes": [{"position": [8, 8, 8], "strength": 0.0}]}"#;
     for (text, color, needle) in [
         (r#"{"strokes": []}"#, "255,0,255", "no strokes"),
-        (far, "255,0,255", "the strokes change no control point"),
+        (none, "255,0,255", "the strokes change no control point"),
         (at_8, "300,0,255", "--color 300,0,255"),
         (at_8, "1e39,0,0", "--color 1e39,0,0"),
     ] {
